@@ -1,0 +1,1 @@
+"""Pieces every part of the toolkit shares: image I/O, colour conventions, spherical harmonics, dataset layout."""

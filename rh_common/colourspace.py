@@ -1,0 +1,46 @@
+"""Colour conventions shared by every part (see docs/ARCHITECTURE.md, "Colour").
+
+The sRGB transfer function is colour-science's IEC 61966-2-1 implementation; these wrappers fix the dtype
+(float32 in, float32 out) and the display-space rule so that no module writes its own curve.
+"""
+from __future__ import annotations
+
+import colour
+import numpy as np
+
+REC709_LUMINANCE = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+
+
+def srgb_encode(linear: np.ndarray) -> np.ndarray:
+    """Linear values in [0, 1] to sRGB-encoded values in [0, 1] (input is clipped to [0, 1] first)."""
+    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
+    return np.asarray(colour.cctf_encoding(x, function="sRGB"), dtype=np.float32)
+
+
+def srgb_decode(encoded: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] to linear values in [0, 1]."""
+    x = np.clip(np.asarray(encoded, dtype=np.float64), 0.0, 1.0)
+    return np.asarray(colour.cctf_decoding(x, function="sRGB"), dtype=np.float32)
+
+
+def to_display(radiance: np.ndarray, exposure: float) -> np.ndarray:
+    """HDR linear radiance to display space: sRGB(clip(exposure * radiance, 0, 1)), float32 in [0, 1].
+
+    Non-finite input raises: a NaN would otherwise be clipped into a plausible-looking pixel.
+    """
+    radiance = np.asarray(radiance, dtype=np.float32)
+    if not np.all(np.isfinite(radiance)):
+        raise ValueError("to_display: radiance contains NaN or Inf")
+    if not (np.isfinite(exposure) and exposure > 0):
+        raise ValueError(f"to_display: exposure must be a positive finite number, got {exposure!r}")
+    return srgb_encode(radiance * np.float32(exposure))
+
+
+def luminance(rgb_linear: np.ndarray) -> np.ndarray:
+    """Rec.709 relative luminance of linear RGB (last axis = channels)."""
+    return np.asarray(rgb_linear, dtype=np.float32)[..., :3] @ REC709_LUMINANCE
+
+
+def quantize8(x01: np.ndarray) -> np.ndarray:
+    """[0, 1] floats to uint8 with round-half-up, the one quantisation rule for 8-bit files."""
+    return np.floor(np.clip(np.asarray(x01, dtype=np.float64), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)

@@ -1,0 +1,179 @@
+"""The one image and file I/O module: float32 EXR, 8-bit PNG, JSON, all written atomically.
+
+Atomic means: write to a temporary file in the destination folder, flush and fsync it, then rename it over the
+destination. A reader (or a rerun after `kill -9`) therefore sees either the old file, the complete new file, or
+no file, never a truncated one.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+import OpenEXR
+from PIL import Image
+
+__all__ = [
+    "ImageFileError",
+    "atomic_path",
+    "read_exr",
+    "write_exr",
+    "read_png",
+    "write_png",
+    "read_json",
+    "write_json",
+    "dumps_json",
+    "sha256_file",
+]
+
+
+class ImageFileError(ValueError):
+    """A file that cannot be read as the image the caller expects; the message names the file."""
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path next to `path`; on success fsync it and rename it to `path`.
+
+    The temporary name ends in `.tmp` so that a leftover from a killed process is recognisable and never taken for
+    a finished file.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        with open(tmp_path, "rb+") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp_path, path)
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()
+
+
+def _channel_names(n: int) -> tuple[str, ...]:
+    return {1: ("Y",), 3: ("R", "G", "B"), 4: ("R", "G", "B", "A")}[n]
+
+
+def write_exr(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write an (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) array as a float32 EXR (ZIP compression), atomically.
+
+    float32 always: half floats overflow at 65504, which the sun in a real HDRI exceeds.
+    """
+    arr = np.asarray(image)
+    if arr.ndim == 2:
+        arr = arr[..., None]
+    if arr.ndim != 3 or arr.shape[2] not in (1, 3, 4):
+        raise ValueError(f"write_exr {path}: expected (H, W[, 1|3|4]), got shape {np.shape(image)}")
+    arr = np.ascontiguousarray(arr, dtype=np.float32)
+    names = _channel_names(arr.shape[2])
+    channels = {name: np.ascontiguousarray(arr[..., i]) for i, name in enumerate(names)}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with atomic_path(path) as tmp:
+        with OpenEXR.File(header, channels) as f:
+            f.write(str(tmp))
+
+
+def read_exr(path: str | os.PathLike) -> np.ndarray:
+    """Read an EXR as float32 (H, W, C): C = 1 for a `Y` image, 3 for RGB, 4 for RGBA. Half is widened."""
+    path = Path(path)
+    if not path.is_file():
+        raise ImageFileError(f"{path}: no such file")
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            chans = f.channels()
+            names = list(chans.keys())
+            data = {k: np.asarray(v.pixels) for k, v in chans.items()}
+    except Exception as exc:  # OpenEXR raises plain Exceptions for corrupt files
+        raise ImageFileError(f"{path}: not a readable EXR file ({exc})") from exc
+    for wanted in (("R", "G", "B", "A"), ("R", "G", "B"), ("Y",)):
+        if all(w in data for w in wanted) and len(data) == len(wanted):
+            return np.stack([data[w].astype(np.float32) for w in wanted], axis=-1)
+    if len(names) == 1:
+        return data[names[0]].astype(np.float32)[..., None]
+    raise ImageFileError(f"{path}: unexpected EXR channels {sorted(names)}; expected R,G,B[,A] or Y")
+
+
+def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write a uint8 (H, W), (H, W, 3) or (H, W, 4) array as PNG, atomically. Floats are refused: quantise first
+    (`rh_common.colourspace.quantize8`) so the rounding rule is the project's, not Pillow's."""
+    arr = np.asarray(image)
+    if arr.dtype != np.uint8:
+        raise ValueError(f"write_png {path}: expected uint8, got {arr.dtype}; quantise with colourspace.quantize8")
+    if arr.ndim == 3 and arr.shape[2] == 1:
+        arr = arr[..., 0]
+    if not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] in (3, 4))):
+        raise ValueError(f"write_png {path}: expected (H, W[, 3|4]), got shape {arr.shape}")
+    with atomic_path(path) as tmp:
+        Image.fromarray(arr).save(tmp, format="PNG", compress_level=6)
+
+
+def read_png(path: str | os.PathLike, *, allow_16bit: bool = False) -> np.ndarray:
+    """Read an 8-bit PNG as uint8 (H, W) or (H, W, C). A 16-bit PNG raises unless `allow_16bit`, because silently
+    rescaling it would change every score computed from it."""
+    path = Path(path)
+    if not path.is_file():
+        raise ImageFileError(f"{path}: no such file")
+    try:
+        with Image.open(path) as im:
+            im.load()
+            mode = im.mode
+            if mode in ("I;16", "I;16B", "I;16L", "I"):
+                if not allow_16bit:
+                    raise ImageFileError(f"{path}: 16-bit PNG; save it as 8-bit RGB (or as float32 EXR)")
+                return np.asarray(im).astype(np.uint16)
+            if mode == "P":
+                im = im.convert("RGBA" if "transparency" in im.info else "RGB")
+            elif mode not in ("L", "RGB", "RGBA", "LA"):
+                raise ImageFileError(f"{path}: unsupported PNG mode {mode}; save it as 8-bit RGB")
+            return np.asarray(im).copy()
+    except ImageFileError:
+        raise
+    except Exception as exc:
+        raise ImageFileError(f"{path}: not a readable PNG file ({exc})") from exc
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")
+
+
+def dumps_json(obj: Any) -> str:
+    """Canonical JSON text: sorted keys, 2-space indent, NaN refused (strict JSON), trailing newline."""
+    return json.dumps(obj, sort_keys=True, indent=2, default=_json_default, allow_nan=False) + "\n"
+
+
+def write_json(path: str | os.PathLike, obj: Any) -> None:
+    text = dumps_json(obj)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def read_json(path: str | os.PathLike) -> Any:
+    path = Path(path)
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc})") from exc
+
+
+def sha256_file(path: str | os.PathLike) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()

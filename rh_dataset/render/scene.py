@@ -1,0 +1,115 @@
+"""Turn posed meshes, a light and a camera into a Mitsuba 3 scene dict. Nothing here renders.
+
+One plain function builds the dict (as Mitsuba's own `cornell_box()` does), so tests derive variants by editing it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol, Sequence
+
+import numpy as np
+
+from .camera import Camera
+from .variant import require_variant
+
+__all__ = ["MeshLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf"]
+
+
+class MaterialLike(Protocol):
+    albedo: np.ndarray  # (H, W, 3) float32 linear, row 0 = top of the texture image (v = 1)
+    roughness: float
+    specular: float
+
+
+class MeshLike(Protocol):
+    name: str
+    vertices: np.ndarray
+    normals: np.ndarray
+    faces: np.ndarray
+    uvs: np.ndarray  # OpenGL convention: v = 0 at the bottom row of the texture
+    material: MaterialLike
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """How hard the renderer works. Presets live in scenes/presets.json."""
+
+    spp: int = 64
+    """Samples per pixel of the path-traced beauty pass."""
+    aov_spp: int = 16
+    """Samples per pixel of the AOV pass (albedo, normal, mask, depth): these converge far faster."""
+    max_depth: int = 6
+    """Longest path (Mitsuba `max_depth`): 2 = direct light only; each extra unit adds one bounce."""
+    preset: str = "custom"
+
+    def __post_init__(self) -> None:
+        for name in ("spp", "aov_spp"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 1:
+                raise ValueError(f"render setting {name} must be a positive integer, got {v!r}")
+        if not isinstance(self.max_depth, int) or self.max_depth < 2:
+            raise ValueError(f"render setting max_depth must be an integer >= 2, got {self.max_depth!r}")
+
+
+def mitsuba_bsdf(material: MaterialLike) -> Any:
+    import mitsuba as mi
+
+    require_variant()
+    # Mitsuba looks textures up with v = 0 on the bitmap's first row; our UVs follow OpenGL (v = 0 at the
+    # bottom), so the texture is flipped once here rather than every UV set being rewritten.
+    tex = np.ascontiguousarray(np.flipud(np.asarray(material.albedo, dtype=np.float32)))
+    reflectance = {"type": "bitmap", "bitmap": mi.Bitmap(tex), "raw": True, "filter_type": "bilinear"}
+    if material.specular <= 0.0:
+        return mi.load_dict({"type": "diffuse", "reflectance": reflectance})
+    # A diffuse base under a rough dielectric coat: skin and fabric sheen. The albedo AOV of `roughplastic`
+    # is its diffuse_reflectance, i.e. exactly the texture: the ground-truth albedo stays the texture colour.
+    alpha = float(np.clip(material.roughness, 0.02, 1.0)) ** 2
+    return mi.load_dict({
+        "type": "roughplastic",
+        "distribution": "ggx",
+        "alpha": alpha,
+        "diffuse_reflectance": reflectance,
+        "specular_reflectance": float(np.clip(material.specular, 0.0, 1.0)),
+        "nonlinear": True,
+    })
+
+
+def mitsuba_mesh(mesh: MeshLike) -> Any:
+    """A Mitsuba mesh built in memory from arrays (no temporary files)."""
+    import mitsuba as mi
+
+    require_variant()
+    V = np.asarray(mesh.vertices, dtype=np.float32)
+    F = np.asarray(mesh.faces, dtype=np.uint32)
+    N = np.asarray(mesh.normals, dtype=np.float32)
+    UV = np.asarray(mesh.uvs, dtype=np.float32)
+    if not (V.ndim == 2 and V.shape[1] == 3 and N.shape == V.shape and UV.shape == (len(V), 2)):
+        raise ValueError(f"mesh {mesh.name}: inconsistent shapes V{V.shape} N{N.shape} UV{UV.shape}")
+    if F.size and F.max() >= len(V):
+        raise ValueError(f"mesh {mesh.name}: face index {int(F.max())} out of range for {len(V)} vertices")
+    if not (np.all(np.isfinite(V)) and np.all(np.isfinite(N))):
+        raise ValueError(f"mesh {mesh.name}: non-finite vertex positions or normals")
+    props = mi.Properties()
+    props["bsdf"] = mitsuba_bsdf(mesh.material)
+    m = mi.Mesh(mesh.name, len(V), len(F), props, has_vertex_normals=True, has_vertex_texcoords=True)
+    params = mi.traverse(m)
+    params["vertex_positions"] = mi.Float(V.ravel())
+    params["vertex_normals"] = mi.Float(N.ravel())
+    params["vertex_texcoords"] = mi.Float(UV.ravel())
+    params["faces"] = mi.UInt32(F.ravel())
+    params.update()
+    return m
+
+
+def scene_dict(meshes: Sequence[MeshLike], emitter: dict, camera: Camera, integrator: dict, spp: int,
+               *, pixel_format: str) -> dict:
+    """The whole Mitsuba scene: one sensor, one environment emitter, the character's meshes."""
+    d: dict[str, Any] = {
+        "type": "scene",
+        "integrator": integrator,
+        "sensor": camera.mitsuba_sensor(spp, pixel_format=pixel_format),
+        "environment": emitter,
+    }
+    for i, mesh in enumerate(meshes):
+        d[f"mesh_{i:02d}_{mesh.name}"] = mitsuba_mesh(mesh)
+    return d

