@@ -1,0 +1,1 @@
+"""rana: the benchmark's bundled methods — RANA (in progress), and the Lambertian-SH oracle bound."""

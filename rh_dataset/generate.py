@@ -1,0 +1,348 @@
+"""The generator's pipeline: protocol spec → characters → poses → lights → Mitsuba → frame writer → dataset.
+
+Every random choice comes from a generator seeded by (dataset seed, what it is for, which subject/split/frame), so
+any frame can be produced on its own — by a rerun that resumes, or by another worker — and comes out the same.
+"""
+from __future__ import annotations
+
+import dataclasses
+import importlib.metadata as md
+import os
+import platform
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterator
+
+import numpy as np
+
+from rh_common import sh
+from rh_common.imageio import read_json, write_json
+from rh_dataset import __version__
+from rh_dataset.render.camera import Camera, frame_body
+from rh_dataset.render.passes import render_frame
+from rh_dataset.render.scene import RenderSettings
+from rh_dataset.render.variant import select_variant
+from rh_dataset.spec import ProtocolSpec, SplitSpec
+from rh_dataset.writer import contact_sheet, frame_is_complete, frame_stem, write_frame, write_manifest
+
+__all__ = ["GenerateOptions", "GenerateError", "FrameTask", "plan", "generate", "subject_name", "rng_for",
+           "DATASET_FORMAT"]
+
+DATASET_FORMAT = "rh-dataset/1"
+
+
+class GenerateError(RuntimeError):
+    """A run that cannot start or continue; the message names the problem and the fix."""
+
+
+@dataclass(frozen=True)
+class GenerateOptions:
+    out: Path
+    spec: ProtocolSpec
+    settings: RenderSettings
+    seed: int = 0
+    variant: str | None = None
+    overwrite: bool = False
+    workers: int = 1
+
+
+@dataclass(frozen=True)
+class FrameTask:
+    subject: int
+    split: str
+    index: int
+
+
+def subject_name(i: int) -> str:
+    return f"subject_{i:03d}"
+
+
+_PURPOSES = {"character": 1, "camera": 2, "light": 3, "pose": 4, "render": 5}
+_SPLIT_CODES = {"train": 1, "test": 2}
+
+
+def rng_for(seed: int, purpose: str, *keys: int | str) -> np.random.Generator:
+    """An independent generator for one purpose and one (subject, split, frame) key."""
+    words = [seed, _PURPOSES[purpose]]
+    for k in keys:
+        words.append(k if isinstance(k, int) else _SPLIT_CODES.get(k, sum(k.encode()) + 1000))
+    return np.random.default_rng(np.random.SeedSequence(words))
+
+
+def plan(spec: ProtocolSpec) -> list[FrameTask]:
+    return [FrameTask(s, split.name, i) for s in range(spec.subjects) for split in spec.splits
+            for i in range(split.frames)]
+
+
+def versions() -> dict[str, str]:
+    out = {"rh": __version__, "python": platform.python_version()}
+    for pkg in ("mitsuba", "drjit", "anny", "numpy", "torch"):
+        try:
+            out[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            out[pkg] = "absent"
+    return out
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Dataset folder bookkeeping
+
+
+def _dataset_record(opts: GenerateOptions) -> dict:
+    return {
+        "spec": opts.spec.to_json(),
+        "spec_digest": opts.spec.digest(),
+        "seed": opts.seed,
+        "render": dataclasses.asdict(opts.settings),
+    }
+
+
+def prepare_out(opts: GenerateOptions) -> None:
+    """Refuse to mix datasets: a folder must be empty, ours with the same settings, or `--overwrite` given."""
+    out = opts.out
+    if out.exists() and not out.is_dir():
+        raise GenerateError(f"--out {out} is a file; pass a folder")
+    ds_path = out / "dataset.json"
+    key = f"protocol_{opts.spec.protocol}"
+    record = _dataset_record(opts)
+    if ds_path.is_file():
+        ds = read_json(ds_path)
+        if ds.get("format") != DATASET_FORMAT:
+            raise GenerateError(f"{ds_path} is not an rh dataset ({ds.get('format')!r}); choose another --out")
+        old = ds.get("protocols", {}).get(key)
+        if old is not None and old != record and not opts.overwrite:
+            raise GenerateError(
+                f"{out} already holds {key} made with other settings (spec {old.get('spec_digest')}, seed "
+                f"{old.get('seed')}, render {old.get('render')}); rerun with the same flags to resume, choose another "
+                f"--out, or pass --overwrite to replace it")
+    elif out.is_dir() and any(p for p in out.iterdir() if not p.name.startswith(".")):
+        raise GenerateError(f"{out} is not empty and holds no dataset.json: it is not an rh dataset; "
+                            "choose an empty or new --out folder")
+    else:
+        ds = {"format": DATASET_FORMAT, "protocols": {}}
+    if opts.overwrite and key in ds.get("protocols", {}) and ds["protocols"][key] != record:
+        import shutil
+
+        for d in out.glob(f"subject_*/{key}"):
+            shutil.rmtree(d)
+    ds["generator_version"] = __version__
+    ds.setdefault("protocols", {})[key] = record
+    write_json(ds_path, ds)
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Per-subject state
+
+
+@dataclass
+class SubjectState:
+    index: int
+    character: object
+    recipe_json: dict
+    camera: Camera
+
+
+def build_subject(opts: GenerateOptions, s: int) -> SubjectState:
+    from rh_dataset.characters import build_character, body_bounds, pose_character, sample_recipe
+
+    recipe = sample_recipe(rng_for(opts.seed, "character", s), pool=opts.spec.character_pool, index=s)
+    character = build_character(recipe)
+    lo, hi = body_bounds(pose_character(character, None, None))
+    # Random poses reach above the head and out to the sides: frame a box a little larger than the rest pose.
+    h = hi[2] - lo[2]
+    margin = np.array([0.15 * h, 0.15 * h, 0.0])
+    lo, hi = lo - margin, hi + margin + np.array([0.0, 0.0, 0.08 * h])
+    cam = frame_body(lo, hi, opts.spec.width, opts.spec.height, opts.spec.fov_y_deg, fill=0.92)
+    recipe_json = recipe.to_json()
+    path = opts.out / subject_name(s) / "character.json"
+    if path.is_file():
+        if read_json(path) != read_json_roundtrip(recipe_json):
+            raise GenerateError(f"{path} describes another character than this run would make; "
+                                "use another --out or --overwrite")
+    else:
+        write_json(path, recipe_json)
+    return SubjectState(s, character, recipe_json, cam)
+
+
+def read_json_roundtrip(obj: dict) -> dict:
+    import json
+
+    from rh_common.imageio import dumps_json
+
+    return json.loads(dumps_json(obj))
+
+
+def _pose_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int):
+    from rh_dataset.characters.body import load_anny
+    from rh_dataset.poses import sample_pose, turntable
+
+    if split.poses == "turntable":
+        return turntable(split.frames)[i]
+    key = "train" if split.poses == "train" else split.name
+    return sample_pose(rng_for(opts.seed, "pose", s, key, i), load_anny())
+
+
+def _light_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int, library: dict):
+    from rh_dataset.lights import build_light, sample_light
+
+    protocol_key = opts.spec.protocol
+    if split.light == "fixed":
+        rng = rng_for(opts.seed, "light", s, protocol_key, split.name)
+    else:
+        rng = rng_for(opts.seed, "light", s, protocol_key, split.name, i)
+    spec = sample_light(rng, library, exposure_ev_range=opts.spec.exposure_ev_range, allow_sunsky=opts.spec.sunsky)
+    return build_light(spec)
+
+
+def exposure_for(light) -> float:
+    """Display exposure of a light: the reciprocal of the map's mean radiance over the sphere.
+
+    It depends on the light only, so every frame under one fixed light shares one exposure (a training video
+    does not flicker), and the random EV jitter of the light is undone for display while the HDR keeps it.
+    """
+    H, W = light.radiance.shape[:2]
+    w = sh.pixel_solid_angles(H, W)
+    lum = light.radiance @ np.array([0.2126, 0.7152, 0.0722])
+    mean = float((lum * w[:, None] if w.ndim == 1 else lum * w).sum() / (4 * np.pi))
+    return 1.0 / mean if mean > 1e-12 else 1.0
+
+
+def frame_meta(opts: GenerateOptions, subj: SubjectState, split: SplitSpec, i: int, pose, light, render_seed: int,
+               exposure: float) -> dict:
+    cam = subj.camera
+    R = cam.world_to_opengl_rotation()
+    sh_world = np.asarray(light.sh_world, dtype=np.float64)
+    return {
+        "subject": subject_name(subj.index),
+        "protocol": opts.spec.protocol,
+        "split": split.name,
+        "width": cam.width,
+        "height": cam.height,
+        "camera": cam.to_json(),
+        "body": {"model": "anny", "phenotype": subj.character.phenotype, "pose": pose.to_json(),
+                 "turntable_deg": float(getattr(pose, "turntable_deg", 0.0))},
+        "light": {**light_spec_json(light.spec), "sh_world": sh_world, "sh_camera": sh.rotate(sh_world, R),
+                  "negative_pixels_clamped": int(light.negative_pixels_clamped)},
+        "exposure": exposure,
+        "render": {**dataclasses.asdict(opts.settings), "seed": render_seed, "variant": select_variant(None),
+                   "denoised": False},
+        "versions": versions(),
+    }
+
+
+def light_spec_json(spec) -> dict:
+    d = dataclasses.asdict(spec)
+    d["source"] = os.path.basename(str(d.get("source", "")))  # no machine-specific absolute paths in the data
+    return d
+
+
+# --------------------------------------------------------------------------------------------------------------
+# The run
+
+
+def _light_library(spec: ProtocolSpec) -> dict:
+    from rh_dataset.lights import bundled_hdris, hdri_library
+
+    return hdri_library(spec.hdri_folder) if spec.hdri_folder else bundled_hdris()
+
+
+def run_subject(opts: GenerateOptions, s: int, on_frame: Callable[[FrameTask, bool], None]) -> None:
+    """Render every missing frame of one subject (all splits) and its contact sheets."""
+    from rh_dataset.characters import pose_character
+    from rh_dataset.lights import mitsuba_emitter_dict
+
+    select_variant(opts.variant)
+    library = _light_library(opts.spec)
+    subj = None
+    key = f"protocol_{opts.spec.protocol}"
+    for split in opts.spec.splits:
+        split_dir = opts.out / subject_name(s) / key / split.name
+        for i in range(split.frames):
+            task = FrameTask(s, split.name, i)
+            if frame_is_complete(split_dir, i, split.layers):
+                on_frame(task, True)
+                continue
+            if subj is None:
+                subj = build_subject(opts, s)
+            pose = _pose_for(opts, split, s, i)
+            light = _light_for(opts, split, s, i, library)
+            meshes = pose_character(subj.character, dict(pose.bones), pose.root_transform)
+            render_seed = int(rng_for(opts.seed, "render", s, key, split.name, i).integers(0, 2**31 - 2))
+            result = render_frame(meshes, mitsuba_emitter_dict(light), subj.camera, opts.settings, split.layers,
+                                  render_seed)
+            exposure = exposure_for(light)
+            meta = frame_meta(opts, subj, split, i, pose, light, render_seed, exposure)
+            write_frame(split_dir, i, result.layers, meta)
+            on_frame(task, False)
+        contact_sheet(split_dir, list(range(split.frames)), split.layers)
+
+
+def generate(opts: GenerateOptions, *, progress: bool = True) -> dict:
+    """Generate (or resume) a dataset; returns counts. Writes dataset.json first and manifest.json last."""
+    opts = dataclasses.replace(opts, out=Path(opts.out))
+    if opts.workers < 1:
+        raise GenerateError(f"--workers must be >= 1, got {opts.workers}")
+    _light_library(opts.spec)  # fail early on a missing or unreadable light set, before any file is written
+    select_variant(opts.variant)
+    prepare_out(opts)
+    tasks = plan(opts.spec)
+    counts = {"rendered": 0, "skipped": 0}
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(tasks), unit="frame", disable=not progress, dynamic_ncols=True,
+               desc=f"protocol {opts.spec.protocol}")
+
+    def on_frame(task: FrameTask, skipped: bool) -> None:
+        counts["skipped" if skipped else "rendered"] += 1
+        bar.set_postfix_str(f"{subject_name(task.subject)}/{task.split}/{frame_stem(task.index)}", refresh=False)
+        bar.update(1)
+
+    t0 = time.perf_counter()
+    if opts.workers == 1:
+        for s in range(opts.spec.subjects):
+            run_subject(opts, s, on_frame)
+    else:
+        _run_parallel(opts, on_frame)
+    bar.close()
+    write_manifest(opts.out)
+    counts["seconds"] = time.perf_counter() - t0
+    return counts
+
+
+def _worker(opts: GenerateOptions, s: int, queue) -> None:
+    import drjit as dr
+
+    dr.set_thread_count(max(1, (os.cpu_count() or 1) // opts.workers))
+    run_subject(opts, s, lambda task, skipped: queue.put((task, skipped)))
+
+
+def _run_parallel(opts: GenerateOptions, on_frame: Callable[[FrameTask, bool], None]) -> None:
+    """One process per subject at a time, `workers` at once; frames report back through a queue."""
+    import multiprocessing as mp
+    import queue as queue_mod
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    ctx = mp.get_context("spawn")  # drjit's JIT state must not be forked
+    with ctx.Manager() as manager:
+        q = manager.Queue()
+        with ProcessPoolExecutor(max_workers=opts.workers, mp_context=ctx) as pool:
+            pending = {pool.submit(_worker, opts, s, q) for s in range(opts.spec.subjects)}
+            while pending:
+                done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+                for f in done:
+                    f.result()  # re-raise a worker's error here
+                while True:
+                    try:
+                        on_frame(*q.get_nowait())
+                    except queue_mod.Empty:
+                        break
+            while True:
+                try:
+                    on_frame(*q.get_nowait())
+                except queue_mod.Empty:
+                    break
+
+
+def iter_frames(root: Path) -> Iterator[Path]:
+    yield from sorted(Path(root).glob("subject_*/protocol_*/*/frame_*.json"))

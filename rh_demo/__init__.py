@@ -1,0 +1,58 @@
+"""`rh-demo`: the whole chain on the small embedded default, as the README's first command runs it.
+
+scenes/demo.json (protocol a, one subject, 12 turntable + 6 test frames, 128x128, draft preset) → rh-generate →
+rh-verify → a baseline's predictions → rh-eval → rh-leaderboard. Each step is the same entry point a user calls.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["main"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="rh-demo", description=__doc__.strip().splitlines()[0],
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--out", type=Path, default=Path("demo_out"), help="folder for the dataset, predictions, results")
+    p.add_argument("--preset", default="draft", help="render preset (scenes/presets.json)")
+    p.add_argument("--seed", type=int, default=0, help="dataset seed")
+    args = p.parse_args(argv)
+
+    from rana import oracle
+    from rh_dataset import cli as generate_cli
+    from rh_dataset import verify
+    from rh_eval import cli as eval_cli
+    from rh_eval import leaderboard
+
+    data, preds = args.out / "data", args.out / "predictions"
+    results, board = args.out / "results", args.out / "leaderboard"
+    steps = [
+        ("generate", lambda: generate_cli.main(["--protocol", "demo", "--out", str(data), "--preset", args.preset,
+                                                "--seed", str(args.seed)])),
+        ("verify", lambda: verify.main([str(data), "--no-progress"])),
+        ("baseline", lambda: oracle.main(["--dataset", str(data), "--protocol", "a",
+                                          "--out", str(preds / "oracle")])),
+        ("evaluate", lambda: eval_cli.main([str(preds / "oracle"), "--dataset", str(data), "--protocol", "a",
+                                            "--out", str(results / "oracle.json")])),
+        ("leaderboard", lambda: leaderboard.main([str(results / "oracle.json"), "--out", str(board)])),
+    ]
+    for name, step in steps:
+        t = time.perf_counter()
+        print(f"== rh-demo: {name}", flush=True)
+        rc = step()
+        if rc:
+            print(f"rh-demo: step {name!r} failed (exit {rc})", file=sys.stderr)
+            return rc
+        print(f"== rh-demo: {name} done in {time.perf_counter() - t:.1f} s", flush=True)
+    print("rh-demo: done. Look at:")
+    for sheet in sorted(data.glob("subject_*/protocol_*/*/contact_sheet.png")):
+        print(f"  {sheet}")
+    print(f"  {board / 'leaderboard.md'}\n  {board / 'index.html'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
