@@ -149,14 +149,15 @@ def build_subject(opts: GenerateOptions, s: int) -> SubjectState:
     recipe = sample_recipe(rng_for(opts.seed, "character", s), pool=opts.spec.character_pool, index=s)
     character = build_character(recipe)
     lo, hi = body_bounds(pose_character(character, None, None))
-    # Random poses reach above the head and out to the sides: frame a box a little larger than the rest pose.
+    # Random poses reach up to ~0.2 body heights above the head (arms overhead) and sideways about as far as the
+    # A-pose's hands; feet stay near the ground (the root does not move). Frame that box, not the rest pose's.
     h = hi[2] - lo[2]
-    margin = np.array([0.15 * h, 0.15 * h, 0.0])
-    lo, hi = lo - margin, hi + margin + np.array([0.0, 0.0, 0.08 * h])
-    cam = frame_body(lo, hi, opts.spec.width, opts.spec.height, opts.spec.fov_y_deg, fill=0.92)
+    lo = np.array([lo[0] - 0.05 * h, lo[1], lo[2] - 0.03 * h])
+    hi = np.array([hi[0] + 0.05 * h, hi[1], hi[2] + 0.18 * h])
+    cam = frame_body(lo, hi, opts.spec.width, opts.spec.height, opts.spec.fov_y_deg, fill=0.96)
     recipe_json = recipe.to_json()
     path = opts.out / subject_name(s) / "character.json"
-    if path.is_file():
+    if path.is_file() and not opts.overwrite:
         if read_json(path) != read_json_roundtrip(recipe_json):
             raise GenerateError(f"{path} describes another character than this run would make; "
                                 "use another --out or --overwrite")
@@ -283,7 +284,14 @@ def generate(opts: GenerateOptions, *, progress: bool = True) -> dict:
     opts = dataclasses.replace(opts, out=Path(opts.out))
     if opts.workers < 1:
         raise GenerateError(f"--workers must be >= 1, got {opts.workers}")
-    _light_library(opts.spec)  # fail early on a missing or unreadable light set, before any file is written
+    # Fail on a missing or unreadable light before any file is written (maps are cached once loaded).
+    from rh_dataset.lights import load_hdri
+
+    library = _light_library(opts.spec)
+    if not library and not opts.spec.sunsky:
+        raise GenerateError(f"no .exr/.hdr environment maps in {opts.spec.hdri_folder}; point --hdri-folder at maps")
+    for path in library.values():
+        load_hdri(path)
     select_variant(opts.variant)
     prepare_out(opts)
     tasks = plan(opts.spec)

@@ -32,3 +32,131 @@ def warm_cache() -> None:
     """Build anny's on-disk cache for the topology the generator uses."""
     model = load_anny()
     print(f"anny ready: {model.template_vertices.shape[-2]} vertices, {len(model.bone_labels)} bones")
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Numpy views of the model. Everything below is a pure function of its arguments (the model is cached), so the
+# character code can treat anny as "phenotype + pose -> arrays" without touching torch.
+# ----------------------------------------------------------------------------------------------------------------
+import dataclasses  # noqa: E402  (kept next to the code that needs it; the loader above stays minimal)
+
+import numpy as np  # noqa: E402
+
+__all__ += ["BodyTopology", "body_topology", "run_anny", "vertex_normals", "sample_phenotype", "PHENOTYPE_LABELS"]
+
+PHENOTYPE_LABELS = ("gender", "age", "muscle", "weight", "height", "proportions")
+
+
+@dataclasses.dataclass(frozen=True)
+class BodyTopology:
+    """Phenotype-independent mesh data of the anny body (read-only numpy arrays).
+
+    `texcoords` use anny's own convention, v pointing up (OpenGL): image row = (1 - v) * H.
+    """
+
+    faces: np.ndarray  # (F, 3) int64 triangles into the body vertices
+    texcoords: np.ndarray  # (T, 2) float64 UVs, one per face corner class
+    face_texcoords: np.ndarray  # (F, 3) int64 into texcoords
+    bone_labels: tuple[str, ...]
+    bone_indices: np.ndarray  # (V, K) int64
+    bone_weights: np.ndarray  # (V, K) float64, rows sum to 1
+    n_vertices: int
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+@functools.lru_cache(maxsize=4)
+def body_topology(topology: str = ANNY_TOPOLOGY) -> BodyTopology:
+    """The body's faces, UVs and skinning weights as numpy arrays (cached per topology)."""
+    model = load_anny(topology)
+    faces = model.get_triangular_faces().cpu().numpy().astype(np.int64)
+    return BodyTopology(
+        faces=_readonly(faces),
+        texcoords=_readonly(model.texture_coordinates.cpu().numpy().astype(np.float64)),
+        face_texcoords=_readonly(model.face_texture_coordinate_indices.cpu().numpy().astype(np.int64)),
+        bone_labels=tuple(model.bone_labels),
+        bone_indices=_readonly(model.vertex_bone_indices.cpu().numpy().astype(np.int64)),
+        bone_weights=_readonly(model.vertex_bone_weights.cpu().numpy().astype(np.float64)),
+        n_vertices=int(model.template_vertices.shape[-2]),
+    )
+
+
+def run_anny(
+    phenotype: dict[str, float],
+    bone_deltas: dict[str, np.ndarray] | None = None,
+    topology: str = ANNY_TOPOLOGY,
+) -> dict[str, np.ndarray]:
+    """Run anny once (batch 1, local-ref parameterisation) and return float64 numpy arrays without the batch axis:
+    `vertices` (V,3) posed, `rest_vertices` (V,3), `bone_poses` (J,4,4), `rest_bone_poses` (J,4,4),
+    `rest_bone_heads` (J,3). `bone_deltas` maps bone label -> 4x4 delta; missing bones are identity."""
+    import torch
+
+    model = load_anny(topology)
+    missing = set(PHENOTYPE_LABELS) - set(phenotype)
+    if missing:
+        raise ValueError(f"run_anny: phenotype lacks {sorted(missing)}")
+    labels = set(model.bone_labels)
+    pose = None
+    if bone_deltas:
+        unknown = sorted(set(bone_deltas) - labels)
+        if unknown:
+            raise ValueError(f"run_anny: unknown bone labels {unknown}")
+        pose = {}
+        for label, delta in bone_deltas.items():
+            d = np.asarray(delta, dtype=np.float64)
+            if d.shape != (4, 4) or not np.all(np.isfinite(d)):
+                raise ValueError(f"run_anny: bone_deltas[{label!r}] must be a finite 4x4 matrix, got shape {d.shape}")
+            pose[label] = torch.as_tensor(d, dtype=model.dtype)[None]
+    pheno = {k: torch.tensor([float(phenotype[k])], dtype=model.dtype) for k in PHENOTYPE_LABELS}
+    with torch.no_grad():
+        out = model(pose_parameters=pose, phenotype_kwargs=pheno, pose_parameterization="local-ref")
+    keys = ("vertices", "rest_vertices", "bone_poses", "rest_bone_poses", "rest_bone_heads")
+    return {k: out[k][0].cpu().numpy().astype(np.float64) for k in keys}
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals (unit length; an isolated vertex gets +Z so nothing is NaN)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    tri = v[faces]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # length = 2 * area: area weighting for free
+    n = np.zeros_like(v)
+    for corner in range(3):
+        np.add.at(n, faces[:, corner], fn)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    bad = length[:, 0] < 1e-20
+    n[bad] = (0.0, 0.0, 1.0)
+    length[bad] = 1.0
+    return n / length
+
+
+@functools.lru_cache(maxsize=1)
+def _shape_distribution():
+    from anny.shape_distribution import SimpleShapeDistribution
+
+    return SimpleShapeDistribution(load_anny())
+
+
+def sample_phenotype(rng: np.random.Generator, age_years: tuple[float, float] = (18.0, 70.0)) -> dict[str, float]:
+    """Draw a realistic adult phenotype from anny's calibrated (WHO-fitted) conditional Beta distributions.
+
+    anny's own `SimpleShapeDistribution.sample` draws from torch's global generator; here the same calibrated
+    distributions are evaluated for their Beta parameters and sampled with the caller's numpy generator, so the
+    draw is reproducible from one explicit seed. Ages are restricted to adults (the benchmark films adults).
+    """
+    import torch
+
+    dist = _shape_distribution()
+    morph_age = rng.uniform(*age_years)
+    age = dist.morphological_age_mapping.morphological_to_anny_age(torch.tensor([morph_age], dtype=torch.float64))
+    gender = float(rng.uniform(0.0, 1.0))
+    sex = "boys" if gender <= 0.5 else "girls"  # anny's convention: gender 0 = male, 1 = female
+    out = {"gender": gender, "age": float(age[0])}
+    for key in ("height", "weight", "muscle", "proportions"):
+        cond = getattr(dist, f"{sex}_conditional_{key}_distribution")
+        alpha, beta = cond.get_distribution_params(age)
+        out[key] = float(np.clip(rng.beta(float(alpha[0]), float(beta[0])), 0.0, 1.0))
+    return {k: out[k] for k in PHENOTYPE_LABELS}

@@ -1,0 +1,53 @@
+"""Characters: anny bodies dressed in procedural garments and hair, with procedural skin and fabric textures.
+
+Public API: recipes (`CharacterRecipe`, `sample_recipe`), `build_character`, `pose_character`, `body_bounds`.
+"""
+from .body import ANNY_TOPOLOGY, load_anny, warm_cache
+from .character import (
+    Character,
+    CharacterPart,
+    Material,
+    PosedMesh,
+    body_bounds,
+    build_character,
+    mitsuba_texcoords,
+    pose_character,
+)
+from .recipe import (
+    GARMENT_KINDS,
+    HAIR_STYLES,
+    PATTERNS,
+    POOLS,
+    CharacterRecipe,
+    Garment,
+    HairSpec,
+    SkinTone,
+    derive_seed,
+    recipe_from_seed,
+    sample_recipe,
+)
+
+__all__ = [
+    "ANNY_TOPOLOGY",
+    "load_anny",
+    "warm_cache",
+    "Character",
+    "CharacterPart",
+    "Material",
+    "PosedMesh",
+    "body_bounds",
+    "build_character",
+    "mitsuba_texcoords",
+    "pose_character",
+    "GARMENT_KINDS",
+    "HAIR_STYLES",
+    "PATTERNS",
+    "POOLS",
+    "CharacterRecipe",
+    "Garment",
+    "HairSpec",
+    "SkinTone",
+    "derive_seed",
+    "recipe_from_seed",
+    "sample_recipe",
+]

@@ -1,0 +1,313 @@
+"""A character = anny body + garment shells + hair, each a textured part that follows the body's skinning.
+
+UV convention: every `uvs` array is v-up (OpenGL): texture row 0 (the top of an albedo array) is v = 1. Mitsuba 3's
+`bitmap` texture looks rows up the other way round (row 0 at v = 0, checked by rendering a two-colour quad), so a
+Mitsuba mesh must be given texcoords (u, 1 - v) — or the albedo flipped vertically. `mitsuba_texcoords` does it.
+
+Posing: the body is run through anny with the phenotype and the pose; vertex normals are recomputed on the posed
+body; each part vertex sits at its anchor (a posed body vertex, or a blend of them) plus `offset` metres along the
+anchor's normal. Nothing is simulated, so garments fold only where the skin folds, but they follow every pose.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+
+from .body import ANNY_TOPOLOGY, body_topology, run_anny, vertex_normals
+from .garments import PartGeometry, build_garments
+from .geometry import body_features, split_faces
+from .hair import build_hair
+from .recipe import CharacterRecipe
+from .textures import body_layout_coords, garment_texture, hair_texture, skin_texture, texel_positions
+
+__all__ = [
+    "Material",
+    "CharacterPart",
+    "Character",
+    "PosedMesh",
+    "build_character",
+    "pose_character",
+    "body_bounds",
+    "mitsuba_texcoords",
+    "DEFAULT_TEXTURE_RESOLUTION",
+]
+
+DEFAULT_TEXTURE_RESOLUTION = 1024
+
+
+def _ro(a: np.ndarray, dtype) -> np.ndarray:
+    a = np.ascontiguousarray(a, dtype=dtype)
+    a.setflags(write=False)
+    return a
+
+
+@dataclasses.dataclass(frozen=True)
+class Material:
+    """albedo: linear float32 (H, W, 3) in [0, 1], row 0 = v 1. roughness: microfacet roughness in [0, 1].
+    specular: weight of the specular lobe in [0, 1] (0 = purely Lambertian; 0.5 ~ a dielectric of IOR 1.5, the
+    principled-BSDF convention). two_sided: shade back faces too (hems, skirts and hair sheets are seen from inside).
+    """
+
+    albedo: np.ndarray
+    roughness: float
+    specular: float
+    two_sided: bool = True
+
+    def __post_init__(self) -> None:
+        a = np.asarray(self.albedo)
+        if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 1 or a.shape[1] < 1:
+            raise ValueError(f"Material.albedo must be (H, W, 3), got {a.shape}")
+        if not np.all(np.isfinite(a)) or a.min() < 0.0 or a.max() > 1.0:
+            raise ValueError("Material.albedo must be finite and within [0, 1]")
+        object.__setattr__(self, "albedo", _ro(a, np.float32))
+        for name in ("roughness", "specular"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float, np.floating)) and 0.0 <= float(v) <= 1.0):
+                raise ValueError(f"Material.{name} must be in [0, 1], got {v!r}")
+            object.__setattr__(self, name, float(v))
+
+
+@dataclasses.dataclass(frozen=True)
+class CharacterPart:
+    """One textured mesh of a character, in split-vertex form (a vertex per (body vertex, UV) pair).
+
+    faces (F, 3) int32 into the split vertices; uvs (V, 2) float32 in [0, 1], v up; body_vertex (V,) int64 the anny
+    vertex each split vertex follows; offset (V,) float32 metres along the posed normal. Optional blend_vertices /
+    blend_weights (V, K): the anchor is then the weighted sum of those posed body vertices (skirts, hanging hair).
+    """
+
+    name: str
+    faces: np.ndarray
+    uvs: np.ndarray
+    body_vertex: np.ndarray
+    offset: np.ndarray
+    material: Material
+    blend_vertices: np.ndarray | None = None
+    blend_weights: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        faces = _ro(self.faces, np.int32)
+        uvs = _ro(self.uvs, np.float32)
+        bv = _ro(self.body_vertex, np.int64)
+        off = _ro(self.offset, np.float32)
+        n = len(bv)
+        if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= n:
+            raise ValueError(f"CharacterPart {self.name}: faces must be (F, 3) indices into {n} vertices")
+        if uvs.shape != (n, 2) or uvs.min() < 0.0 or uvs.max() > 1.0:
+            raise ValueError(f"CharacterPart {self.name}: uvs must be ({n}, 2) in [0, 1], got {uvs.shape}")
+        if off.shape != (n,) or not np.all(np.isfinite(off)) or off.min() < 0.0:
+            raise ValueError(f"CharacterPart {self.name}: offset must be ({n},) finite and >= 0")
+        object.__setattr__(self, "faces", faces)
+        object.__setattr__(self, "uvs", uvs)
+        object.__setattr__(self, "body_vertex", bv)
+        object.__setattr__(self, "offset", off)
+        if (self.blend_vertices is None) != (self.blend_weights is None):
+            raise ValueError(f"CharacterPart {self.name}: blend_vertices and blend_weights go together")
+        if self.blend_vertices is not None:
+            bvx = _ro(self.blend_vertices, np.int64)
+            bw = _ro(self.blend_weights, np.float32)
+            if bvx.shape != bw.shape or bvx.ndim != 2 or bvx.shape[0] != n:
+                raise ValueError(f"CharacterPart {self.name}: blend arrays must both be ({n}, K)")
+            if not np.allclose(bw.sum(1), 1.0, atol=1e-5) or bw.min() < 0:
+                raise ValueError(f"CharacterPart {self.name}: blend_weights must be convex (>= 0, rows sum to 1)")
+            object.__setattr__(self, "blend_vertices", bvx)
+            object.__setattr__(self, "blend_weights", bw)
+
+
+@dataclasses.dataclass(frozen=True)
+class Character:
+    recipe: CharacterRecipe
+    parts: list[CharacterPart]
+    phenotype: dict[str, float]
+
+    def part(self, name: str) -> CharacterPart:
+        for p in self.parts:
+            if p.name == name:
+                return p
+        raise KeyError(f"character has no part {name!r}; parts: {[p.name for p in self.parts]}")
+
+    @property
+    def triangle_count(self) -> int:
+        return int(sum(len(p.faces) for p in self.parts))
+
+
+@dataclasses.dataclass(frozen=True)
+class PosedMesh:
+    """A posed part in world coordinates: vertices/normals (V, 3) float32 (normals unit), faces (F, 3) int32,
+    uvs (V, 2) float32 v-up, and its material."""
+
+    name: str
+    vertices: np.ndarray
+    normals: np.ndarray
+    faces: np.ndarray
+    uvs: np.ndarray
+    material: Material
+
+
+# Skin: a dielectric sheen on a rough surface; hair: a stronger, tighter sheen.
+SKIN_ROUGHNESS, SKIN_SPECULAR = 0.5, 0.35
+HAIR_ROUGHNESS, HAIR_SPECULAR = 0.35, 0.45
+SHOE_SPECULAR = 0.45
+FABRIC_SPECULAR = 0.15
+
+# Independent noise streams per texture: np.random.default_rng([seed, stream]).
+_STREAM_SKIN, _STREAM_HAIR, _STREAM_GARMENT0 = 1, 2, 10
+
+
+def _own_layout_coords(resolution: int, metres_per_uv: float) -> np.ndarray:
+    res = int(resolution)
+    u = (np.arange(res) + 0.5) / res
+    v = 1.0 - (np.arange(res) + 0.5) / res
+    uu, vv = np.meshgrid(u, v)
+    return (np.stack([uu, vv], axis=-1) * metres_per_uv).astype(np.float32)
+
+
+def _to_part(geo: PartGeometry, material: Material) -> CharacterPart:
+    return CharacterPart(
+        name=geo.name,
+        faces=geo.faces,
+        uvs=geo.uvs,
+        body_vertex=geo.body_vertex,
+        offset=geo.offset,
+        material=material,
+        blend_vertices=geo.blend_vertices,
+        blend_weights=geo.blend_weights,
+    )
+
+
+def build_character(recipe: CharacterRecipe, texture_resolution: int = DEFAULT_TEXTURE_RESOLUTION) -> Character:
+    """Geometry and textures of a recipe. Deterministic (bit-identical for equal recipes); the last two results are
+    cached, keyed by the recipe's canonical JSON."""
+    if not isinstance(recipe, CharacterRecipe):
+        raise ValueError(f"build_character: expected a CharacterRecipe, got {type(recipe).__name__}")
+    res = int(texture_resolution)
+    if not (16 <= res <= 8192):
+        raise ValueError(f"build_character: texture_resolution must be in [16, 8192], got {texture_resolution}")
+    return _build_cached(recipe.to_json_text(), res)
+
+
+@functools.lru_cache(maxsize=2)
+def _build_cached(recipe_json: str, res: int) -> Character:
+    recipe = CharacterRecipe.from_json(recipe_json)
+    topology = ANNY_TOPOLOGY
+    feats = body_features(recipe.phenotype, topology)
+    topo = body_topology(topology)
+    seed = recipe.seed
+
+    body = split_faces(np.arange(len(topo.faces)), topology)
+    positions = texel_positions(feats, res, topology)  # shared by the skin and every body-layout garment
+    skin = skin_texture(recipe.skin, recipe.hair.colour, feats, np.random.default_rng([seed, _STREAM_SKIN]), res,
+                        topology, positions)
+    parts = [
+        CharacterPart("body", body.faces, body.uvs, body.body_vertex, np.zeros(len(body.body_vertex), np.float32),
+                      Material(skin, SKIN_ROUGHNESS, SKIN_SPECULAR, two_sided=False))
+    ]
+
+    under = np.zeros(len(feats.rest_vertices))
+    geos = build_garments(recipe.garments, feats, topology, under=under)
+    body_coords = None
+    for i, (g, geo) in enumerate(zip(recipe.garments, geos)):
+        rng = np.random.default_rng([seed, _STREAM_GARMENT0 + i])
+        if geo.uv_layout == "body":
+            if body_coords is None:
+                body_coords = body_layout_coords(feats, res, topology, positions)
+            tex = garment_texture(g, rng, res, body_coords)
+        else:
+            r2 = max(res // 2, 16)
+            tex = garment_texture(g, rng, r2, _own_layout_coords(r2, geo.metres_per_uv))
+        spec = SHOE_SPECULAR if g.kind == "shoes" else FABRIC_SPECULAR
+        parts.append(_to_part(geo, Material(tex, g.roughness, spec)))
+
+    hair_geos = build_hair(recipe.hair.style, feats, topology, under=under)
+    hair_tex = hair_texture(recipe.hair.colour, np.random.default_rng([seed, _STREAM_HAIR]), max(res // 2, 16))
+    hair_mat = Material(hair_tex, HAIR_ROUGHNESS, HAIR_SPECULAR)
+    parts += [_to_part(geo, hair_mat) for geo in hair_geos]
+    return Character(recipe=recipe, parts=parts, phenotype=dict(recipe.phenotype))
+
+
+def _check_transform(name: str, m: np.ndarray) -> np.ndarray:
+    m = np.asarray(m, dtype=np.float64)
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise ValueError(f"{name} must be a finite 4x4 matrix, got shape {m.shape}")
+    if not np.allclose(m[3], (0, 0, 0, 1)):
+        raise ValueError(f"{name}: last row must be (0, 0, 0, 1)")
+    r = m[:3, :3]
+    if not np.allclose(r @ r.T, np.eye(3), atol=1e-5) or np.linalg.det(r) <= 0:
+        raise ValueError(f"{name}: the 3x3 block must be a rotation (rigid transforms only)")
+    return m
+
+
+def _welded_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Normals of a generated part's own surface, averaged across duplicated seam vertices (same position)."""
+    key = np.round(vertices / 1e-6).astype(np.int64)
+    _, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    welded = vertex_normals(_mean_by(vertices, inv), inv[faces])
+    return welded[inv]
+
+
+def _mean_by(values: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    n = groups.max() + 1
+    out = np.zeros((n, values.shape[1]))
+    np.add.at(out, groups, values)
+    return out / np.bincount(groups, minlength=n)[:, None]
+
+
+def pose_character(
+    character: Character,
+    bone_deltas: dict[str, np.ndarray] | None = None,
+    root_transform: np.ndarray | None = None,
+) -> list[PosedMesh]:
+    """Pose every part. `bone_deltas`: bone label -> 4x4 local-ref delta (None or identities = anny's rest A-pose).
+    `root_transform`: a rigid world 4x4 applied after skinning (the turntable's rotation about +Z through the
+    pelvis). anny's root stays where anny puts it (pelvis at the origin before the pose's root translation)."""
+    topo = body_topology()
+    out = run_anny(character.phenotype, bone_deltas)
+    verts = out["vertices"]
+    normals = vertex_normals(verts, topo.faces)
+    if root_transform is not None:
+        m = _check_transform("root_transform", root_transform)
+        verts = verts @ m[:3, :3].T + m[:3, 3]
+        normals = normals @ m[:3, :3].T
+    posed = []
+    for part in character.parts:
+        if part.blend_vertices is None:
+            p = verts[part.body_vertex]
+            n = normals[part.body_vertex]
+            v = p + part.offset[:, None].astype(np.float64) * n
+        else:
+            w = part.blend_weights.astype(np.float64)[..., None]
+            p = (verts[part.blend_vertices] * w).sum(1)
+            nb = (normals[part.blend_vertices] * w).sum(1)
+            nb /= np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
+            v = p + part.offset[:, None].astype(np.float64) * nb
+            n = _welded_normals(v, part.faces)
+        n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        n = n / np.linalg.norm(n, axis=1, keepdims=True)  # second pass: unit length to float32 precision
+        posed.append(
+            PosedMesh(
+                name=part.name,
+                vertices=_ro(v, np.float32),
+                normals=_ro(n, np.float32),
+                faces=part.faces,
+                uvs=part.uvs,
+                material=part.material,
+            )
+        )
+    return posed
+
+
+def body_bounds(posed_meshes: list[PosedMesh]) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned bounds (min (3,), max (3,)) of all posed parts, float64."""
+    if not posed_meshes:
+        raise ValueError("body_bounds: no meshes")
+    allv = np.concatenate([m.vertices for m in posed_meshes]).astype(np.float64)
+    return allv.min(axis=0), allv.max(axis=0)
+
+
+def mitsuba_texcoords(uvs: np.ndarray) -> np.ndarray:
+    """v-up UVs to what Mitsuba's `bitmap` texture expects for an albedo array stored row 0 = top: (u, 1 - v)."""
+    uvs = np.asarray(uvs, dtype=np.float32)
+    return np.stack([uvs[:, 0], 1.0 - uvs[:, 1]], axis=1)

@@ -1,0 +1,313 @@
+"""Geometry shared by garments, hair and textures: per-vertex body features, seam splitting, UV rasterisation.
+
+Everything here is a pure function of (phenotype, topology) or of the topology alone; the expensive
+phenotype-independent parts are cached.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw
+from scipy import ndimage, sparse
+from scipy.sparse import csgraph
+from scipy.spatial import ConvexHull
+
+from .body import ANNY_TOPOLOGY, BodyTopology, body_topology, run_anny, vertex_normals
+
+__all__ = [
+    "BodyFeatures",
+    "body_features",
+    "SplitMesh",
+    "split_faces",
+    "boundary_distance",
+    "hull_anchors",
+    "uv_raster",
+    "anny_data_dir",
+    "GROUPS",
+]
+
+# Bone groups: each body vertex is labelled with the group that holds most of its skinning weight. Garment regions
+# are cut from these labels, so a sleeve is made of exactly the vertices the arm bones move.
+GROUPS = ("head", "neck", "torso", "shoulder", "upperarm", "lowerarm", "hand", "upperleg", "lowerleg", "foot")
+
+
+def _bone_group(label: str) -> str:
+    base = label.split(".")[0]
+    if base in ("head", "eye"):
+        return "head"
+    if base.startswith("neck"):
+        return "neck"
+    if base in ("root", "pelvis") or base.startswith("spine"):
+        return "torso"
+    if base in ("clavicle", "shoulder01"):
+        return "shoulder"
+    if base.startswith("upperarm"):
+        return "upperarm"
+    if base.startswith("lowerarm"):
+        return "lowerarm"
+    if base in ("wrist",) or base.startswith(("finger", "metacarpal")):
+        return "hand"
+    if base.startswith("upperleg"):
+        return "upperleg"
+    if base.startswith("lowerleg"):
+        return "lowerleg"
+    if base in ("foot",) or base.startswith("toe"):
+        return "foot"
+    raise ValueError(f"unknown anny bone {label!r}")
+
+
+def anny_data_dir() -> Path:
+    import anny
+
+    return Path(anny.__file__).parent / "data"
+
+
+@functools.lru_cache(maxsize=8)
+def _mask_image(name: str) -> np.ndarray:
+    """An mpfb2 region mask (face, lips, ears, eyelids, fingernails, toenails) as float32 (H, W) in [0, 1]."""
+    path = anny_data_dir() / "mpfb2" / "textures" / f"mpfb_{name}.jpg"
+    with Image.open(path) as im:
+        arr = np.asarray(im.convert("L"), dtype=np.float32) / 255.0
+    arr.setflags(write=False)
+    return arr
+
+
+@functools.lru_cache(maxsize=1)
+def _segmentation() -> tuple[np.ndarray, dict[str, tuple[int, int, int]]]:
+    import yaml
+
+    seg_dir = anny_data_dir() / "segmentation"
+    with Image.open(seg_dir / "body_parts_segmentation.png") as im:
+        rgb = np.asarray(im.convert("RGB"), dtype=np.uint8)
+    with open(seg_dir / "body_parts_segmentation.yaml") as f:
+        colours = {k: tuple(v) for k, v in yaml.safe_load(f)["colors"].items()}
+    return rgb, colours
+
+
+def _sample_uv(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Nearest-texel lookup of an image (row 0 = top) at v-up UVs."""
+    h, w = image.shape[:2]
+    col = np.clip((uv[:, 0] * w).astype(np.int64), 0, w - 1)
+    row = np.clip(((1.0 - uv[:, 1]) * h).astype(np.int64), 0, h - 1)
+    return image[row, col]
+
+
+def _per_vertex_max(topo: BodyTopology, corner_values: np.ndarray) -> np.ndarray:
+    """Reduce per-face-corner values (F, 3) to per-vertex values by max (a vertex on a UV seam has several)."""
+    out = np.full(topo.n_vertices, -np.inf)
+    np.maximum.at(out, topo.faces.ravel(), corner_values.ravel())
+    return out
+
+
+@functools.lru_cache(maxsize=1)
+def _static_features(topology: str) -> dict[str, np.ndarray]:
+    """Phenotype-independent per-vertex labels: bone group, UV segmentation part, mpfb2 region masks."""
+    topo = body_topology(topology)
+    group_of_bone = np.array([GROUPS.index(_bone_group(b)) for b in topo.bone_labels])
+    gw = np.zeros((topo.n_vertices, len(GROUPS)))
+    np.add.at(gw, (np.arange(topo.n_vertices)[:, None], group_of_bone[topo.bone_indices]), topo.bone_weights)
+    corner_uv = topo.texcoords[topo.face_texcoords]  # (F, 3, 2)
+    flat_uv = corner_uv.reshape(-1, 2)
+    out = {"group": np.argmax(gw, axis=1), "group_weights": gw}
+    for name in ("face", "lips", "ears", "eyelids", "fingernails", "toenails"):
+        vals = _sample_uv(_mask_image(name), flat_uv).reshape(-1, 3)
+        out[f"mask_{name}"] = _per_vertex_max(topo, vals)
+    seg, colours = _segmentation()
+    seg_corner = _sample_uv(seg, flat_uv).reshape(-1, 3, 3)
+    for part in ("head", "foot.L", "foot.R", "hand.L", "hand.R"):
+        hit = np.all(seg_corner == np.array(colours[part], dtype=np.uint8), axis=-1).astype(np.float64)
+        out[f"seg_{part}"] = _per_vertex_max(topo, hit) > 0.5
+    # Edge graph (for geodesic-like distances along the surface).
+    f = topo.faces
+    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    out["edges"] = np.unique(np.sort(edges, axis=1), axis=0)
+    for v in out.values():
+        v.setflags(write=False)
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class BodyFeatures:
+    """Per-vertex quantities of one phenotype's rest pose that garment and hair cut-offs are expressed in."""
+
+    rest_vertices: np.ndarray  # (V, 3) float64
+    rest_normals: np.ndarray  # (V, 3) float64
+    group: np.ndarray  # (V,) int index into GROUPS
+    bone_heads: dict[str, np.ndarray]  # label -> (3,) rest position
+    arm_t: np.ndarray  # (V,) 0 at the shoulder joint, 1 at the wrist (nan off the arms)
+    leg_t: np.ndarray  # (V,) 0 at the hip joint, 1 at the ankle (nan off the legs)
+    masks: dict[str, np.ndarray]  # mpfb2 region masks and segmentation parts, per vertex
+    edges: np.ndarray  # (E, 2) unique undirected edges
+
+    def in_groups(self, *names: str) -> np.ndarray:
+        return np.isin(self.group, [GROUPS.index(n) for n in names])
+
+
+def _segment_t(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    d = b - a
+    return (points - a) @ d / float(d @ d)
+
+
+@functools.lru_cache(maxsize=16)
+def _body_features_cached(pheno_items: tuple[tuple[str, float], ...], topology: str) -> BodyFeatures:
+    topo = body_topology(topology)
+    st = _static_features(topology)
+    out = run_anny(dict(pheno_items), None, topology)
+    rest = out["rest_vertices"]
+    heads = {label: out["rest_bone_heads"][i] for i, label in enumerate(topo.bone_labels)}
+    group = st["group"]
+    x = rest[:, 0]
+    arm_t = np.full(len(rest), np.nan)
+    leg_t = np.full(len(rest), np.nan)
+    arm_groups = np.isin(group, [GROUPS.index(g) for g in ("shoulder", "upperarm", "lowerarm", "hand")])
+    leg_groups = np.isin(group, [GROUPS.index(g) for g in ("upperleg", "lowerleg", "foot")])
+    for side, sel in (("L", x > 0), ("R", x <= 0)):
+        m = arm_groups & sel
+        arm_t[m] = _segment_t(rest[m], heads[f"upperarm01.{side}"], heads[f"wrist.{side}"])
+        m = leg_groups & sel
+        leg_t[m] = _segment_t(rest[m], heads[f"upperleg01.{side}"], heads[f"foot.{side}"])
+    masks = {k[5:]: v for k, v in st.items() if k.startswith("mask_")}
+    masks.update({k[4:]: v for k, v in st.items() if k.startswith("seg_")})
+    feats = BodyFeatures(
+        rest_vertices=rest,
+        rest_normals=vertex_normals(rest, topo.faces),
+        group=group,
+        bone_heads=heads,
+        arm_t=arm_t,
+        leg_t=leg_t,
+        masks=masks,
+        edges=st["edges"],
+    )
+    for a in (feats.rest_vertices, feats.rest_normals, feats.arm_t, feats.leg_t):
+        a.setflags(write=False)
+    return feats
+
+
+def body_features(phenotype: dict[str, float], topology: str = ANNY_TOPOLOGY) -> BodyFeatures:
+    """Rest-pose features for a phenotype (cached: garments, hair and textures all ask for the same one)."""
+    return _body_features_cached(tuple(sorted((k, float(v)) for k, v in phenotype.items())), topology)
+
+
+@dataclasses.dataclass(frozen=True)
+class SplitMesh:
+    """A subset of the body's faces with vertices split at UV seams (what a renderer with per-vertex UVs needs)."""
+
+    faces: np.ndarray  # (F, 3) int32 into the split vertices
+    uvs: np.ndarray  # (V, 2) float32, v up
+    body_vertex: np.ndarray  # (V,) int64 body vertex each split vertex follows
+    body_faces: np.ndarray  # (F,) int64 index of each face in the body's face list
+
+
+def split_faces(face_ids: np.ndarray, topology: str = ANNY_TOPOLOGY) -> SplitMesh:
+    """One split vertex per unique (body vertex, UV index) pair among the corners of the selected faces."""
+    topo = body_topology(topology)
+    face_ids = np.asarray(face_ids, dtype=np.int64)
+    fv = topo.faces[face_ids]
+    ft = topo.face_texcoords[face_ids]
+    key = fv.astype(np.int64) * (len(topo.texcoords) + 1) + ft
+    uniq, inverse = np.unique(key.ravel(), return_inverse=True)
+    body_vertex = uniq // (len(topo.texcoords) + 1)
+    uv_index = uniq % (len(topo.texcoords) + 1)
+    return SplitMesh(
+        faces=inverse.reshape(-1, 3).astype(np.int32),
+        uvs=topo.texcoords[uv_index].astype(np.float32),
+        body_vertex=body_vertex.astype(np.int64),
+        body_faces=face_ids,
+    )
+
+
+def boundary_distance(face_ids: np.ndarray, vertices: np.ndarray, topology: str = ANNY_TOPOLOGY) -> np.ndarray:
+    """Distance along the surface (shortest path over mesh edges) from each body vertex of the selected faces to
+    the open boundary of the selection; inf for vertices outside it. Used to taper garment and hair offsets so a
+    hem closes onto the skin instead of leaving a visible gap."""
+    topo = body_topology(topology)
+    f = topo.faces[np.asarray(face_ids, dtype=np.int64)]
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    uniq, counts = np.unique(e, axis=0, return_counts=True)
+    boundary = np.unique(uniq[counts == 1].ravel())
+    n = topo.n_vertices
+    w = np.linalg.norm(vertices[uniq[:, 0]] - vertices[uniq[:, 1]], axis=1) + 1e-9
+    graph = sparse.coo_matrix((w, (uniq[:, 0], uniq[:, 1])), shape=(n, n)).tocsr()
+    if len(boundary) == 0:
+        out = np.full(n, np.inf)
+        out[np.unique(f)] = 1.0
+        return out
+    return csgraph.dijkstra(graph, directed=False, indices=boundary, min_only=True)
+
+
+def hull_anchors(
+    vertices: np.ndarray,
+    candidates: np.ndarray,
+    centre: np.ndarray,
+    angles: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """For rays from `centre` (xy) at `angles` (radians, measured from -Y towards +X), where they leave the convex
+    hull of the candidate vertices' xy positions: each exit point as a blend of two hull vertices.
+
+    Returns (indices (N, 2) int64 body vertices, weights (N, 2) float64). A blend of posed vertices then follows
+    the pose, which is how skirts and hanging hair are skinned without their own weights.
+    """
+    pts = vertices[candidates, :2]
+    hull = ConvexHull(pts)
+    ring = hull.vertices  # counter-clockwise
+    a = pts[ring] - centre[:2]
+    b = np.roll(a, -1, axis=0)
+    idx = np.zeros((len(angles), 2), dtype=np.int64)
+    wts = np.zeros((len(angles), 2))
+    for k, ang in enumerate(angles):
+        d = np.array([np.sin(ang), -np.cos(ang)])
+        # Solve centre + s d = a + t (b - a) for every edge; keep the one with t in [0, 1] and s > 0.
+        e = b - a
+        den = d[0] * (-e[:, 1]) - d[1] * (-e[:, 0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = (a[:, 0] * (-e[:, 1]) - a[:, 1] * (-e[:, 0])) / den
+            t = (d[0] * a[:, 1] - d[1] * a[:, 0]) / den
+        ok = (t >= -1e-9) & (t <= 1 + 1e-9) & (s > 0) & np.isfinite(s)
+        j = int(np.flatnonzero(ok)[np.argmax(s[ok])]) if ok.any() else int(np.argmax(a @ d))
+        tt = float(np.clip(t[j], 0.0, 1.0)) if ok.any() else 0.0
+        idx[k] = (candidates[ring[j]], candidates[ring[(j + 1) % len(ring)]])
+        wts[k] = (1.0 - tt, tt)
+    return idx, wts
+
+
+@functools.lru_cache(maxsize=4)
+def uv_raster(resolution: int, topology: str = ANNY_TOPOLOGY) -> tuple[np.ndarray, np.ndarray]:
+    """Which body face and which barycentric weights every texel of a (res x res) texture in anny's UV layout
+    belongs to. Texels outside every UV island take their nearest covered texel, so attributes baked through this
+    map are defined everywhere (no black bleeding at island borders under bilinear filtering).
+
+    Returns (face (H, W) int64, bary (H, W, 3) float32); row 0 is the top of the image (v = 1).
+    """
+    topo = body_topology(topology)
+    res = int(resolution)
+    uv = topo.texcoords[topo.face_texcoords]  # (F, 3, 2)
+    px = np.stack([uv[..., 0] * res, (1.0 - uv[..., 1]) * res], axis=-1)
+    im = Image.new("I", (res, res), 0)  # 32-bit: face id + 1
+    draw = ImageDraw.Draw(im)
+    for fid, tri in enumerate(px):
+        draw.polygon([tuple(p) for p in (tri - 0.5)], fill=fid + 1)
+    face = np.asarray(im, dtype=np.int64) - 1
+    covered = face >= 0
+    _, (ri, ci) = ndimage.distance_transform_edt(~covered, return_indices=True)
+    face = face[ri, ci]
+    rows, cols = np.mgrid[0:res, 0:res]
+    p = np.stack([cols + 0.5, rows + 0.5], axis=-1).astype(np.float64)
+    tri = px[face]  # (H, W, 3, 2)
+    v0 = tri[..., 1, :] - tri[..., 0, :]
+    v1 = tri[..., 2, :] - tri[..., 0, :]
+    v2 = p - tri[..., 0, :]
+    den = v0[..., 0] * v1[..., 1] - v1[..., 0] * v0[..., 1]
+    den = np.where(np.abs(den) < 1e-12, 1e-12, den)
+    b1 = (v2[..., 0] * v1[..., 1] - v1[..., 0] * v2[..., 1]) / den
+    b2 = (v0[..., 0] * v2[..., 1] - v2[..., 0] * v0[..., 1]) / den
+    bary = np.stack([1 - b1 - b2, b1, b2], axis=-1)
+    # Texels snapped from outside an island extrapolate; clamping keeps baked values within the face's range.
+    bary = np.clip(bary, 0.0, 1.0)
+    bary /= bary.sum(-1, keepdims=True)
+    face.setflags(write=False)
+    bary = bary.astype(np.float32)
+    bary.setflags(write=False)
+    return face, bary

