@@ -122,6 +122,11 @@ def read_png(path: str | os.PathLike, *, allow_16bit: bool = False) -> np.ndarra
     if not path.is_file():
         raise ImageFileError(f"{path}: no such file")
     try:
+        with open(path, "rb") as f:
+            head = f.read(26)
+        # Pillow decodes a 16-bit RGB(A) PNG as 8-bit without a word; the IHDR bit depth (byte 24) tells.
+        if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR" and head[24] == 16 and not allow_16bit:
+            raise ImageFileError(f"{path}: 16-bit PNG; save it as 8-bit RGB (or as float32 EXR)")
         with Image.open(path) as im:
             im.load()
             mode = im.mode

@@ -105,7 +105,7 @@ def prepare_out(opts: GenerateOptions) -> None:
         raise GenerateError(f"--out {out} is a file; pass a folder")
     ds_path = out / "dataset.json"
     key = f"protocol_{opts.spec.protocol}"
-    record = _dataset_record(opts)
+    record = read_json_roundtrip(_dataset_record(opts))  # compare as it reads back (tuples become lists)
     if ds_path.is_file():
         ds = read_json(ds_path)
         if ds.get("format") != DATASET_FORMAT:

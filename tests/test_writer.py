@@ -105,3 +105,27 @@ def test_atomic_write_leaves_no_temporary_on_failure(tmp_path):
             tmp.write_bytes(b"half")
             raise RuntimeError("killed")
     assert os.listdir(tmp_path) == []
+
+
+def test_a_16_bit_png_is_refused_not_truncated(tmp_path):
+    from PIL import Image
+
+    from rh_common.imageio import ImageFileError
+
+    p = tmp_path / "deep.png"
+    Image.fromarray(np.full((4, 4), 40000, np.uint16)).save(p)
+    with pytest.raises(ImageFileError, match="16-bit"):
+        read_png(p)
+    # 16-bit RGB is the case Pillow decodes to 8 bits silently: build one by hand.
+    import struct
+    import zlib
+
+    raw = b"".join(b"\x00" + b"\x12\x34" * 3 * 2 for _ in range(2))
+    def chunk(t, d):
+        return struct.pack(">I", len(d)) + t + d + struct.pack(">I", zlib.crc32(t + d))
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 2, 2, 16, 2, 0, 0, 0)) + \
+        chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b"")
+    q = tmp_path / "deep_rgb.png"
+    q.write_bytes(png)
+    with pytest.raises(ImageFileError, match="16-bit"):
+        read_png(q)

@@ -110,7 +110,7 @@ def run_anny(
             d = np.asarray(delta, dtype=np.float64)
             if d.shape != (4, 4) or not np.all(np.isfinite(d)):
                 raise ValueError(f"run_anny: bone_deltas[{label!r}] must be a finite 4x4 matrix, got shape {d.shape}")
-            pose[label] = torch.as_tensor(d, dtype=model.dtype)[None]
+            pose[label] = torch.tensor(np.array(d), dtype=model.dtype)[None]  # copy: inputs may be read-only
     pheno = {k: torch.tensor([float(phenotype[k])], dtype=model.dtype) for k in PHENOTYPE_LABELS}
     with torch.no_grad():
         out = model(pose_parameters=pose, phenotype_kwargs=pheno, pose_parameterization="local-ref")

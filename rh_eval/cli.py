@@ -1,0 +1,106 @@
+"""`rh-eval`: score one predictions folder against the dataset's test split. See docs/EVALUATION.md."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["main", "build_parser"]
+
+_EPILOG = """\
+output: OUT (JSON: per-subject and overall means and population stds, convention, weight sha256s, dataset manifest
+sha256, versions, frame counts) and OUT's stem + '.frames.csv' (one row per frame). PSNR of identical images is
++inf: 'inf' in the CSV; JSON means are over finite frames with n_infinite counting the rest ("inf" if all are).
+Exit status: 0 on success, 2 when the inputs are refused (the message names each offending file), 1 otherwise.
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .conventions import BACKGROUNDS, REGIONS
+    from .evaluate import ALL_METRICS
+
+    p = argparse.ArgumentParser(
+        prog="rh-eval", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=_EPILOG,
+        description="Evaluate relighting predictions on the Relighting Humans benchmark with the metrics as "
+                    "published: LPIPS (v0.1), DISTS, SSIM (Wang 2004), PSNR, FLIP (LDR) on images and albedo, "
+                    "mean angular error on normals.")
+    p.add_argument("predictions", type=Path,
+                   help="predictions folder: <subject>/protocol_<p>/test/frame_NNNNNN_{image,albedo,normal}"
+                        ".{exr,png} (+ optional method.json with a 'name' and optional 'kind': method|bound)")
+    p.add_argument("--dataset", type=Path, required=True, help="dataset folder (holds manifest.json and subjects)")
+    p.add_argument("--protocol", default="a", help="protocol to evaluate: 'a' or 'protocol_a' (default: a)")
+    p.add_argument("--out", type=Path, required=True, help="result JSON to write (folders are created)")
+    p.add_argument("--csv", type=Path, default=None, help="per-frame CSV path (default: <out stem>.frames.csv)")
+    p.add_argument("--backbone", choices=("alex", "vgg"), default="alex",
+                   help="LPIPS backbone (default alex, the official default; recorded in the output)")
+    p.add_argument("--region", choices=REGIONS, default="default",
+                   help="default: GT-mask bounding box dilated by round(50*min(H,W)/720) px, prediction and GT "
+                        "composited over --background (the published protocol); full: whole frame, no "
+                        "compositing; mask: tight box, PSNR/SSIM/FLIP averaged inside the mask only")
+    p.add_argument("--background", choices=sorted(BACKGROUNDS), default="white",
+                   help="background for compositing in the default and mask regions (default white)")
+    p.add_argument("--albedo-space", choices=("srgb", "linear"), default="srgb",
+                   help="space albedo is compared in (default srgb: linear albedo sRGB-encoded)")
+    p.add_argument("--align-albedo", action="store_true",
+                   help="also report albedo after a per-channel least-squares scale onto the GT (linear, inside "
+                        "the mask, then clipped to [0,1]); reported as albedo_aligned_* beside the raw scores")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="evaluate the frames that exist when some are missing; the result is marked incomplete "
+                        "and lists them (invalid files are still refused)")
+    p.add_argument("--metrics", default=",".join(ALL_METRICS),
+                   help=f"comma-separated subset of {','.join(ALL_METRICS)} (default: all)")
+    p.add_argument("--batch-size", type=int, default=4,
+                   help="frames per network batch (crops of equal size are batched; default 4)")
+    p.add_argument("--cache-dir", type=Path, default=None,
+                   help="folder for ground-truth network features, reused across runs and methods (keyed by GT "
+                        "file sha256 + convention + weights); default: in-memory only")
+    p.add_argument("--cache-mb", type=int, default=2048, help="in-memory feature cache bound in MB (default 2048)")
+    p.add_argument("--kind", choices=("method", "bound"), default=None,
+                   help="override method.json's kind: 'bound' marks an oracle, listed apart on the leaderboard")
+    p.add_argument("--name", default=None, help="override the method name from method.json")
+    p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    from .conventions import Convention
+    from .dataset_io import PredictionError
+    from .evaluate import EvalOptions, Evaluator
+    from .report import write_result
+    from .weights import WeightError
+    from rh_common.imageio import ImageFileError
+
+    try:
+        metrics = tuple(m.strip() for m in args.metrics.split(",") if m.strip())
+        conv = Convention(region=args.region, background=args.background, albedo_space=args.albedo_space,
+                          align_albedo=args.align_albedo, backbone=args.backbone)
+        opts = EvalOptions(convention=conv, metrics=metrics, batch_size=args.batch_size, cache_dir=args.cache_dir,
+                           cache_mb=args.cache_mb, allow_incomplete=args.allow_incomplete,
+                           progress=False if args.no_progress else None, threads=args.threads)
+        ev = Evaluator(opts)
+        result, rows, cols = ev.evaluate(args.predictions, args.dataset, args.protocol)
+    except (PredictionError, ImageFileError, WeightError, FileNotFoundError, ValueError) as exc:
+        print(f"rh-eval: error: {exc}", file=sys.stderr)
+        return 2
+    if args.kind:
+        result["kind"] = args.kind
+    if args.name:
+        result["method"] = dict(result["method"], name=args.name)
+    csv_path = write_result(args.out, result, rows, cols, args.csv)
+    ov = result["overall"]
+    status = "complete" if result["complete"] else f"INCOMPLETE ({len(result['missing'])} missing)"
+    print(f"rh-eval: {result['method'].get('name')}: {result['n_frames_evaluated']} frames, {status}; "
+          f"backbone={conv.backbone} region={conv.region}")
+    for c in cols:
+        s = ov[c]
+        extra = f" (+{s['n_infinite']} inf)" if s.get("n_infinite") else ""
+        mean = s["mean"] if isinstance(s["mean"], str) or s["mean"] is None else f"{s['mean']:.6g}"
+        print(f"  {c:24s} {mean}{extra}")
+    print(f"rh-eval: wrote {args.out} and {csv_path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,312 @@
+"""Reading the dataset's test split and a predictions folder, per docs/ARCHITECTURE.md, with every check that keeps a
+bad prediction set from producing a silently different score.
+
+Ground truth, per frame (`<dataset>/<subject>/protocol_<p>/test/`): `frame_%06d.json` (complete frames only:
+the JSON is written last) with `exposure`, `width`, `height`; layers `frame_%06d_{image.exr, mask.png,
+albedo.exr, normal.exr}`.
+
+Predictions (`<pred>/<subject>/protocol_<p>/test/frame_%06d_{image,albedo,normal}.{exr,png}`): the image is
+required, albedo and normal optional but all-or-none across the frames. Refused, with the file named: a missing
+frame (unless `allow_incomplete`), an extra or unrecognised file, a layer given both as EXR and PNG, a wrong
+resolution, a wrong channel count, NaN/Inf, a PNG that is not 8-bit RGB/RGBA (16-bit, grey, palette), an
+unreadable file.
+"""
+from __future__ import annotations
+
+import re
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from rh_common.colourspace import srgb_decode, to_display
+from rh_common.imageio import ImageFileError, read_exr, read_json, read_png, sha256_file
+
+__all__ = [
+    "PredictionError",
+    "GTFrame",
+    "DatasetIndex",
+    "PredFrame",
+    "PredictionIndex",
+    "load_dataset",
+    "scan_predictions",
+    "read_gt_display",
+    "read_gt_mask",
+    "read_gt_albedo",
+    "read_gt_normal",
+    "read_pred_display",
+    "read_pred_albedo",
+    "read_pred_normal",
+    "decode_normal_png",
+    "protocol_dir",
+]
+
+LAYERS = ("image", "albedo", "normal")
+_PRED_RE = re.compile(r"^frame_(\d{6})_(image|albedo|normal)\.(exr|png)$")
+_FRAME_JSON_RE = re.compile(r"^frame_(\d{6})\.json$")
+
+
+class PredictionError(ValueError):
+    """Problems with a predictions folder; `problems` lists them, each naming its file."""
+
+    def __init__(self, root: Path, problems: list[str]) -> None:
+        self.problems = list(problems)
+        shown = "\n".join(f"  - {p}" for p in self.problems[:50])
+        more = f"\n  ... and {len(self.problems) - 50} more" if len(self.problems) > 50 else ""
+        super().__init__(f"{len(self.problems)} problem(s) with predictions {root}:\n{shown}{more}")
+
+
+@dataclass(frozen=True)
+class GTFrame:
+    subject: str
+    index: int
+    folder: Path
+    width: int
+    height: int
+    exposure: float
+
+    @property
+    def key(self) -> str:
+        return f"{self.subject}/frame_{self.index:06d}"
+
+    def layer(self, name: str) -> Path:
+        return self.folder / f"frame_{self.index:06d}_{name}"
+
+    @property
+    def json_path(self) -> Path:
+        return self.folder / f"frame_{self.index:06d}.json"
+
+
+@dataclass
+class DatasetIndex:
+    root: Path
+    protocol: str  # "a", "b", ...
+    frames: list[GTFrame]
+    manifest_sha256: str
+    subjects: list[str]
+
+
+@dataclass
+class PredFrame:
+    gt: GTFrame
+    image: Path | None = None
+    albedo: Path | None = None
+    normal: Path | None = None
+
+
+@dataclass
+class PredictionIndex:
+    root: Path
+    method: dict
+    frames: list[PredFrame]  # frames with an image prediction, in dataset order
+    missing: list[str] = field(default_factory=list)  # human-readable, each naming the expected file
+    has_albedo: bool = False
+    has_normal: bool = False
+
+
+def protocol_dir(protocol: str) -> str:
+    p = protocol[len("protocol_"):] if protocol.startswith("protocol_") else protocol
+    if not re.fullmatch(r"[a-z0-9]+", p):
+        raise ValueError(f"protocol must look like 'a' or 'protocol_a', got {protocol!r}")
+    return f"protocol_{p}"
+
+
+def load_dataset(root: str | Path, protocol: str) -> DatasetIndex:
+    """Index the test split of `protocol` in the dataset at `root` (complete frames = those with a JSON)."""
+    root = Path(root)
+    pdir = protocol_dir(protocol)
+    manifest = root / "manifest.json"
+    if not manifest.is_file():
+        raise FileNotFoundError(f"{manifest}: dataset manifest not found (is {root} a dataset folder?)")
+    frames: list[GTFrame] = []
+    subjects = sorted(d.name for d in root.iterdir() if d.is_dir() and (d / pdir / "test").is_dir())
+    for subject in subjects:
+        folder = root / subject / pdir / "test"
+        for jp in sorted(folder.iterdir()):
+            m = _FRAME_JSON_RE.match(jp.name)
+            if not m:
+                continue
+            meta = read_json(jp)
+            try:
+                w, h, exposure = int(meta["width"]), int(meta["height"]), float(meta["exposure"])
+            except (KeyError, TypeError, ValueError) as exc:
+                raise ValueError(f"{jp}: frame JSON lacks a valid width/height/exposure ({exc})") from exc
+            frames.append(GTFrame(subject, int(m.group(1)), folder, w, h, exposure))
+    if not frames:
+        raise FileNotFoundError(f"{root}: no test frames for {pdir} (expected <subject>/{pdir}/test/frame_*.json)")
+    return DatasetIndex(root, pdir[len("protocol_"):], frames, sha256_file(manifest), subjects)
+
+
+def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplete: bool = False) -> PredictionIndex:
+    """Match the files of a predictions folder to the dataset's test frames; raise `PredictionError` listing every
+    problem found (missing frames are tolerated with `allow_incomplete`, reported in `missing`)."""
+    root = Path(pred_root)
+    if not root.is_dir():
+        raise PredictionError(root, [f"{root}: not a folder"])
+    method: dict = {"name": root.resolve().name}
+    mj = root / "method.json"
+    problems: list[str] = []
+    if mj.is_file():
+        try:
+            loaded = read_json(mj)
+            if not isinstance(loaded, dict):
+                raise ValueError("not a JSON object")
+            if loaded.get("kind", "method") not in ("method", "bound"):
+                raise ValueError(f"'kind' must be 'method' or 'bound', got {loaded.get('kind')!r}")
+            method.update(loaded)
+        except ValueError as exc:
+            problems.append(f"{mj}: {exc}")
+    pdir = f"protocol_{ds.protocol}"
+    by_key = {f.key: f for f in ds.frames}
+    found: dict[str, dict[str, Path]] = {}
+    for entry in sorted(root.iterdir()):
+        if entry.name.startswith(".") or entry.is_file():
+            continue  # method.json, READMEs, dotfiles
+        if entry.name not in ds.subjects:
+            problems.append(f"{entry}: unexpected folder (not a subject of the dataset's {pdir} test split)")
+            continue
+        test = entry / pdir / "test"
+        if not test.is_dir():
+            continue  # counted as missing below
+        for f in sorted(test.iterdir()):
+            if f.name.startswith("."):
+                continue
+            m = _PRED_RE.match(f.name)
+            if not m or not f.is_file():
+                problems.append(f"{f}: unexpected file (expected frame_NNNNNN_{{image,albedo,normal}}.{{exr,png}})")
+                continue
+            key = f"{entry.name}/frame_{m.group(1)}"
+            if key not in by_key:
+                problems.append(f"{f}: extra frame (no ground-truth frame {key} in the test split)")
+                continue
+            layers = found.setdefault(key, {})
+            if m.group(2) in layers:
+                problems.append(f"{f}: layer given twice ({layers[m.group(2)].name} and {f.name}); keep one")
+                continue
+            layers[m.group(2)] = f
+    frames: list[PredFrame] = []
+    missing: list[str] = []
+    any_albedo = any("albedo" in v for v in found.values())
+    any_normal = any("normal" in v for v in found.values())
+    for gt in ds.frames:
+        layers = found.get(gt.key, {})
+        expected_dir = root / gt.subject / pdir / "test"
+        if "image" not in layers:
+            missing.append(f"{expected_dir / f'frame_{gt.index:06d}_image.exr'} (or .png): missing frame")
+            continue
+        for name, present in (("albedo", any_albedo), ("normal", any_normal)):
+            if present and name not in layers:
+                missing.append(f"{expected_dir / f'frame_{gt.index:06d}_{name}.exr'} (or .png): missing {name} "
+                               f"(other frames have one)")
+        frames.append(PredFrame(gt, layers.get("image"), layers.get("albedo"), layers.get("normal")))
+    if missing and not allow_incomplete:
+        problems.extend(missing)
+        problems.append("(use --allow-incomplete to evaluate what exists; the result is then marked incomplete)")
+    if problems:
+        raise PredictionError(root, problems)
+    return PredictionIndex(root, method, frames, missing, any_albedo, any_normal)
+
+
+# --------------------------------------------------------------------------------------------- file checks
+def _png_header(path: Path) -> tuple[int, int, int, int]:
+    """(width, height, bit depth, colour type) from the IHDR chunk. Pillow reads a 16-bit RGB PNG as 8-bit RGB
+    without saying so, hence this check before decoding."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(33)
+    except OSError as exc:
+        raise ImageFileError(f"{path}: cannot read ({exc})") from exc
+    if len(head) < 33 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        raise ImageFileError(f"{path}: not a PNG file (bad signature or header)")
+    w, h, depth, ctype = struct.unpack(">IIBB", head[16:26])
+    return w, h, depth, ctype
+
+
+_PNG_CTYPES = {0: "greyscale (1 channel)", 2: "RGB", 3: "palette", 4: "greyscale+alpha (2 channels)", 6: "RGBA"}
+
+
+def _read_rgb_png(path: Path, frame: GTFrame) -> np.ndarray:
+    w, h, depth, ctype = _png_header(path)
+    if depth != 8:
+        raise ImageFileError(f"{path}: {depth}-bit PNG; predictions must be 8-bit RGB or RGBA (or float32 EXR)")
+    if ctype not in (2, 6):
+        raise ImageFileError(f"{path}: PNG colour type {_PNG_CTYPES.get(ctype, ctype)}; expected 8-bit RGB or RGBA "
+                             f"(3 or 4 channels)")
+    _check_size(path, (h, w), frame)
+    arr = read_png(path)
+    if arr.ndim != 3 or arr.shape[2] not in (3, 4) or arr.dtype != np.uint8:
+        raise ImageFileError(f"{path}: decoded to shape {arr.shape} {arr.dtype}; expected 8-bit RGB or RGBA")
+    return arr[..., :3]
+
+
+def _check_size(path: Path, hw: tuple[int, int], frame: GTFrame) -> None:
+    if tuple(hw) != (frame.height, frame.width):
+        raise ImageFileError(f"{path}: resolution {hw[1]}x{hw[0]} (WxH) differs from the ground truth's "
+                             f"{frame.width}x{frame.height}")
+
+
+def _read_rgb_exr(path: Path, frame: GTFrame) -> np.ndarray:
+    arr = read_exr(path)
+    _check_size(path, arr.shape[:2], frame)
+    if arr.shape[2] not in (3, 4):
+        raise ImageFileError(f"{path}: {arr.shape[2]} channel(s); expected R,G,B (or R,G,B,A, alpha ignored)")
+    arr = arr[..., :3]
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        n = int(bad.any(axis=-1).sum())
+        raise ImageFileError(f"{path}: {n} pixel(s) with NaN or Inf")
+    return arr.astype(np.float64)
+
+
+# --------------------------------------------------------------------------------------------- ground truth
+def read_gt_display(frame: GTFrame) -> np.ndarray:
+    path = frame.layer("image.exr")
+    return to_display(_read_rgb_exr(path, frame), frame.exposure).astype(np.float64)
+
+
+def read_gt_mask(frame: GTFrame) -> np.ndarray:
+    path = frame.layer("mask.png")
+    arr = read_png(path)
+    if arr.ndim == 3:  # tolerate an RGB-saved mask whose channels agree
+        if not np.all(arr[..., :3] == arr[..., :1]):
+            raise ImageFileError(f"{path}: mask has differing colour channels; expected 8-bit greyscale")
+        arr = arr[..., 0]
+    _check_size(path, arr.shape, frame)
+    return arr.astype(np.uint8)
+
+
+def read_gt_albedo(frame: GTFrame) -> np.ndarray:
+    """Linear albedo, float64 in [0, 1]."""
+    return np.clip(_read_rgb_exr(frame.layer("albedo.exr"), frame), 0.0, 1.0)
+
+
+def read_gt_normal(frame: GTFrame) -> np.ndarray:
+    return _read_rgb_exr(frame.layer("normal.exr"), frame)
+
+
+# --------------------------------------------------------------------------------------------- predictions
+def read_pred_display(path: Path, frame: GTFrame) -> np.ndarray:
+    """An image prediction in display space: EXR radiance with the ground truth's exposure, PNG as is."""
+    if path.suffix == ".exr":
+        return to_display(_read_rgb_exr(path, frame), frame.exposure).astype(np.float64)
+    return _read_rgb_png(path, frame).astype(np.float64) / 255.0
+
+
+def read_pred_albedo(path: Path, frame: GTFrame) -> np.ndarray:
+    """Linear albedo: EXR as stored (clipped to [0, 1], the albedo range), PNG sRGB-decoded."""
+    if path.suffix == ".exr":
+        return np.clip(_read_rgb_exr(path, frame), 0.0, 1.0)
+    return srgb_decode(_read_rgb_png(path, frame).astype(np.float64) / 255.0).astype(np.float64)
+
+
+def decode_normal_png(v: np.ndarray) -> np.ndarray:
+    """8-bit encoded normals to vectors: 2 v / 255 - 1 (renormalised by the metric)."""
+    return 2.0 * np.asarray(v, dtype=np.float64) / 255.0 - 1.0
+
+
+def read_pred_normal(path: Path, frame: GTFrame) -> np.ndarray:
+    """Camera-space normal vectors (OpenGL convention), not yet renormalised."""
+    if path.suffix == ".exr":
+        return _read_rgb_exr(path, frame)
+    return decode_normal_png(_read_rgb_png(path, frame))

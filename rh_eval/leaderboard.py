@@ -1,0 +1,394 @@
+"""`rh-leaderboard`: several `rh-eval` result files -> `leaderboard.md` (laid out like the paper's Table 2) and a
+self-contained `index.html` (sortable tables, per-subject plots as inline SVG).
+
+Only result files with the same dataset manifest, protocol and convention are combined (`--allow-mixed` overrides,
+with a warning in both outputs). Rows with `"kind": "bound"` (oracles) are listed in their own table, never ranked;
+incomplete submissions in another, never ranked as complete. Bold marks the best complete method per column.
+"""
+from __future__ import annotations
+
+import argparse
+import html
+import io
+import json
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from rh_common.imageio import atomic_path
+
+__all__ = ["main", "load_results", "build_markdown", "build_html", "COLUMNS", "Entry"]
+
+# (key in "overall", group, label, lower_is_better, decimals)
+COLUMNS = [
+    ("image_lpips", "Image", "LPIPS", True, 4),
+    ("image_dists", "Image", "DISTS", True, 4),
+    ("image_ssim", "Image", "SSIM", False, 4),
+    ("image_psnr", "Image", "PSNR", False, 2),
+    ("normal_deg", "Normal", "degrees", True, 2),
+    ("albedo_lpips", "Albedo", "LPIPS", True, 4),
+    ("albedo_dists", "Albedo", "DISTS", True, 4),
+    ("albedo_ssim", "Albedo", "SSIM", False, 4),
+    ("albedo_psnr", "Albedo", "PSNR", False, 2),
+]
+ALIGNED_COLUMNS = [(f"albedo_aligned_{k.split('_', 1)[1]}", "Albedo (scale-aligned)", lab, low, dec)
+                   for k, _, lab, low, dec in COLUMNS if k.startswith("albedo_")]
+_CONSISTENT = ("convention",)
+
+
+@dataclass
+class Entry:
+    path: Path
+    result: dict
+    display: str | None = None
+
+    @property
+    def name(self) -> str:
+        if self.display:
+            return self.display
+        return str(self.result.get("method", {}).get("name", self.path.stem))
+
+    @property
+    def label(self) -> str:
+        """Name with its standing when it is not a ranked method."""
+        return self.name + {"bound": " (bound)", "incomplete": " (incomplete)"}.get(self.group, "")
+
+    @property
+    def group(self) -> str:
+        if self.result.get("kind") == "bound":
+            return "bound"
+        return "method" if self.result.get("complete", False) else "incomplete"
+
+    def value(self, key: str):
+        """float, +inf (PSNR of identical images), or None (not evaluated)."""
+        s = self.result.get("overall", {}).get(key)
+        if not s:
+            return None
+        m = s.get("mean")
+        if m == "inf":
+            return math.inf
+        return float(m) if isinstance(m, (int, float)) else None
+
+    def subject_value(self, subject: str, key: str):
+        s = self.result.get("per_subject", {}).get(subject, {}).get("metrics", {}).get(key)
+        if not s:
+            return None
+        m = s.get("mean")
+        return math.inf if m == "inf" else (float(m) if isinstance(m, (int, float)) else None)
+
+
+def load_results(paths: list[Path], *, allow_mixed: bool = False) -> tuple[list[Entry], list[str]]:
+    """Read result files; refuse (ValueError) files that are not rh-eval results or that disagree on dataset,
+    protocol or convention (unless `allow_mixed`, which returns the disagreements as warnings)."""
+    entries = []
+    for p in paths:
+        try:
+            r = json.loads(Path(p).read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ValueError(f"{p}: cannot read result file ({exc})") from exc
+        if not isinstance(r, dict) or r.get("format") != "rh-eval/1":
+            raise ValueError(f"{p}: not an rh-eval result (format {r.get('format') if isinstance(r, dict) else None!r})")
+        entries.append(Entry(Path(p), r))
+    if not entries:
+        raise ValueError("no result files given")
+    names = [e.name for e in entries]
+    for e in entries:  # two results of the same name: tell them apart by file name
+        if names.count(e.name) > 1:
+            e.display = f"{e.name} ({e.path.name})"
+    problems = []
+    ref = entries[0]
+    for e in entries[1:]:
+        for label, a, b in (
+            ("dataset manifest sha256", ref.result["dataset"].get("manifest_sha256"),
+             e.result["dataset"].get("manifest_sha256")),
+            ("protocol", ref.result["dataset"].get("protocol"), e.result["dataset"].get("protocol")),
+        ):
+            if a != b:
+                problems.append(f"{e.path}: {label} {b!r} differs from {ref.path}'s {a!r}")
+        ca = {k: v for k, v in ref.result.get("convention", {}).items() if k != "align_albedo"}
+        cb = {k: v for k, v in e.result.get("convention", {}).items() if k != "align_albedo"}
+        diff = sorted(k for k in set(ca) | set(cb) if ca.get(k) != cb.get(k))
+        if diff:
+            problems.append(f"{e.path}: convention differs from {ref.path}'s in "
+                            + ", ".join(f"{k} ({cb.get(k)!r} vs {ca.get(k)!r})" for k in diff))
+    if problems and not allow_mixed:
+        raise ValueError("results are not comparable (use --allow-mixed to combine anyway):\n  - "
+                         + "\n  - ".join(problems))
+    return entries, problems
+
+
+def _fmt(v, dec: int) -> str:
+    if v is None:
+        return "—"
+    if math.isinf(v):
+        return "∞"
+    return f"{v:.{dec}f}"
+
+
+def _best(entries: list[Entry], cols) -> dict[str, float]:
+    best = {}
+    for key, _, _, low, _ in cols:
+        vals = [e.value(key) for e in entries if e.group == "method" and e.value(key) is not None]
+        if vals:
+            best[key] = min(vals) if low else max(vals)
+    return best
+
+
+def _rank_key(e: Entry):
+    v = e.value("image_lpips")
+    return (v is None, v if v is not None else 0.0, e.name)
+
+
+def _groups(entries):
+    return [
+        ("Methods", "method", sorted([e for e in entries if e.group == "method"], key=_rank_key)),
+        ("Bounds (oracles; not ranked)", "bound", sorted([e for e in entries if e.group == "bound"], key=_rank_key)),
+        ("Incomplete submissions (not ranked)", "incomplete",
+         sorted([e for e in entries if e.group == "incomplete"], key=_rank_key)),
+    ]
+
+
+def _convention_line(entries: list[Entry]) -> str:
+    c = entries[0].result.get("convention", {})
+    d = entries[0].result.get("dataset", {})
+    return (f"Protocol {d.get('protocol')}, dataset manifest sha256 `{str(d.get('manifest_sha256'))[:16]}…`; "
+            f"region `{c.get('region')}` over {c.get('background')}, LPIPS backbone `{c.get('backbone')}` (v0.1), "
+            f"albedo in {c.get('albedo_space')}, FLIP ppd {c.get('flip_ppd'):.4g}. "
+            f"↓ lower is better, ↑ higher is better; **bold** = best complete method; ∞ = identical to the "
+            f"ground truth on every frame.")
+
+
+def _md_table(rows: list[Entry], cols, best, mixed: bool = False) -> list[str]:
+    head = "| Method | " + " | ".join(f"{g} {lab} {'↓' if low else '↑'}" for _, g, lab, low, _ in cols) + " | Frames |"
+    sep = "|---|" + "---:|" * len(cols) + "---:|"
+    out = [head, sep]
+    for e in rows:
+        cells = []
+        for key, _, _, _, dec in cols:
+            v = e.value(key)
+            s = _fmt(v, dec)
+            if e.group == "method" and v is not None and key in best and v == best[key]:
+                s = f"**{s}**"
+            cells.append(s)
+        n = e.result.get("n_frames_evaluated")
+        tot = e.result.get("dataset", {}).get("n_frames")
+        out.append(f"| {e.label if mixed else e.name} | " + " | ".join(cells) + f" | {n}/{tot} |")
+    return out
+
+
+def build_markdown(entries: list[Entry], warnings: list[str] | None = None) -> str:
+    best = _best(entries, COLUMNS)
+    lines = ["# Relighting Humans leaderboard", "", _convention_line(entries), ""]
+    for w in warnings or []:
+        lines.append(f"> **Warning:** {w}")
+    if warnings:
+        lines.append("")
+    any_aligned = any(e.value(k) is not None for e in entries for k, *_ in ALIGNED_COLUMNS)
+    for title, _, rows in _groups(entries):
+        if not rows:
+            continue
+        lines += [f"## {title}", ""] + _md_table(rows, COLUMNS, best) + [""]
+    if any_aligned:
+        best_a = _best(entries, ALIGNED_COLUMNS)
+        rows = [e for _, _, rs in _groups(entries) for e in rs if any(e.value(k) is not None
+                                                                       for k, *_ in ALIGNED_COLUMNS)]
+        lines += ["## Albedo after per-channel least-squares scale (reported separately from the raw scores)", ""]
+        lines += _md_table(rows, ALIGNED_COLUMNS, best_a, mixed=True) + [""]
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------- HTML
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em;color:#222;max-width:1400px}
+h1{font-size:1.6em} h2{font-size:1.2em;margin-top:1.6em}
+table{border-collapse:collapse;margin:.5em 0 1em 0;font-variant-numeric:tabular-nums}
+th,td{border:1px solid #ccc;padding:.3em .6em;text-align:right} td:first-child,th:first-child{text-align:left}
+th{background:#f0f0f4;cursor:pointer;user-select:none} th.group{cursor:default;text-align:center;background:#e4e4ec}
+th.sorted-asc::after{content:" ▲"} th.sorted-desc::after{content:" ▼"}
+td.best{font-weight:bold;background:#eaf6ea} tr.bound td{color:#555;font-style:italic}
+.note{color:#555;font-size:.9em} .warn{color:#a00} .plots{display:flex;flex-wrap:wrap;gap:1em}
+.plots figure{margin:0} .plots figcaption{font-size:.9em;color:#444}
+"""
+
+_JS = """
+function sortTable(table, col, dir) {
+  const tbody = table.tBodies[0];
+  const rows = Array.from(tbody.rows);
+  const val = r => { const v = r.cells[col].dataset.value; return v === undefined ? r.cells[col].textContent : v; };
+  const num = s => (s === 'inf' ? Infinity : (s === '' ? NaN : parseFloat(s)));
+  rows.sort((a, b) => {
+    const x = num(val(a)), y = num(val(b));
+    if (isNaN(x) && isNaN(y)) return val(a).localeCompare(val(b)) * dir;
+    if (isNaN(x)) return 1; if (isNaN(y)) return -1;
+    return (x < y ? -1 : x > y ? 1 : 0) * dir;
+  });
+  rows.forEach(r => tbody.appendChild(r));
+  table.querySelectorAll('th[data-col]').forEach(th => th.classList.remove('sorted-asc', 'sorted-desc'));
+  const th = table.querySelector('th[data-col="' + col + '"]');
+  if (th) th.classList.add(dir > 0 ? 'sorted-asc' : 'sorted-desc');
+  table.dataset.sortCol = col; table.dataset.sortDir = dir;
+}
+document.querySelectorAll('table.sortable').forEach(table => {
+  table.querySelectorAll('th[data-col]').forEach(th => th.addEventListener('click', () => {
+    const col = +th.dataset.col;
+    const dir = (+table.dataset.sortCol === col) ? -(+table.dataset.sortDir || 1) : (+th.dataset.default || 1);
+    sortTable(table, col, dir);
+  }));
+});
+// URL hash "#sort=<metric key>&dir=asc|desc" sorts every table on load (used by the tests and for links).
+(function () {
+  const h = new URLSearchParams(location.hash.slice(1));
+  const key = h.get('sort'); if (!key) return;
+  const dir = h.get('dir') === 'desc' ? -1 : 1;
+  document.querySelectorAll('table.sortable').forEach(table => {
+    const th = table.querySelector('th[data-key="' + key + '"]');
+    if (th) sortTable(table, +th.dataset.col, dir);
+  });
+})();
+"""
+
+
+def _html_table(rows: list[Entry], cols, best, table_id: str) -> str:
+    e = html.escape
+    groups: list[tuple[str, int]] = []
+    for _, g, *_ in cols:
+        if groups and groups[-1][0] == g:
+            groups[-1] = (g, groups[-1][1] + 1)
+        else:
+            groups.append((g, 1))
+    out = [f'<table class="sortable" id="{table_id}"><thead>',
+           '<tr><th class="group"></th>' + "".join(f'<th class="group" colspan="{n}">{e(g)}</th>' for g, n in groups)
+           + '<th class="group"></th></tr><tr>',
+           '<th data-col="0" data-key="name" data-default="1">Method</th>']
+    for i, (key, _, lab, low, _) in enumerate(cols, start=1):
+        out.append(f'<th data-col="{i}" data-key="{key}" data-default="{1 if low else -1}" '
+                   f'title="{"lower" if low else "higher"} is better">{e(lab)} {"↓" if low else "↑"}</th>')
+    out.append(f'<th data-col="{len(cols) + 1}" data-key="frames" data-default="-1">Frames</th></tr></thead><tbody>')
+    for ent in rows:
+        cls = ' class="bound"' if ent.group == "bound" else ""
+        cells = [f'<td data-value="{e(ent.label)}">{e(ent.label)}</td>']
+        for key, _, _, _, dec in cols:
+            v = ent.value(key)
+            dv = "" if v is None else ("inf" if math.isinf(v) else repr(v))
+            is_best = ent.group == "method" and v is not None and key in best and v == best[key]
+            best_attr = ' class="best"' if is_best else ""
+            cells.append(f'<td data-value="{dv}"{best_attr}>{_fmt(v, dec)}</td>')
+        n = ent.result.get("n_frames_evaluated")
+        tot = ent.result.get("dataset", {}).get("n_frames")
+        cells.append(f'<td data-value="{n}">{n}/{tot}</td>')
+        out.append(f"<tr{cls}>" + "".join(cells) + "</tr>")
+    out.append("</tbody></table>")
+    return "\n".join(out)
+
+
+def _plots(entries: list[Entry]) -> list[tuple[str, str]]:
+    """Per-subject grouped bar charts (inline SVG) for the main metrics of every listed entry."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    subjects = sorted({s for e in entries for s in e.result.get("per_subject", {})})
+    palette = plt.get_cmap("tab10")
+    colour = {id(e): palette(i % 10) for i, e in enumerate(entries)}  # one colour per entry in every plot
+    figs = []
+    for key, title in (("image_lpips", "Image LPIPS ↓"), ("image_psnr", "Image PSNR (dB) ↑"),
+                       ("normal_deg", "Normal error (degrees) ↓"), ("albedo_lpips", "Albedo LPIPS ↓")):
+        series = [(e, [e.subject_value(s, key) for s in subjects]) for e in entries]
+        series = [(e, v) for e, v in series if any(x is not None for x in v)]
+        if not series or not subjects:
+            continue
+        fig, ax = plt.subplots(figsize=(max(5.5, 0.9 * len(subjects) + 4.0), 2.8), dpi=96)
+        width = 0.8 / len(series)
+        x = np.arange(len(subjects))
+        finite = [v for _, vs in series for v in vs if v is not None and math.isfinite(v)]
+        cap = max(finite) * 1.15 if finite else 1.0
+        for i, (e, vs) in enumerate(series):
+            ys = [np.nan if v is None else (cap if math.isinf(v) else v) for v in vs]
+            bars = ax.bar(x + (i - (len(series) - 1) / 2) * width, ys, width, label=e.label, color=colour[id(e)],
+                          hatch="//" if e.group != "method" else None, alpha=0.9)
+            for b, v in zip(bars, vs):
+                if v is not None and math.isinf(v):
+                    ax.annotate("∞", (b.get_x() + b.get_width() / 2, b.get_height()), ha="center", va="bottom",
+                                fontsize=8)
+        ax.set_xticks(x, subjects, fontsize=8)
+        ax.set_title(title, fontsize=10)
+        ax.tick_params(axis="y", labelsize=8)
+        ax.legend(fontsize=7, frameon=False, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        fig.tight_layout()
+        buf = io.StringIO()
+        with plt.rc_context({"svg.hashsalt": "rh-leaderboard"}):  # stable ids: same inputs, same page
+            fig.savefig(buf, format="svg", metadata={"Date": None})
+        plt.close(fig)
+        svg = buf.getvalue()
+        svg = svg[svg.index("<svg"):]  # drop the XML prolog/doctype for inlining
+        figs.append((title, svg))
+    return figs
+
+
+def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
+    e = html.escape
+    best = _best(entries, COLUMNS)
+    parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+             "<title>Relighting Humans leaderboard</title>", f"<style>{_CSS}</style></head><body>",
+             "<h1>Relighting Humans leaderboard</h1>",
+             f'<p class="note">{e(_convention_line(entries)).replace("**bold**", "<b>bold</b>").replace("`", "")}'
+             " Click a column header to sort.</p>"]
+    for w in warnings or []:
+        parts.append(f'<p class="warn">Warning: {e(w)}</p>')
+    ids = {"method": "methods", "bound": "bounds", "incomplete": "incomplete"}
+    for title, group, rows in _groups(entries):
+        if rows:
+            parts += [f"<h2>{e(title)}</h2>", _html_table(rows, COLUMNS, best, ids[group])]
+    aligned_rows = [x for _, _, rs in _groups(entries) for x in rs
+                    if any(x.value(k) is not None for k, *_ in ALIGNED_COLUMNS)]
+    if aligned_rows:
+        parts += ["<h2>Albedo after per-channel least-squares scale (separate from the raw scores)</h2>",
+                  _html_table(aligned_rows, ALIGNED_COLUMNS, _best(entries, ALIGNED_COLUMNS), "aligned")]
+    plots = _plots([x for _, _, rs in _groups(entries) for x in rs])
+    if plots:
+        parts.append("<h2>Per subject</h2><div class=\"plots\">")
+        for title, svg in plots:
+            parts.append(f'<figure aria-label="{e(title)}">{svg}</figure>')
+        parts.append("</div>")
+    parts.append("<h2>Result files</h2><ul>")
+    for x in entries:
+        r = x.result
+        ws = ", ".join(f"{k} {v['sha256'][:12]}…" for k, v in sorted(r.get("weights", {}).items()))
+        parts.append(f"<li><code>{e(x.path.name)}</code>: {e(x.name)} ({e(x.group)}), "
+                     f"{r.get('n_frames_evaluated')} frames; weights {e(ws)}</li>")
+    parts.append("</ul>")
+    parts.append(f"<script>{_JS}</script></body></html>")
+    return "\n".join(parts) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(
+        prog="rh-leaderboard",
+        description="Combine rh-eval result files into leaderboard.md (Table 2 layout: Image LPIPS/DISTS/SSIM/PSNR "
+                    "| Normal degrees | Albedo LPIPS/DISTS/SSIM/PSNR, best in bold) and a self-contained "
+                    "index.html (sortable tables, per-subject plots). Bounds (kind=bound) and incomplete "
+                    "submissions are listed separately, never ranked.")
+    p.add_argument("results", nargs="+", type=Path, help="rh-eval result JSON files")
+    p.add_argument("--out", type=Path, required=True, help="output folder (index.html, leaderboard.md)")
+    p.add_argument("--allow-mixed", action="store_true",
+                   help="combine results computed on different datasets/protocols/conventions (warned in output)")
+    args = p.parse_args(argv)
+    try:
+        entries, warnings = load_results(args.results, allow_mixed=args.allow_mixed)
+    except ValueError as exc:
+        print(f"rh-leaderboard: error: {exc}", file=sys.stderr)
+        return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    for name, text in (("leaderboard.md", build_markdown(entries, warnings)),
+                       ("index.html", build_html(entries, warnings))):
+        with atomic_path(args.out / name) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+    print(f"rh-leaderboard: {len(entries)} result(s) -> {args.out / 'index.html'}, {args.out / 'leaderboard.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

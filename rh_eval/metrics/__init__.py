@@ -1,0 +1,12 @@
+"""One pure function per metric: `fn(pred, target, *, data_range=..., mask=None, ...)`, numpy in, float out.
+
+Every function first runs the shared `_validate` (ValueError on bad input). See docs/EVALUATION.md.
+"""
+from .dists import dists
+from .flip import FLIP_PPD, flip
+from .lpips import lpips
+from .normal import normal_angular_error
+from .psnr import mse, psnr
+from .ssim import ssim
+
+__all__ = ["psnr", "mse", "ssim", "lpips", "dists", "flip", "FLIP_PPD", "normal_angular_error"]

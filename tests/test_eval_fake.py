@@ -1,0 +1,135 @@
+"""A tiny fake Relighting Humans dataset and prediction sets, written with rh_common.imageio in the layout of
+docs/ARCHITECTURE.md; used by the other test_eval_* files (and checked here)."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from rh_common.colourspace import quantize8, srgb_encode, to_display
+from rh_common.imageio import read_json, sha256_file, write_exr, write_json, write_png
+
+SIZE = 64
+SUBJECTS = ("subject_000", "subject_001")
+FRAMES = (0, 1)
+
+
+def _sphere(size: int, cx: float, cy: float, r: float):
+    v, u = np.mgrid[0:size, 0:size].astype(np.float64) + 0.5
+    x, y = (u - cx) / r, -(v - cy) / r  # OpenGL camera: y up
+    d2 = x * x + y * y
+    inside = d2 < 1.0
+    z = np.sqrt(np.clip(1.0 - d2, 0.0, 1.0))
+    n = np.stack([x, y, z], axis=-1) * inside[..., None]
+    cov = np.clip((1.0 - np.sqrt(d2)) * r + 0.5, 0.0, 1.0)  # anti-aliased coverage
+    return n.astype(np.float32), cov
+
+
+def make_dataset(root: Path, *, size: int = SIZE, subjects=SUBJECTS, frames=FRAMES, seed: int = 0,
+                 empty_mask: tuple[str, int] | None = None) -> Path:
+    rng = np.random.default_rng(seed)
+    root = Path(root)
+    for si, subject in enumerate(subjects):
+        for f in frames:
+            folder = root / subject / "protocol_a" / "test"
+            folder.mkdir(parents=True, exist_ok=True)
+            cx, cy, r = size * (0.45 + 0.1 * f), size * (0.5 + 0.05 * si), size * 0.3
+            normal, cov = _sphere(size, cx, cy, r)
+            if empty_mask == (subject, f):
+                normal[:] = 0
+                cov[:] = 0
+            base = rng.uniform(0.2, 0.8, size=3)
+            yy, xx = np.mgrid[0:size, 0:size] / size
+            albedo = np.clip(base[None, None, :] * (0.7 + 0.3 * np.sin(6 * xx + 3 * yy + si))[..., None], 0, 1)
+            albedo = (albedo * (cov > 0)[..., None]).astype(np.float32)
+            shade = np.clip(0.3 + 0.7 * normal[..., 2:3] + 0.2 * normal[..., 1:2], 0, None)
+            env = np.stack([0.3 + 0.2 * xx, 0.35 + 0.1 * yy, 0.5 - 0.2 * yy], axis=-1)
+            image = (albedo * shade * cov[..., None] + env * (1 - cov[..., None])).astype(np.float32) * 2.0
+            image += rng.normal(0, 0.01, image.shape).astype(np.float32).clip(-0.01, 0.01)
+            image = np.clip(image, 0, None)
+            exposure = 0.5
+            stem = f"frame_{f:06d}"
+            layers = {}
+            write_exr(folder / f"{stem}_image.exr", image)
+            write_png(folder / f"{stem}_image.png", quantize8(to_display(image, exposure)))
+            write_png(folder / f"{stem}_mask.png", quantize8(cov))
+            write_exr(folder / f"{stem}_albedo.exr", albedo)
+            write_png(folder / f"{stem}_albedo.png", quantize8(srgb_encode(albedo)))
+            write_exr(folder / f"{stem}_normal.exr", normal)
+            write_png(folder / f"{stem}_normal.png",
+                      quantize8((normal + 1) / 2) * (np.any(normal != 0, axis=-1)[..., None]).astype(np.uint8))
+            for name in ("image.exr", "image.png", "mask.png", "albedo.exr", "albedo.png", "normal.exr",
+                         "normal.png"):
+                p = folder / f"{stem}_{name}"
+                layers[name.replace(".", "_")] = {"file": p.name, "sha256": sha256_file(p)}
+            write_json(folder / f"{stem}.json", {
+                "format": "rh-frame/1", "subject": subject, "protocol": "a", "split": "test", "index": f,
+                "width": size, "height": size, "exposure": exposure, "layers": layers,
+            })
+    manifest = {}
+    for p in sorted(root.rglob("*")):
+        if p.is_file() and p.name != "manifest.json":
+            manifest[str(p.relative_to(root))] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}
+    write_json(root / "dataset.json", {"protocol": "a", "subjects": list(subjects)})
+    write_json(root / "manifest.json", manifest)
+    return root
+
+
+def gt_frames(ds: Path):
+    for jp in sorted(Path(ds).glob("subject_*/protocol_a/test/frame_*.json")):
+        yield jp.parent, jp.stem, read_json(jp)
+
+
+def make_predictions(ds: Path, out: Path, *, name: str = "oracle", kind: str | None = None, fmt: str = "exr",
+                     layers=("image", "albedo", "normal"), noise: float = 0.0, seed: int = 1,
+                     albedo_scale: float = 1.0) -> Path:
+    """A prediction set: the ground truth itself (noise=0, fmt exr), or perturbed/quantised versions."""
+    rng = np.random.default_rng(seed)
+    out = Path(out)
+    from rh_common.imageio import read_exr
+    for folder, stem, meta in gt_frames(ds):
+        dst = out / folder.relative_to(ds)
+        dst.mkdir(parents=True, exist_ok=True)
+        for layer in layers:
+            src = folder / f"{stem}_{layer}.exr"
+            if fmt == "exr" and noise == 0.0 and albedo_scale == 1.0:
+                shutil.copyfile(src, dst / src.name)
+                continue
+            arr = read_exr(src)
+            if layer == "image":
+                arr = np.clip(arr * (1 + noise * rng.normal(size=arr.shape)), 0, None).astype(np.float32)
+                if fmt == "png":
+                    write_png(dst / f"{stem}_image.png", quantize8(to_display(arr, meta["exposure"])))
+                else:
+                    write_exr(dst / f"{stem}_image.exr", arr)
+            elif layer == "albedo":
+                arr = np.clip(arr * albedo_scale + noise * rng.normal(size=arr.shape), 0, 1).astype(np.float32)
+                if fmt == "png":
+                    write_png(dst / f"{stem}_albedo.png", quantize8(srgb_encode(arr)))
+                else:
+                    write_exr(dst / f"{stem}_albedo.exr", arr)
+            else:
+                n = arr + noise * rng.normal(size=arr.shape) * np.any(arr != 0, axis=-1, keepdims=True)
+                if fmt == "png":
+                    write_png(dst / f"{stem}_normal.png", quantize8((np.clip(n, -1, 1) + 1) / 2))
+                else:
+                    write_exr(dst / f"{stem}_normal.exr", n.astype(np.float32))
+    meta = {"name": name}
+    if kind:
+        meta["kind"] = kind
+    write_json(out / "method.json", meta)
+    return out
+
+
+# ------------------------------------------------------------------------------------------------ self-checks
+def test_fake_dataset_follows_layout(tmp_path):
+    ds = make_dataset(tmp_path / "ds")
+    jp = ds / "subject_000" / "protocol_a" / "test" / "frame_000000.json"
+    meta = json.loads(jp.read_text())
+    assert meta["width"] == SIZE and meta["height"] == SIZE and meta["exposure"] > 0
+    manifest = read_json(ds / "manifest.json")
+    assert "subject_001/protocol_a/test/frame_000001_normal.exr" in manifest
+    for rel, entry in manifest.items():
+        assert sha256_file(ds / rel) == entry["sha256"]
