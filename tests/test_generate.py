@@ -165,3 +165,12 @@ class _no_raise:
 
     def __exit__(self, *exc):
         return False
+
+
+def test_parallel_workers_make_the_same_files_as_one_process(tmp_path):
+    small = ["--subjects", "2", "--frames", "1", "--resolution", "16", "--spp", "2", "--aov-spp", "1",
+             "--max-depth", "2", "--no-progress"]
+    one, two = tmp_path / "one", tmp_path / "two"
+    assert generate_main(["--protocol", "a", "--out", str(one), *small]) == 0
+    assert generate_main(["--protocol", "a", "--out", str(two), "--workers", "2", *small]) == 0
+    assert manifest(one) == manifest(two)
