@@ -1,0 +1,365 @@
+"""RANA's configuration: one frozen dataclass per component, named presets, and command-line flags made from them.
+
+Every field carries a docstring; `add_config_flags` turns each into a `--section.field` flag whose help text is
+that docstring (nerfstudio's habit, without tyro). Two levels at most: `RanaConfig.<section>.<field>`.
+"""
+from __future__ import annotations
+
+import ast
+import argparse
+import dataclasses
+import functools
+import inspect
+import json
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = [
+    "GeometryConfig",
+    "TextureConfig",
+    "ModelConfig",
+    "LossConfig",
+    "PersonalizeConfig",
+    "PretrainConfig",
+    "RanaConfig",
+    "PRESETS",
+    "get_preset",
+    "config_to_json",
+    "config_from_json",
+    "add_config_flags",
+    "apply_config_flags",
+    "field_docs",
+]
+
+
+@dataclass(frozen=True)
+class GeometryConfig:
+    """SMPL+D on anny: per-vertex offsets D fitted to the training masks (paper Sec. 3.1)."""
+
+    resolution: int = 128
+    """Image height (px) at which the soft silhouette is rendered and compared with the masks."""
+    steps: int = 300
+    """Adam steps of the offset fit."""
+    frames_per_step: int = 4
+    """Training frames whose silhouettes enter each step (drawn at random, seeded)."""
+    lr: float = 3e-3
+    """Adam learning rate for D (metres per step, roughly)."""
+    sigma_px: float = 0.3
+    """Softness of the silhouette edge (pixels at `resolution`): coverage = sigmoid(signed distance / sigma)."""
+    laplacian_weight: float = 1.0
+    """Weight of the Laplacian smoothness term ||L D||^2 (mean over vertices, D in cm, L uniform); the silhouette
+    term is the relative area error (sum |S - mask| / sum mask)."""
+    offset_weight: float = 1e-3
+    """Weight of a small ||D||^2 (cm^2) pull toward the naked body (keeps unobserved regions, e.g. soles, in
+    place)."""
+    max_frames: int = 0
+    """Use at most this many training frames (evenly spaced); 0 = all."""
+
+
+@dataclass(frozen=True)
+class TextureConfig:
+    """Coarse albedo texture: back-projection + median of the most camera-facing texels, then TextureNet (Sec. 3.2)."""
+
+    size: int = 256
+    """UV texture size (texels per side)."""
+    facing_quantile: float = 0.8
+    """A texel's colour is the median over the frames whose facing (cos of normal to view ray) is at least this
+    fraction of that texel's best facing: 'the most orthogonal texels'."""
+    min_facing: float = 0.2
+    """Observations more grazing than this cosine are never used."""
+    unet_base: int = 32
+    """TextureNet U-Net: channels of the first level (doubled per level)."""
+    unet_depth: int = 4
+    """TextureNet U-Net: number of down-sampling levels."""
+    steps: int = 2000
+    """TextureNet training steps (pretraining)."""
+    batch_size: int = 8
+    """TextureNet batch size (paper: 8)."""
+    lr: float = 1e-4
+    """TextureNet Adam learning rate (paper: 1e-4, cosine-annealed to `lr_min`)."""
+    lr_min: float = 1e-5
+    """Final learning rate of the cosine schedule (paper: 1e-5)."""
+    lambda_vgg: float = 1.0
+    """Weight of the VGG term (paper: 1)."""
+    lambda_gan: float = 10.0
+    """Weight of the PatchGAN term (paper: 10)."""
+    mixup_beta: float = 0.4
+    """MixUp Beta(a, a) parameter of the input augmentation (paper: 0.4); 0 disables MixUp."""
+    use_texturenet: bool = True
+    """Apply a pretrained TextureNet when one is given; without one the coarse albedo is the de-lit median
+    texture (`delight`)."""
+    delight: bool = True
+    """Without TextureNet: divide the median texture by the mean shading of the training frames estimated with the
+    coarse normals (an order-2 SH fit assuming a uniform-albedo person), so its scale is an albedo's."""
+    assumed_mean_albedo: float = 0.5
+    """Without TextureNet: the mean albedo the de-lighting assumes (sets the albedo/light scale ambiguity)."""
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """The neural avatar: latent texture Z, NormalNet G_N, AlbedoNet G_A, SH light E (Sec. 3.3)."""
+
+    resolution: int = 128
+    """Image height (px) the avatar is trained and rendered at; predictions are resized to the frame's size."""
+    latent_size: int = 128
+    """Z: texels per side (paper: 256)."""
+    latent_channels: int = 16
+    """Z: channels (paper: 16)."""
+    pe_frequencies: int = 6
+    """Positional encoding of UV: sin/cos at 2^0..2^(L-1) times pi (NeRF's gamma)."""
+    unet_base: int = 32
+    """G_A and G_N U-Nets: channels of the first level (doubled per level, capped at 8x)."""
+    unet_depth: int = 4
+    """G_A and G_N U-Nets: number of down-sampling levels."""
+    disc_base: int = 32
+    """PatchGAN discriminator: channels of the first layer."""
+    disc_layers: int = 3
+    """PatchGAN discriminator: strided layers (3 = the 70x70 PatchGAN of pix2pix)."""
+
+
+@dataclass(frozen=True)
+class LossConfig:
+    """Personalization objective (paper Eq. 7 and appendix weights)."""
+
+    lambda_pixel: float = 1.0
+    """L1 between the composited image and the training frame, display space."""
+    lambda_face: float = 1.0
+    """L1 on a crop around the projected head (paper: 1)."""
+    lambda_mask: float = 10.0
+    """BCE between AlbedoNet's mask and the training mask (paper: 10)."""
+    lambda_vgg: float = 5.0
+    """L1 between VGG16 relu1_2/2_2/3_3/4_3 features (paper: 5)."""
+    lambda_gan: float = 0.1
+    """PatchGAN hinge loss (paper: 0.1)."""
+    lambda_albedo_reg: float = 0.5
+    """||blur(I_A) - blur(coarse albedo)||^2, Gaussian k=51 at 512 px (paper: 0.5)."""
+    lambda_normal_reg: float = 0.25
+    """|S_smpl (I_N - coarse normal)| inside the SMPL+D mask (paper: 0.25)."""
+    face_crop_px: int = 100
+    """Face crop side at 512 px (paper: 100); scaled with the resolution."""
+    blur_kernel: int = 51
+    """Gaussian kernel of the albedo regulariser at 512 px (paper: 51); scaled with the resolution, kept odd."""
+
+
+@dataclass(frozen=True)
+class PersonalizeConfig:
+    """Per-subject training: new Z and E, G_A frozen first, then G_A, Z, E jointly; G_N frozen (appendix)."""
+
+    steps: int = 15000
+    """Total iterations (paper: 15k)."""
+    freeze_albedo_steps: int = 1000
+    """Iterations with G_A frozen, optimising only Z and E (paper: 1000)."""
+    finetune_normal: bool = False
+    """Also fine-tune G_N (paper's ablation: negligible effect)."""
+    batch_size: int = 1
+    """Frames per step."""
+    lr_net: float = 1e-4
+    """Adam learning rate of G_A (and G_N if fine-tuned), cosine-annealed to `lr_min`."""
+    lr_min: float = 1e-5
+    """Final network learning rate."""
+    lr_latent: float = 5e-3
+    """Adam learning rate of Z."""
+    lr_light: float = 5e-3
+    """Adam learning rate of E."""
+    lr_disc: float = 1e-4
+    """Adam learning rate of the discriminator."""
+    checkpoint_every: int = 1000
+    """Write `checkpoints/step-%09d.pt` every this many steps (and at the end)."""
+    log_every: int = 10
+    """Append a line to `losses.jsonl` every this many steps."""
+    keep_checkpoints: int = 3
+    """Keep only the newest this many checkpoints (0 keeps all)."""
+    max_frames: int = 0
+    """Use at most this many training frames (evenly spaced); 0 = all."""
+
+
+@dataclass(frozen=True)
+class PretrainConfig:
+    """Pretraining G_A and G_N (with per-character Z) on generated characters' albedo, normal and mask (Sec. 3.4)."""
+
+    steps: int = 50000
+    """Iterations (paper: 230 epochs of 400 x 150 frames at batch 16)."""
+    batch_size: int = 16
+    """Frames per step (paper: 16)."""
+    lr: float = 1e-4
+    """Adam learning rate of the networks (paper: 1e-4, cosine to `lr_min`)."""
+    lr_min: float = 1e-5
+    """Final learning rate (paper: 1e-5)."""
+    lr_latent: float = 5e-3
+    """Adam learning rate of the per-character latents Z."""
+    lambda_albedo: float = 0.5
+    """Weight of the albedo terms (paper: lambda_a = 0.5)."""
+    lambda_mask: float = 10.0
+    """Weight of the mask BCE (paper: 10)."""
+    lambda_vgg: float = 5.0
+    """Weight of the VGG terms (paper: 5)."""
+    lambda_gan: float = 0.1
+    """Weight of the GAN terms (paper: 0.1)."""
+    light_seed: int = 0
+    """Seed of the random SH lights used to shade AOV-only frames for TextureNet's inputs."""
+    checkpoint_every: int = 2000
+    """Checkpoint period (steps)."""
+    log_every: int = 10
+    """Loss-log period (steps)."""
+    max_subjects: int = 0
+    """Use at most this many pretraining characters; 0 = all."""
+    max_frames: int = 0
+    """Use at most this many frames per character; 0 = all."""
+
+
+@dataclass(frozen=True)
+class RanaConfig:
+    """Everything a RANA run needs; saved as `config.json` beside its checkpoints."""
+
+    preset: str = "cpu"
+    """Name of the preset the run started from (informational)."""
+    seed: int = 0
+    """Seed of every random choice (frame sampling, initialisation, augmentation)."""
+    threads: int = 0
+    """torch intra-op threads; 0 = torch's default."""
+    geometry: GeometryConfig = field(default_factory=GeometryConfig)
+    """Coarse geometry."""
+    texture: TextureConfig = field(default_factory=TextureConfig)
+    """Coarse albedo texture."""
+    model: ModelConfig = field(default_factory=ModelConfig)
+    """Neural avatar."""
+    loss: LossConfig = field(default_factory=LossConfig)
+    """Personalization losses."""
+    personalize: PersonalizeConfig = field(default_factory=PersonalizeConfig)
+    """Personalization schedule."""
+    pretrain: PretrainConfig = field(default_factory=PretrainConfig)
+    """Pretraining schedule."""
+
+
+def _r(cfg: RanaConfig, **sections: dict) -> RanaConfig:
+    out = cfg
+    for name, kw in sections.items():
+        if isinstance(kw, dict):
+            out = dataclasses.replace(out, **{name: dataclasses.replace(getattr(out, name), **kw)})
+        else:
+            out = dataclasses.replace(out, **{name: kw})
+    return out
+
+
+# The paper's sizes and iteration counts (appendix). Geometry steps and TextureNet steps are not given there.
+_PAPER = _r(RanaConfig(), preset="paper",
+            geometry=dict(resolution=256, steps=1000, frames_per_step=8),
+            texture=dict(size=512, unet_base=64, unet_depth=5, steps=100000),
+            model=dict(resolution=512, latent_size=256, unet_base=64, unet_depth=5, disc_base=64),
+            personalize=dict(steps=15000, freeze_albedo_steps=1000, checkpoint_every=1000),
+            pretrain=dict(steps=1_000_000, batch_size=16))
+
+# Sized so one subject (coarse stage + personalization) fits well inside an hour on 2 CPU cores; see
+# bench/bench_rana.py for the measured time per step.
+_CPU = _r(RanaConfig(), preset="cpu",
+          geometry=dict(resolution=128, steps=200, frames_per_step=2),
+          texture=dict(size=256, unet_base=16, unet_depth=4, steps=1500, batch_size=4),
+          model=dict(resolution=128, latent_size=128, unet_base=16, unet_depth=4, disc_base=32),
+          personalize=dict(steps=2000, freeze_albedo_steps=200, checkpoint_every=250),
+          pretrain=dict(steps=3000, batch_size=4, checkpoint_every=500))
+
+# For tests and smoke runs only: seconds, not minutes.
+_TINY = _r(RanaConfig(), preset="tiny",
+           geometry=dict(resolution=48, steps=20, frames_per_step=2),
+           texture=dict(size=32, unet_base=4, unet_depth=2, steps=4, batch_size=2),
+           model=dict(resolution=48, latent_size=32, latent_channels=8, pe_frequencies=3, unet_base=8,
+                      unet_depth=2, disc_base=8, disc_layers=2),
+           personalize=dict(steps=6, freeze_albedo_steps=2, checkpoint_every=3, log_every=1),
+           pretrain=dict(steps=4, batch_size=2, checkpoint_every=2, log_every=1))
+
+PRESETS: dict[str, RanaConfig] = {"paper": _PAPER, "cpu": _CPU, "tiny": _TINY}
+
+
+def get_preset(name: str) -> RanaConfig:
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}; known: {sorted(PRESETS)}")
+    return PRESETS[name]
+
+
+# ------------------------------------------------------------------------------------------------ (de)serialising
+def config_to_json(cfg: RanaConfig) -> dict:
+    return dataclasses.asdict(cfg)
+
+
+_SECTIONS = {f.name: f.type for f in dataclasses.fields(RanaConfig)}
+_SECTION_CLASSES = {"geometry": GeometryConfig, "texture": TextureConfig, "model": ModelConfig, "loss": LossConfig,
+                    "personalize": PersonalizeConfig, "pretrain": PretrainConfig}
+
+
+def config_from_json(d: dict) -> RanaConfig:
+    """Rebuild a config; unknown keys are errors (a checkpoint from another version must not load silently)."""
+    kw: dict[str, Any] = {}
+    top = {f.name for f in dataclasses.fields(RanaConfig)}
+    for k, v in d.items():
+        if k not in top:
+            raise ValueError(f"config: unknown key {k!r}")
+        if k in _SECTION_CLASSES:
+            cls = _SECTION_CLASSES[k]
+            names = {f.name for f in dataclasses.fields(cls)}
+            bad = set(v) - names
+            if bad:
+                raise ValueError(f"config.{k}: unknown key(s) {sorted(bad)}")
+            kw[k] = cls(**v)
+        else:
+            kw[k] = v
+    return RanaConfig(**kw)
+
+
+# ------------------------------------------------------------------------------------------------ CLI flags
+@functools.lru_cache(maxsize=None)
+def field_docs(cls: type) -> dict[str, str]:
+    """The attribute docstrings of a dataclass (the string literal right after each field), by field name."""
+    src = inspect.getsource(cls)
+    tree = ast.parse(src)
+    body = tree.body[0].body  # type: ignore[attr-defined]
+    docs: dict[str, str] = {}
+    for a, b in zip(body, body[1:]):
+        if isinstance(a, ast.AnnAssign) and isinstance(a.target, ast.Name) and isinstance(b, ast.Expr) \
+                and isinstance(b.value, ast.Constant) and isinstance(b.value.value, str):
+            docs[a.target.id] = " ".join(b.value.value.split())
+    return docs
+
+
+def _parse_bool(s: str) -> bool:
+    low = s.lower()
+    if low in ("1", "true", "yes", "on"):
+        return True
+    if low in ("0", "false", "no", "off"):
+        return False
+    raise argparse.ArgumentTypeError(f"expected a boolean (true/false), got {s!r}")
+
+
+def add_config_flags(parser: argparse.ArgumentParser, sections: tuple[str, ...] | None = None) -> None:
+    """Add `--section.field` flags (default None = keep the preset's value) with the field docstrings as help."""
+    top_docs = field_docs(RanaConfig)
+    g = parser.add_argument_group("top-level knobs")
+    for name in ("seed", "threads"):
+        g.add_argument(f"--{name}", type=int, default=None, help=top_docs[name].replace("%", "%%"))
+    for sec, cls in _SECTION_CLASSES.items():
+        if sections is not None and sec not in sections:
+            continue
+        g = parser.add_argument_group(f"{sec} knobs", (top_docs.get(sec) or "").replace("%", "%%"))
+        docs = field_docs(cls)
+        for f in dataclasses.fields(cls):
+            typ = {"int": int, "float": float, "bool": _parse_bool, "str": str}[str(f.type)]
+            g.add_argument(f"--{sec}.{f.name}", dest=f"cfg__{sec}__{f.name}", type=typ, default=None,
+                           metavar=str(f.type).upper(),
+                           help=f"{docs.get(f.name, '')} (preset value if omitted)".replace("%", "%%"))
+
+
+def apply_config_flags(cfg: RanaConfig, args: argparse.Namespace) -> RanaConfig:
+    """The preset `cfg` with every flag that was given applied."""
+    for name in ("seed", "threads"):
+        v = getattr(args, name, None)
+        if v is not None:
+            cfg = dataclasses.replace(cfg, **{name: v})
+    for key, v in vars(args).items():
+        if not key.startswith("cfg__") or v is None:
+            continue
+        _, sec, name = key.split("__")
+        cfg = dataclasses.replace(cfg, **{sec: dataclasses.replace(getattr(cfg, sec), **{name: v})})
+    return cfg
+
+
+def dumps(cfg: RanaConfig) -> str:
+    return json.dumps(config_to_json(cfg), indent=2, sort_keys=True)

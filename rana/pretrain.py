@@ -1,0 +1,251 @@
+"""`rana-pretrain`: TextureNet, then NormalNet and AlbedoNet, on generated pretraining characters (paper Sec. 3.2,
+3.4 and appendix).
+
+Input: a dataset whose train split carries AOV-only frames (albedo, normal, mask; no path tracing) of characters
+disjoint from the benchmark's test subjects — `rh-generate --protocol rana_pretrain` (scenes/rana_pretrain.json,
+character_pool "pretrain"). Stages, each cached in the output folder so an interrupted run resumes:
+
+1. per character (`cache/<subject>.pt`): SMPL+D offsets fitted to the masks; Lambertian frames
+   ``albedo x max(0, S(normal; random SH light))`` made from the AOVs (seeded by `pretrain.light_seed`), from which
+   the shaded median texture is extracted exactly as for a real subject; the target albedo texture is the same
+   extraction applied to the ground-truth albedo frames (so it lives in anny's UV layout and includes garments).
+2. TextureNet (`texturenet.pt`): L1 + VGG + PatchGAN with MixUp, coarse dropout, noise and brightness jitter.
+3. G_N, G_A with one latent Z per character (`checkpoints/step-%09d.pt`, resumable): L_normal + lambda_a L_albedo
+   + lambda_m BCE, each of L1 + VGG + GAN, against the ground-truth normal, albedo and mask frames.
+
+Output: `<out>/pretrained.pt` = {"G_N", "G_A", "texturenet", "config"}, what `rana train --pretrained` loads.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from rh_common import sh
+from rh_common.imageio import atomic_path
+
+from .body import body_topology
+from .config import RanaConfig, add_config_flags, apply_config_flags, get_preset, PRESETS
+from .data import load_split, subjects_of
+from .geometry import fit_offsets
+from .model import RanaModel, coarse_buffers, stack_batch
+from .nets import PatchDiscriminator, VGGPerceptual, hinge_d_loss
+from .runs import RunDir
+from .synthetic import random_sh
+from .texture import extract_texture
+from .texturenet import TextureNet, augment, texturenet_input, texturenet_loss
+from .train import cosine_lr
+
+__all__ = ["prepare_character", "train_texturenet", "pretrain", "main"]
+
+
+def _save(path: Path, obj) -> None:
+    with atomic_path(path) as tmp:
+        torch.save(obj, tmp)
+
+
+def prepare_character(dataset: Path, subject: str, protocol: str, cfg: RanaConfig, progress: bool = False) -> dict:
+    frames = load_split(dataset, subject, protocol, "train", cfg.model.resolution, ("albedo", "normal", "mask"),
+                        max_frames=cfg.pretrain.max_frames)
+    topo = body_topology()
+    D = fit_offsets(frames, topo, cfg.geometry, seed=cfg.seed, progress=progress)
+    rng = np.random.default_rng([cfg.pretrain.light_seed, int(subject.split("_")[-1]) if subject[-1].isdigit() else 0])
+    light = torch.as_tensor(random_sh(rng), dtype=torch.float32)  # one light per 'video', as for a real subject
+    for fr in frames:
+        # Lambertian, shadow-free frames from the AOVs: the shading TextureNet must learn to remove.
+        shade = sh.shading(light, fr.normal).clamp_min(0)  # clamped: radiance is never negative
+        fr.image = fr.albedo * shade * fr.mask[..., None]
+    shaded, valid = extract_texture(frames, topo, D, cfg.texture, layer="image")
+    target, target_valid = extract_texture(frames, topo, D, cfg.texture, layer="albedo")
+    return {"subject": subject, "offsets": D, "shaded": shaded, "valid": valid, "target": target,
+            "target_valid": target_valid}
+
+
+def train_texturenet(chars: list[dict], cfg: RanaConfig, progress: bool = True, log=None) -> TextureNet:
+    from tqdm import tqdm
+
+    tc = cfg.texture
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng([cfg.seed, 7])
+    net = TextureNet(tc)
+    disc = PatchDiscriminator(3, cfg.model.disc_base, cfg.model.disc_layers) if tc.lambda_gan > 0 else None
+    vgg = VGGPerceptual() if tc.lambda_vgg > 0 else None
+    opt = torch.optim.Adam(net.parameters(), lr=tc.lr)
+    opt_d = torch.optim.Adam(disc.parameters(), lr=tc.lr, betas=(0.5, 0.999)) if disc else None
+    X = torch.stack([texturenet_input(c["shaded"], c["valid"]) for c in chars])
+    Y = torch.stack([c["target"] for c in chars])
+    M = torch.stack([c["target_valid"] for c in chars])
+    for step in tqdm(range(tc.steps), desc="TextureNet", unit="step", disable=not progress, dynamic_ncols=True):
+        for g in opt.param_groups:
+            g["lr"] = cosine_lr(step, 0, tc.steps, tc.lr, tc.lr_min)
+        idx = rng.choice(len(chars), size=min(tc.batch_size, len(chars)), replace=len(chars) < tc.batch_size)
+        x, y, m = X[idx], Y[idx], M[idx]
+        if tc.mixup_beta > 0 and len(chars) > 1:
+            lam = float(rng.beta(tc.mixup_beta, tc.mixup_beta))
+            perm = torch.as_tensor(rng.permutation(len(idx)))
+            x = lam * x + (1 - lam) * x[perm]
+            y = lam * y + (1 - lam) * y[perm]
+            m = m & m[perm]
+        x = augment(x, rng)
+        if disc is not None:
+            disc.requires_grad_(False)
+        L = texturenet_loss(net, disc, vgg, x, y, m, tc)
+        opt.zero_grad(set_to_none=True)
+        L["total"].backward()
+        opt.step()
+        rec = {k: float(v.detach()) if torch.is_tensor(v) else float(v) for k, v in L.items() if not k.startswith("_")}
+        if disc is not None:
+            disc.requires_grad_(True)
+            d = hinge_d_loss(disc(L["_gt"]), disc(L["_pred"].detach()))
+            opt_d.zero_grad(set_to_none=True)
+            d.backward()
+            opt_d.step()
+            rec["disc"] = float(d.detach())
+        if log is not None:
+            log({"stage": "texturenet", "step": step, **rec})
+    return net.eval()
+
+
+def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfig, *, progress: bool = True,
+             force: bool = False) -> Path:
+    from tqdm import tqdm
+
+    if cfg.threads > 0:
+        torch.set_num_threads(cfg.threads)
+    dataset, out = Path(dataset), Path(out)
+    run = RunDir(out)
+    if force:
+        run.clear()
+    run.init_config(cfg, {"dataset": str(dataset.resolve()), "protocol": protocol, "kind": "pretrain"}, force=force)
+    subjects = subjects_of(dataset, protocol, "train")
+    if cfg.pretrain.max_subjects > 0:
+        subjects = subjects[: cfg.pretrain.max_subjects]
+    if not subjects:
+        raise FileNotFoundError(f"{dataset}: no subject_*/protocol_{protocol}/train folders")
+    # Stage 1: per-character coarse data.
+    chars = []
+    for s in tqdm(subjects, desc="characters", unit="char", disable=not progress, dynamic_ncols=True):
+        p = out / "cache" / f"{s}.pt"
+        if p.is_file() and not force:
+            chars.append(torch.load(p, weights_only=False))
+            continue
+        c = prepare_character(dataset, s, protocol, cfg)
+        _save(p, c)
+        chars.append(c)
+    # Stage 2: TextureNet.
+    tex_path = out / "texturenet.pt"
+    texnet = TextureNet(cfg.texture)
+    if tex_path.is_file() and not force:
+        texnet.load_state_dict(torch.load(tex_path, weights_only=False))
+    else:
+        texnet = train_texturenet(chars, cfg, progress, log=lambda r: None)
+        _save(tex_path, texnet.state_dict())
+    albedo_tex = [texnet.apply(c["shaded"], c["valid"]) for c in chars]
+    # Stage 3: G_N and G_A with per-character Z.
+    topo = body_topology()
+    bufs = []
+    for ci, (c, s) in enumerate(zip(chars, subjects)):
+        frames = load_split(dataset, s, protocol, "train", cfg.model.resolution, ("albedo", "normal", "mask"),
+                            max_frames=cfg.pretrain.max_frames)
+        for fr in frames:
+            b = coarse_buffers(fr, topo, c["offsets"], albedo_tex[ci])
+            b["subject"] = torch.tensor(ci)
+            bufs.append(b)
+    pc = cfg.pretrain
+    torch.manual_seed(cfg.seed)
+    model = RanaModel(cfg.model, n_subjects=len(chars), n_lights=1, seed=cfg.seed)
+    disc_n = PatchDiscriminator(3, cfg.model.disc_base, cfg.model.disc_layers) if pc.lambda_gan > 0 else None
+    disc_a = PatchDiscriminator(3, cfg.model.disc_base, cfg.model.disc_layers) if pc.lambda_gan > 0 else None
+    vgg = VGGPerceptual() if pc.lambda_vgg > 0 else None
+    opt = torch.optim.Adam([{"params": list(model.G_N.parameters()) + list(model.G_A.parameters()), "lr": pc.lr},
+                            {"params": [model.Z], "lr": pc.lr_latent}])
+    opt_d = torch.optim.Adam(list(disc_n.parameters()) + list(disc_a.parameters()), lr=pc.lr, betas=(0.5, 0.999)) \
+        if disc_n else None
+    start = 0
+    latest = run.latest()
+    if latest is not None and not force:
+        st = run.load(latest[1])
+        model.load_state_dict(st["model"])
+        opt.load_state_dict(st["opt"])
+        if disc_n is not None:
+            disc_n.load_state_dict(st["disc_n"])
+            disc_a.load_state_dict(st["disc_a"])
+            opt_d.load_state_dict(st["opt_d"])
+        start = latest[0]
+        run.truncate_log(start)
+    t0 = time.perf_counter()
+    bar = tqdm(range(start, pc.steps), initial=start, total=pc.steps, desc="pretrain G_N, G_A", unit="step",
+               disable=not progress, dynamic_ncols=True)
+    for step in bar:
+        opt.param_groups[0]["lr"] = cosine_lr(step, 0, pc.steps, pc.lr, pc.lr_min)
+        rng = np.random.default_rng([cfg.seed, 11, step])
+        idx = rng.choice(len(bufs), size=min(pc.batch_size, len(bufs)), replace=False)
+        batch = stack_batch([bufs[i] for i in idx])
+        out_ = model.get_outputs(batch, light=torch.zeros(len(idx), 9, 3))  # no light: AOV supervision only
+        for d in (disc_n, disc_a):
+            if d is not None:
+                d.requires_grad_(False)
+        L = model.get_pretrain_loss_dict(out_, batch, pc, vgg, disc_n, disc_a)
+        n_pred, n_gt, a_pred, a_gt = L.pop("_disc_inputs")
+        opt.zero_grad(set_to_none=True)
+        L["total"].backward()
+        opt.step()
+        rec = {k: float(v.detach()) if torch.is_tensor(v) else float(v) for k, v in L.items()}
+        if disc_n is not None:
+            disc_n.requires_grad_(True)
+            disc_a.requires_grad_(True)
+            dl = hinge_d_loss(disc_n(n_gt), disc_n(n_pred.detach())) + \
+                hinge_d_loss(disc_a(a_gt), disc_a(a_pred.detach()))
+            opt_d.zero_grad(set_to_none=True)
+            dl.backward()
+            opt_d.step()
+            rec["disc"] = float(dl.detach())
+        if step % pc.log_every == 0 or step == pc.steps - 1:
+            run.log({"step": step, "seconds": time.perf_counter() - t0, **rec})
+            bar.set_postfix(loss=f"{rec['total']:.4f}", refresh=False)
+        done = step + 1
+        if done % pc.checkpoint_every == 0 or done == pc.steps:
+            state = {"model": model.state_dict(), "opt": opt.state_dict()}
+            if disc_n is not None:
+                state.update(disc_n=disc_n.state_dict(), disc_a=disc_a.state_dict(), opt_d=opt_d.state_dict())
+            run.save(done, state, keep=3)
+    bar.close()
+    result = out / "pretrained.pt"
+    _save(result, {"G_N": model.G_N.state_dict(), "G_A": model.G_A.state_dict(),
+                   "texturenet": texnet.state_dict(), "config": cfg.__repr__(), "subjects": subjects})
+    return result
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="rana-pretrain", description=__doc__.strip().splitlines()[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog="Every knob below overrides the preset; see rana/config.py for the defaults.")
+    p.add_argument("--dataset", required=True, type=Path,
+                   help="AOV-only pretraining dataset (rh-generate --protocol rana_pretrain)")
+    p.add_argument("--protocol", default="a", help="protocol folder of that dataset (default a)")
+    p.add_argument("--out", required=True, type=Path, help="output folder (resumable)")
+    p.add_argument("--preset", default="cpu", choices=sorted(PRESETS), help="starting configuration")
+    p.add_argument("--force", action="store_true", help="restart instead of resuming")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_config_flags(p)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    cfg = apply_config_flags(get_preset(args.preset), args)
+    try:
+        path = pretrain(args.dataset, args.protocol, args.out, cfg, progress=not args.no_progress, force=args.force)
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"rana-pretrain: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"rana-pretrain: wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,126 @@
+"""RANA's model pieces without the body model: SH shading of known normal maps, gradient flow, one step."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from rh_common import sh
+from rana.config import get_preset
+from rana.model import AMBIENT_L0, RanaModel, shade
+from rana.nets import UNet, gaussian_blur, positional_encoding, srgb_encode_t
+from rana.train import build_training_state, cosine_lr, training_step
+
+K1 = math.sqrt(3.0 / (4.0 * math.pi))
+
+
+def _normal_map(H: int = 8, W: int = 8, seed: int = 0) -> torch.Tensor:
+    g = torch.Generator().manual_seed(seed)
+    n = torch.randn(1, 3, H, W, generator=g)
+    return torch.nn.functional.normalize(n, dim=1)
+
+
+def test_uniform_light_gives_unit_shading():
+    light = torch.zeros(1, 9, 3)
+    light[0, 0] = AMBIENT_L0  # constant radiance 1: E = pi, S = E/pi = 1
+    s = shade(light, _normal_map())
+    assert torch.allclose(s, torch.ones_like(s), atol=1e-6)
+
+
+def test_band1_light_matches_analytic_cosine():
+    # L_2 = c (the z-linear term) gives E(n) = (2pi/3) c K1 n_z, S = E/pi; clamped at 0 where negative.
+    c = 1.7
+    light = torch.zeros(1, 9, 3)
+    light[0, 2] = c
+    n = _normal_map(seed=1)
+    s = shade(light, n)
+    expect = ((2.0 / 3.0) * c * K1 * n[:, 2:3]).clamp_min(0).expand_as(s)
+    assert torch.allclose(s, expect, atol=1e-6)
+    assert (s >= 0).all()
+
+
+def test_shade_agrees_with_rh_common_numpy():
+    rng = np.random.default_rng(3)
+    coeffs = rng.normal(size=(9, 3))
+    n = _normal_map(seed=2)
+    s = shade(torch.as_tensor(coeffs, dtype=torch.float32)[None], n)[0].permute(1, 2, 0).numpy()
+    ref = np.maximum(sh.shading(coeffs, n[0].permute(1, 2, 0).numpy().astype(np.float64)), 0)
+    assert np.allclose(s, ref, atol=1e-5)
+
+
+def _tiny_cfg(**loss):
+    cfg = get_preset("tiny")
+    return dataclasses.replace(cfg, loss=dataclasses.replace(cfg.loss, **loss))
+
+
+def _fake_batch(cfg, B: int = 1, seed: int = 0) -> dict:
+    g = torch.Generator().manual_seed(seed)
+    H = W = cfg.model.resolution
+    yy, xx = torch.meshgrid(torch.linspace(-1, 1, H), torch.linspace(-1, 1, W), indexing="ij")
+    m = ((xx / 0.4) ** 2 + (yy / 0.8) ** 2 < 1).float()[None, None].repeat(B, 1, 1, 1)
+    uv = torch.stack([(xx + 1) / 2, (1 - yy) / 2])[None].repeat(B, 1, 1, 1) * m
+    n = torch.nn.functional.normalize(torch.stack([xx, -yy, torch.ones_like(xx)])[None].repeat(B, 1, 1, 1), dim=1) * m
+    alb = torch.rand(B, 3, 1, 1, generator=g) * m
+    img = 0.3 + 0.5 * torch.rand(B, 3, H, W, generator=g) * m
+    return {"uv": uv, "smpl_mask": m, "coarse_normal": n, "coarse_albedo": alb, "image": img, "mask": m,
+            "face_centre": torch.tensor([[W / 2, H / 4]] * B)}
+
+
+@pytest.mark.parametrize("frozen_a", [True, False])
+def test_gradients_reach_z_e_and_albedo_net_not_frozen_normal_net(frozen_a):
+    cfg = _tiny_cfg(lambda_vgg=0.0)
+    st = build_training_state(cfg, use_vgg=False)
+    model = st.model
+    model.G_A.requires_grad_(not frozen_a)
+    batch = _fake_batch(cfg)
+    L = model.get_loss_dict(model.get_outputs(batch), batch, cfg.loss, None, st.disc)
+    L["total"].backward()
+    assert model.Z.grad is not None and model.Z.grad.abs().sum() > 0
+    assert model.E.grad is not None and model.E.grad.abs().sum() > 0
+    assert all(p.grad is None for p in model.G_N.parameters())  # G_N frozen (finetune_normal=False)
+    ga = [p.grad for p in model.G_A.parameters()]
+    if frozen_a:
+        assert all(g is None for g in ga)
+    else:
+        assert any(g is not None and g.abs().sum() > 0 for g in ga)
+
+
+def test_one_personalization_step_decreases_the_loss():
+    cfg = _tiny_cfg(lambda_gan=0.0)  # the GAN term is a moving target; the rest must go down
+    st = build_training_state(cfg, use_vgg=True)
+    batch = _fake_batch(cfg)
+
+    def total():
+        with torch.no_grad():
+            return float(st.model.get_loss_dict(st.model.get_outputs(batch), batch, cfg.loss, st.vgg, None)["total"])
+
+    before = total()
+    training_step(st, batch, cfg, step=cfg.personalize.freeze_albedo_steps)  # phase 2: Z, E and G_A move
+    after = total()
+    assert after < before
+
+
+def test_unet_keeps_odd_sizes_and_pe_is_zero_off_body():
+    net = UNet(5, 2, base=4, depth=2)
+    assert net(torch.zeros(1, 5, 13, 21)).shape == (1, 2, 13, 21)
+    uv = torch.rand(1, 2, 6, 6)
+    m = torch.zeros(1, 1, 6, 6)
+    assert positional_encoding(uv, 3, m).abs().sum() == 0
+    assert positional_encoding(uv, 3).shape[1] == 2 + 4 * 3
+
+
+def test_blur_preserves_constants_and_srgb_matches_colourspace():
+    x = torch.full((1, 3, 20, 20), 0.4)
+    assert torch.allclose(gaussian_blur(x, 7), x, atol=1e-6)
+    from rh_common.colourspace import srgb_encode
+
+    v = np.linspace(0, 1, 101, dtype=np.float32)
+    assert np.allclose(srgb_encode_t(torch.from_numpy(v)).numpy(), srgb_encode(v), atol=1e-5)
+
+
+def test_cosine_schedule_endpoints():
+    assert cosine_lr(10, 10, 110, 1e-4, 1e-5) == pytest.approx(1e-4)
+    assert cosine_lr(110, 10, 110, 1e-4, 1e-5) == pytest.approx(1e-5)
