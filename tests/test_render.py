@@ -127,6 +127,6 @@ def test_same_seed_gives_bit_identical_layers_and_another_seed_does_not():
 def test_only_the_requested_passes_run():
     out = render_frame([uv_sphere()], constant_env(1.0), front_camera(), RenderSettings(spp=2, aov_spp=2, max_depth=2),
                        ["albedo", "mask"], seed=0)
-    assert set(out.layers) == {"albedo", "mask"} and set(out.seconds) == {"aov"}
+    assert set(out.layers) == {"albedo", "mask"} and set(out.seconds) == {"load", "aov"}
     with pytest.raises(ValueError, match="unknown layers"):
         render_frame([uv_sphere()], constant_env(1.0), front_camera(), RenderSettings(), ["beauty"], seed=0)

@@ -15,7 +15,7 @@ from .camera import Camera
 from .scene import MeshLike, RenderSettings, scene_dict
 from .variant import require_variant
 
-__all__ = ["LAYERS", "FrameRender", "render_frame"]
+__all__ = ["LAYERS", "FrameRender", "render_frame", "denoise_image", "count_fireflies", "FIREFLY_K"]
 
 LAYERS = ("image", "mask", "albedo", "normal", "depth")
 _AOV_LAYERS = {"mask", "albedo", "normal", "depth"}
@@ -27,13 +27,10 @@ class FrameRender:
     seconds: dict[str, float]
 
 
-def _render(d: dict, seed: int) -> np.ndarray:
-    import mitsuba as mi
-
-    scene = mi.load_dict(d)
-    out = np.array(mi.render(scene, seed=seed), dtype=np.float32)
-    del scene  # a live scene makes the next load recompile its kernels
-    return out
+# The inner path integrator with max_depth 1 and hidden emitters only contributes the alpha channel (coverage);
+# the AOVs come after RGBA in the output.
+_AOV_INTEGRATOR = {"type": "aov", "aovs": "alb:albedo,nrm:sh_normal,pos:position",
+                   "inner": {"type": "path", "max_depth": 1, "hide_emitters": True}}
 
 
 def render_frame(meshes: Sequence[MeshLike], emitter: dict, camera: Camera, settings: RenderSettings,
@@ -42,15 +39,17 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict, camera: Camera, sett
 
     Returned arrays (H, W, ...) float32:
       image  (H,W,3) linear radiance, environment visible behind the person;
-    Both passes use a box reconstruction filter over the same pixel footprint, so that
-    image = coverage * person + (1 - coverage) * background holds exactly and compositing over another
-    background with the mask is consistent.
-      mask   (H,W)   coverage in [0,1] (box filter);
+      mask   (H,W)   coverage in [0,1];
       albedo (H,W,3) diffuse reflectance, divided by coverage (not premultiplied), 0 outside;
       normal (H,W,3) unit shading normal in OpenGL camera axes, 0 outside;
       depth  (H,W)   camera-space z in metres, 0 outside.
+    Both passes use a box reconstruction filter over the same pixel footprint, so that
+    image = coverage * person + (1 - coverage) * background holds exactly and compositing over another
+    background with the mask is consistent. The scene is loaded once and rendered by both integrators.
     """
     import time
+
+    import mitsuba as mi
 
     unknown = set(layers) - set(LAYERS)
     if unknown:
@@ -58,22 +57,85 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict, camera: Camera, sett
     require_variant()
     out: dict[str, np.ndarray] = {}
     seconds: dict[str, float] = {}
-    if "image" in layers:
+    t = time.perf_counter()
+    beauty = {"type": "path", "max_depth": int(settings.max_depth), "hide_emitters": False}
+    scene = mi.load_dict(scene_dict(meshes, emitter, camera, beauty, settings.spp, pixel_format="rgba"))
+    seconds["load"] = time.perf_counter() - t
+    try:
+        if "image" in layers:
+            t = time.perf_counter()
+            img = np.array(mi.render(scene, spp=settings.spp, seed=seed), dtype=np.float32)
+            out["image"] = np.ascontiguousarray(img[..., :3])
+            seconds["beauty"] = time.perf_counter() - t
+        denoise = bool(settings.denoise) and "image" in layers
+        if _AOV_LAYERS & set(layers) or denoise:
+            t = time.perf_counter()
+            aov = np.array(mi.render(scene, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp,
+                                     seed=seed + 1), dtype=np.float32)
+            seconds["aov"] = time.perf_counter() - t
+            out.update(_postprocess_aovs(aov, camera, layers))
+    finally:
+        del scene  # a live scene makes the next load recompile its kernels
+    if denoise:  # opt-in (RenderSettings.denoise), recorded in the frame JSON; guided by this frame's AOVs
         t = time.perf_counter()
-        integ = {"type": "path", "max_depth": int(settings.max_depth), "hide_emitters": False}
-        img = _render(scene_dict(meshes, emitter, camera, integ, settings.spp, pixel_format="rgb"), seed)
-        out["image"] = np.ascontiguousarray(img[..., :3])
-        seconds["beauty"] = time.perf_counter() - t
-    if _AOV_LAYERS & set(layers):
-        t = time.perf_counter()
-        # The inner path integrator with max_depth 1 and hidden emitters only contributes the alpha channel
-        # (coverage); the AOVs come after RGBA in the output.
-        integ = {"type": "aov", "aovs": "alb:albedo,nrm:sh_normal,pos:position",
-                 "inner": {"type": "path", "max_depth": 1, "hide_emitters": True}}
-        aov = _render(scene_dict(meshes, emitter, camera, integ, settings.aov_spp, pixel_format="rgba"), seed + 1)
-        seconds["aov"] = time.perf_counter() - t
-        out.update(_postprocess_aovs(aov, camera, layers))
+        aux = _postprocess_aovs(aov, camera, ("mask", "albedo", "normal"))
+        out["image"] = denoise_image(out["image"], aux["albedo"], aux["normal"], aux["mask"])
+        seconds["denoise"] = time.perf_counter() - t
     return FrameRender(layers=out, seconds=seconds)
+
+
+def denoise_image(image: np.ndarray, albedo: np.ndarray | None = None, normal: np.ndarray | None = None,
+                  coverage: np.ndarray | None = None) -> np.ndarray:
+    """Intel Open Image Denoise (pyoidn, `hdr=True`, quality 'high') on linear radiance, (H, W, 3) float32.
+
+    Guides: albedo and normal as `render_frame` returns them (albedo un-premultiplied, 0 outside the person);
+    with `coverage` they are premultiplied by it so that a pixel's guide is its average over the pixel footprint,
+    as OIDN expects for anti-aliased edges. The guides are noisy at low AOV spp (`clean_aux=False`). The result is
+    biased; negative outputs (none expected) are clamped to 0 and non-finite outputs raise.
+    """
+    import pyoidn
+
+    color = np.ascontiguousarray(image, dtype=np.float32)
+    a = n = None
+    if albedo is not None:
+        a = np.asarray(albedo, np.float32)
+        a = a * coverage[..., None] if coverage is not None else a
+        a = np.ascontiguousarray(np.clip(a, 0.0, 1.0))
+    if normal is not None:
+        n = np.asarray(normal, np.float32)
+        n = n * coverage[..., None] if coverage is not None else n
+        n = np.ascontiguousarray(n)
+    res = np.asarray(pyoidn.denoise(color, albedo=a, normal=n, hdr=True, quality="high"), dtype=np.float32)
+    if not np.all(np.isfinite(res)):
+        raise RuntimeError("denoise_image: the denoiser returned NaN/Inf values")
+    return np.ascontiguousarray(np.maximum(res.reshape(color.shape), 0.0))
+
+
+FIREFLY_K = 10.0
+"""A pixel is a firefly when its luminance exceeds FIREFLY_K times its robust local level (see `count_fireflies`)."""
+FIREFLY_WINDOW = 5
+
+
+def count_fireflies(image: np.ndarray, k: float = FIREFLY_K, window: int = FIREFLY_WINDOW) -> int:
+    """Number of pixels whose Rec.709 luminance L exceeds ``k * max(median_w(L), 1e-4 * mean(L))``.
+
+    `median_w` is the median of the pixel's `window` x `window` neighbourhood (itself included, edges reflected):
+    a lone outlier cannot move it, so it is a robust local level. The floor `1e-4 * mean(L)` (global) makes a lone
+    bright pixel on a black neighbourhood count while an all-black image gives 0. A diagnostic, never a filter:
+    nothing is clamped. Legitimately tiny, very bright features (a sun disc seen directly, a specular glint of
+    a pixel or two) count too; read it as "pixels the noise or the light made isolated outliers".
+    """
+    from scipy.ndimage import median_filter
+
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim != 3 or img.shape[-1] < 3:
+        raise ValueError(f"count_fireflies: expected (H, W, 3) radiance, got shape {img.shape}")
+    if not np.all(np.isfinite(img)):
+        raise ValueError("count_fireflies: image contains NaN or Inf")
+    lum = img[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+    local = median_filter(lum, size=int(window), mode="reflect")
+    floor = 1e-4 * float(lum.mean())
+    return int(np.count_nonzero(lum > k * np.maximum(local, floor)))
 
 
 def _postprocess_aovs(aov: np.ndarray, camera: Camera, layers: Sequence[str]) -> dict[str, np.ndarray]:
