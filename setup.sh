@@ -2,6 +2,7 @@
 # Installs everything the project needs on a fresh Debian machine (root, registries reachable).
 # Idempotent: a second run only checks. Usage: bash setup.sh
 set -euo pipefail
+export PIP_ROOT_USER_ACTION=ignore
 cd "$(dirname "$0")"
 
 need_apt=()

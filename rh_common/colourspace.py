@@ -44,8 +44,9 @@ def to_display(radiance: np.ndarray, exposure: float) -> np.ndarray:
     radiance = np.asarray(radiance, dtype=np.float32)
     if not np.all(np.isfinite(radiance)):
         raise ValueError("to_display: radiance contains NaN or Inf")
-    if not (np.isfinite(exposure) and exposure > 0):
-        raise ValueError(f"to_display: exposure must be a positive finite number, got {exposure!r}")
+    # Checked as the float32 it is multiplied in: 1e39 is finite in float64 but inf in float32 (0 * inf = NaN).
+    if not (np.isfinite(np.float32(exposure)) and exposure > 0):
+        raise ValueError(f"to_display: exposure must be a positive number within float32 range, got {exposure!r}")
     return srgb_encode(radiance * np.float32(exposure))
 
 

@@ -77,6 +77,11 @@ def write_frame(split_dir: str | os.PathLike, index: int, layers: Mapping[str, n
         for name, digest in _encode_layer(split_dir, index, layer, data, exposure).items():
             listed[name] = {"layer": layer, "sha256": digest}
     record = dict(meta)
+    if "image" in layers:
+        # Reported, never hidden: the count of isolated over-bright pixels of the image as written (no clamping).
+        from rh_dataset.render.passes import count_fireflies
+
+        record["render"] = {**record.get("render", {}), "fireflies": count_fireflies(layers["image"])}
     record["format"] = FRAME_FORMAT
     record["index"] = index
     record["files"] = listed

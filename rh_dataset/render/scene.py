@@ -41,8 +41,13 @@ class RenderSettings:
     max_depth: int = 6
     """Longest path (Mitsuba `max_depth`): 2 = direct light only; each extra unit adds one bounce."""
     preset: str = "custom"
+    denoise: bool = False
+    """Opt-in: run Intel Open Image Denoise (pyoidn, HDR mode, guided by the albedo and normal AOVs) on the beauty
+    image. Biased (docs/TRADEOFFS.md measures it); recorded in the frame JSON as `render.denoise`/`render.denoised`."""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.denoise, bool):
+            raise ValueError(f"render setting denoise must be a bool, got {self.denoise!r}")
         for name in ("spp", "aov_spp"):
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
