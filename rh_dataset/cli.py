@@ -48,11 +48,26 @@ def build_parser() -> argparse.ArgumentParser:
                    help="samples per pixel of the albedo/normal/mask/depth pass (overrides the preset)")
     p.add_argument("--max-depth", type=int, default=None,
                    help="longest light path; 2 = direct light only (overrides the preset)")
+    p.add_argument("--denoise", action="store_true",
+                   help="denoise the beauty image with Intel Open Image Denoise guided by the albedo and normal AOVs; "
+                        "biased (docs/TRADEOFFS.md), recorded in every frame's JSON, off for benchmark ground truth")
     p.add_argument("--seed", type=int, default=0, help="dataset seed: characters, poses, lights and sampler seeds")
     p.add_argument("--variant", default=None, choices=["llvm_ad_rgb", "cuda_ad_rgb", "scalar_rgb"],
                    help="Mitsuba variant (default: cuda_ad_rgb if a GPU works, else llvm_ad_rgb)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes rendering subjects in parallel (each uses cores/workers threads)")
+    p.add_argument("--backend", default="local", choices=["local", "ray"],
+                   help="where frames render: 'local' (this machine, --workers processes) or 'ray' (tasks on a Ray "
+                        "cluster; same files, bit-identical on the same machine kind and variant)")
+    p.add_argument("--ray-address", default=None,
+                   help="Ray cluster to join, e.g. 'auto' or 'ray://head:10001' (default: start a local one); every "
+                        "node must see --out at the same path")
+    p.add_argument("--ray-frames-per-task", type=int, default=8,
+                   help="frames of one subject and split per Ray task (the unit of retry)")
+    p.add_argument("--ray-cpus-per-task", type=float, default=1.0,
+                   help="CPUs Ray reserves per task (also the task's render threads)")
+    p.add_argument("--ray-gpus-per-task", type=float, default=0.0,
+                   help="GPUs Ray reserves per task; use with --variant cuda_ad_rgb on GPU nodes")
     p.add_argument("--hdri-folder", default=None,
                    help="folder of .exr/.hdr environment maps to light with instead of the bundled Poly Haven set")
     p.add_argument("--overwrite", action="store_true",
@@ -78,9 +93,12 @@ def options_from_args(args: argparse.Namespace):
         aov_spp=args.aov_spp if args.aov_spp is not None else pr.aov_spp,
         max_depth=args.max_depth if args.max_depth is not None else pr.max_depth,
         preset=f"{pr.name}+overrides" if overridden else pr.name,
+        denoise=bool(args.denoise),
     )
     return GenerateOptions(out=args.out, spec=spec, settings=settings, seed=args.seed, variant=args.variant,
-                           overwrite=args.overwrite, workers=args.workers)
+                           overwrite=args.overwrite, workers=args.workers, backend=args.backend,
+                           ray_address=args.ray_address, ray_frames_per_task=args.ray_frames_per_task,
+                           ray_cpus_per_task=args.ray_cpus_per_task, ray_gpus_per_task=args.ray_gpus_per_task)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -45,6 +45,13 @@ class GenerateOptions:
     variant: str | None = None
     overwrite: bool = False
     workers: int = 1
+    # Where frames are rendered: "local" (this machine, `workers` processes) or "ray" (rh_dataset.backends.ray_backend:
+    # tasks of up to `ray_frames_per_task` frames of one subject and split, on the cluster at `ray_address`).
+    backend: str = "local"
+    ray_address: str | None = None
+    ray_frames_per_task: int = 8
+    ray_cpus_per_task: float = 1.0
+    ray_gpus_per_task: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -227,7 +234,7 @@ def frame_meta(opts: GenerateOptions, subj: SubjectState, split: SplitSpec, i: i
                   "negative_pixels_clamped": int(light.negative_pixels_clamped)},
         "exposure": exposure,
         "render": {**dataclasses.asdict(opts.settings), "seed": render_seed, "variant": select_variant(None),
-                   "denoised": False},
+                   "denoised": bool(opts.settings.denoise)},
         "versions": versions(),
     }
 
@@ -248,8 +255,12 @@ def _light_library(spec: ProtocolSpec) -> dict:
     return hdri_library(spec.hdri_folder) if spec.hdri_folder else bundled_hdris()
 
 
-def run_subject(opts: GenerateOptions, s: int, on_frame: Callable[[FrameTask, bool], None]) -> None:
-    """Render every missing frame of one subject (all splits) and its contact sheets."""
+def run_subject(opts: GenerateOptions, s: int, on_frame: Callable[[FrameTask, bool], None], *,
+                frames: dict[str, range] | None = None, sheets: bool = True) -> None:
+    """Render every missing frame of one subject (all splits) and its contact sheets.
+
+    `frames` (split name -> frame indices) restricts the work to those frames (a distributed task's share);
+    `sheets=False` leaves the contact sheets to whoever knows that every frame of the split is done."""
     from rh_dataset.characters import pose_character
     from rh_dataset.lights import mitsuba_emitter_dict
 
@@ -258,8 +269,10 @@ def run_subject(opts: GenerateOptions, s: int, on_frame: Callable[[FrameTask, bo
     subj = None
     key = f"protocol_{opts.spec.protocol}"
     for split in opts.spec.splits:
+        if frames is not None and split.name not in frames:
+            continue
         split_dir = opts.out / subject_name(s) / key / split.name
-        for i in range(split.frames):
+        for i in (range(split.frames) if frames is None else frames[split.name]):
             task = FrameTask(s, split.name, i)
             if frame_is_complete(split_dir, i, split.layers):
                 on_frame(task, True)
@@ -276,7 +289,8 @@ def run_subject(opts: GenerateOptions, s: int, on_frame: Callable[[FrameTask, bo
             meta = frame_meta(opts, subj, split, i, pose, light, render_seed, exposure)
             write_frame(split_dir, i, result.layers, meta)
             on_frame(task, False)
-        contact_sheet(split_dir, list(range(split.frames)), split.layers)
+        if sheets:
+            contact_sheet(split_dir, list(range(split.frames)), split.layers)
 
 
 def generate(opts: GenerateOptions, *, progress: bool = True) -> dict:
@@ -284,6 +298,12 @@ def generate(opts: GenerateOptions, *, progress: bool = True) -> dict:
     opts = dataclasses.replace(opts, out=Path(opts.out))
     if opts.workers < 1:
         raise GenerateError(f"--workers must be >= 1, got {opts.workers}")
+    if opts.backend not in ("local", "ray"):
+        raise GenerateError(f"--backend must be 'local' or 'ray', got {opts.backend!r}")
+    if opts.backend == "ray":
+        from rh_dataset.backends.ray_backend import check_options
+
+        check_options(opts)
     # Fail on a missing or unreadable light before any file is written (maps are cached once loaded).
     from rh_dataset.lights import load_hdri
 
@@ -307,7 +327,11 @@ def generate(opts: GenerateOptions, *, progress: bool = True) -> dict:
         bar.update(1)
 
     t0 = time.perf_counter()
-    if opts.workers == 1:
+    if opts.backend == "ray":
+        from rh_dataset.backends.ray_backend import run_ray
+
+        run_ray(opts, on_frame)
+    elif opts.workers == 1:
         for s in range(opts.spec.subjects):
             run_subject(opts, s, on_frame)
     else:

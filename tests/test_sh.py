@@ -202,7 +202,7 @@ def test_rotating_the_map_equals_rotating_the_coefficients() -> None:
 
 # ------------------------------------------------------------------------------------------------ torch
 def test_torch_inputs_are_supported_and_differentiable() -> None:
-    torch = pytest.importorskip("torch")
+    import torch
     rng = np.random.default_rng(RNG_SEED)
     n = _unit(rng, 20)
     c = rng.normal(size=(9, 3))

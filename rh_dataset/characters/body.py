@@ -5,6 +5,7 @@ anny (PyPI, NAVER; code Apache-2.0, MakeHuman-derived data CC0) builds a ~790 MB
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import warnings
@@ -85,6 +86,24 @@ def body_topology(topology: str = ANNY_TOPOLOGY) -> BodyTopology:
     )
 
 
+@contextlib.contextmanager
+def single_threaded_torch():
+    """Run torch on one thread inside the block.
+
+    anny's blendshape and skinning reductions sum in an order that depends on torch's thread count, which moves
+    the last digit of vertices and bone poses; one thread makes generated data identical whatever the machine's
+    core count, the --workers split or a Ray worker's OMP_NUM_THREADS.
+    """
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
 def run_anny(
     phenotype: dict[str, float],
     bone_deltas: dict[str, np.ndarray] | None = None,
@@ -112,7 +131,7 @@ def run_anny(
                 raise ValueError(f"run_anny: bone_deltas[{label!r}] must be a finite 4x4 matrix, got shape {d.shape}")
             pose[label] = torch.tensor(np.array(d), dtype=model.dtype)[None]  # copy: inputs may be read-only
     pheno = {k: torch.tensor([float(phenotype[k])], dtype=model.dtype) for k in PHENOTYPE_LABELS}
-    with torch.no_grad():
+    with torch.no_grad(), single_threaded_torch():
         out = model(pose_parameters=pose, phenotype_kwargs=pheno, pose_parameterization="local-ref")
     keys = ("vertices", "rest_vertices", "bone_poses", "rest_bone_poses", "rest_bone_heads")
     return {k: out[k][0].cpu().numpy().astype(np.float64) for k in keys}

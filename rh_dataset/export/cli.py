@@ -1,0 +1,116 @@
+"""`rh-export`: write a finished dataset (one protocol) in another layout."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+from rh_common.imageio import read_json, write_json
+
+from .common import ExportError, check_dataset, iter_frames
+
+__all__ = ["FORMATS", "export_dataset", "main"]
+
+FORMATS = ("relighting-humans", "zju-mocap", "usd")
+EXPORT_FORMAT = "rh-export/1"
+
+
+def _prepare_out(out: Path, fmt: str, dataset: Path, protocol: str) -> None:
+    rec_path = out / "export.json"
+    if rec_path.is_file():
+        rec = read_json(rec_path)
+        if rec.get("format") != fmt:
+            raise ExportError(f"{out} holds a {rec.get('format')!r} export; choose another --out for {fmt!r}")
+    elif out.is_dir() and any(p for p in out.iterdir() if not p.name.startswith(".")):
+        raise ExportError(f"{out} is not empty and holds no export.json; choose an empty or new --out folder")
+    manifest = read_json(dataset / "manifest.json")
+    from rh_dataset import __version__
+
+    write_json(rec_path, {
+        "export": EXPORT_FORMAT, "format": fmt, "protocol": protocol, "source": str(dataset.resolve()),
+        "source_dataset_json": read_json(dataset / "dataset.json"),
+        "source_files": len(manifest.get("files", {})), "generator_version": __version__,
+    })
+
+
+def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path, *, subjects: int | None = None,
+                   splits: tuple[str, ...] | None = None, usd_ext: str = "usdc", zju_vertices: bool = True,
+                   progress: bool = False) -> dict:
+    """Export every frame of `protocol` (optionally the first `subjects`, some `splits`); returns counts."""
+    dataset, out = Path(dataset), Path(out)
+    if fmt not in FORMATS:
+        raise ExportError(f"unknown --format {fmt!r}; choose one of {', '.join(FORMATS)}")
+    ds = check_dataset(dataset, protocol)
+    out.mkdir(parents=True, exist_ok=True)
+    _prepare_out(out, fmt, dataset, protocol)
+    hdri_folder = ds["protocols"][f"protocol_{protocol}"]["spec"].get("hdri_folder")
+    frames = list(iter_frames(dataset, protocol, splits, subjects))
+    if not frames:
+        raise ExportError(f"{dataset}: no frames of protocol {protocol!r} to export")
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    files = 0
+    sequences: dict[tuple[str, str], list] = defaultdict(list)
+    for f in tqdm(frames, disable=not progress, unit="frame", desc=f"export {fmt}"):
+        if fmt == "relighting-humans":
+            from .relighting_humans import export_frame
+
+            files += len(export_frame(f, out, protocol))
+        elif fmt == "zju-mocap":
+            from .zju_mocap import export_frame
+
+            files += len(export_frame(f, out, protocol, vertices=zju_vertices))
+            sequences[(f.subject, f.split)].append(f)
+        else:
+            from .usd import export_frame
+
+            files += len(export_frame(f, out, protocol, dataset=dataset, hdri_folder=hdri_folder, ext=usd_ext))
+    if fmt == "zju-mocap":
+        from .zju_mocap import sequence_dir, write_annots
+
+        for seq in sequences.values():
+            write_annots(sequence_dir(out, seq[0]), seq)
+            files += 1
+    return {"frames": len(frames), "files": files, "seconds": time.perf_counter() - t0}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="rh-export",
+        description="Write a finished Relighting Humans dataset (one protocol) in another layout: the published "
+                    "Relighting Humans folders, ZJU-MoCap (NeuralBody family), or one USD stage per frame. "
+                    "docs/INTEROP.md lists what each holds and how it differs from the original.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--dataset", required=True, type=Path, help="dataset folder made by rh-generate")
+    p.add_argument("--protocol", default="a", help="protocol to export: a or b")
+    p.add_argument("--format", required=True, choices=FORMATS, help="output layout")
+    p.add_argument("--out", required=True, type=Path, help="output folder (empty, new, or an earlier export of "
+                                                            "the same format, whose files are replaced)")
+    p.add_argument("--subjects", type=int, default=None, help="export only the first N subjects")
+    p.add_argument("--split", action="append", default=None, help="export only this split (repeatable)")
+    p.add_argument("--usd-ext", default="usdc", choices=["usda", "usdc", "usd"],
+                   help="USD file type: usda (text) or usdc (binary crate, ~4x smaller)")
+    p.add_argument("--no-vertices", action="store_true", help="zju-mocap: skip vertices/<i>.npy (posed body)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        counts = export_dataset(args.dataset, args.protocol, args.format, args.out, subjects=args.subjects,
+                                splits=tuple(args.split) if args.split else None, usd_ext=args.usd_ext,
+                                zju_vertices=not args.no_vertices, progress=not args.no_progress)
+    except (ExportError, ValueError, FileNotFoundError) as exc:
+        print(f"rh-export: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"rh-export: {counts['frames']} frames, {counts['files']} files written in {counts['seconds']:.1f} s; "
+          f"{args.format} export in {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

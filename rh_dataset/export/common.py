@@ -1,0 +1,131 @@
+"""What every exporter shares: finding a dataset's frames, its subjects' characters and lights, atomic writers.
+
+Exporters read a finished dataset only through the files docs/ARCHITECTURE.md describes (frame JSON, layer files,
+character.json, dataset.json); they never re-render.
+"""
+from __future__ import annotations
+
+import functools
+import io
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from rh_common.imageio import atomic_path, read_json
+
+__all__ = ["ExportError", "FrameRef", "iter_frames", "check_dataset", "save_npy", "rodrigues", "axis_angle",
+           "root_motion", "hdri_path", "subject_index"]
+
+
+class ExportError(RuntimeError):
+    """An export that cannot proceed; the message names the problem and the fix."""
+
+
+@dataclass(frozen=True)
+class FrameRef:
+    """One frame of the source dataset: where it lives and its parsed JSON."""
+
+    subject: str
+    split: str
+    index: int
+    split_dir: Path
+    meta: dict
+
+    def layer(self, suffix: str) -> Path:
+        return self.split_dir / f"frame_{self.index:06d}_{suffix}"
+
+
+def check_dataset(root: Path, protocol: str) -> dict:
+    """dataset.json of a finished dataset holding `protocol`; raises ExportError otherwise."""
+    root = Path(root)
+    ds_path = root / "dataset.json"
+    if not ds_path.is_file():
+        raise ExportError(f"{root} holds no dataset.json: not an rh dataset (make one with rh-generate)")
+    if not (root / "manifest.json").is_file():
+        raise ExportError(f"{root} has no manifest.json: the run is unfinished; rerun rh-generate with the same flags")
+    ds = read_json(ds_path)
+    if f"protocol_{protocol}" not in ds.get("protocols", {}):
+        raise ExportError(f"{root} holds no protocol {protocol!r} (it holds {sorted(ds.get('protocols', {}))})")
+    return ds
+
+
+def subject_index(name: str) -> int:
+    return int(name.rsplit("_", 1)[1])
+
+
+def iter_frames(root: Path, protocol: str, splits: tuple[str, ...] | None = None,
+                subjects: int | None = None) -> Iterator[FrameRef]:
+    """Frames in (subject, split as in the scene description, index) order."""
+    root = Path(root)
+    ds = check_dataset(root, protocol)
+    spec = ds["protocols"][f"protocol_{protocol}"]["spec"]
+    split_names = [s["name"] for s in spec["splits"] if splits is None or s["name"] in splits]
+    subject_dirs = sorted(root.glob("subject_*"))
+    if subjects is not None:
+        subject_dirs = subject_dirs[:subjects]
+    for sd in subject_dirs:
+        for split in split_names:
+            split_dir = sd / f"protocol_{protocol}" / split
+            for fj in sorted(split_dir.glob("frame_*.json")):
+                meta = read_json(fj)
+                yield FrameRef(sd.name, split, int(meta["index"]), split_dir, meta)
+
+
+def save_npy(path: Path, obj) -> None:
+    """np.save, atomically; dicts are saved as a 0-d object array (read back with allow_pickle=True).item())."""
+    buf = io.BytesIO()
+    if isinstance(obj, dict):
+        np.save(buf, np.array(obj, dtype=object), allow_pickle=True)
+    else:
+        np.save(buf, np.asarray(obj), allow_pickle=False)
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(buf.getvalue())
+
+
+def axis_angle(R: np.ndarray) -> np.ndarray:
+    """3x3 rotation → axis-angle vector (3,), angle in radians (the Rodrigues vector OpenCV and SMPL use)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(np.asarray(R, dtype=np.float64)).as_rotvec()
+
+
+def rodrigues(v: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_rotvec(np.asarray(v, dtype=np.float64).reshape(3)).as_matrix()
+
+
+def root_motion(pose_json: dict) -> np.ndarray:
+    """4x4 rigid world motion of the body's root (pelvis) relative to anny's reference pose.
+
+    In the 'local-ref' parameterisation the root delta is a rigid transform about the root head, which sits at
+    the world origin in the reference pose; `root_transform` (the turntable) is applied after skinning. So every
+    vertex of the reference body that moves rigidly with the pelvis goes to ``root_transform @ root_delta @ x``.
+    """
+    root = np.array(pose_json["bones"].get("root", np.eye(4)), dtype=np.float64)
+    rt = np.array(pose_json.get("root_transform", np.eye(4)), dtype=np.float64)
+    return rt @ root
+
+
+@functools.lru_cache(maxsize=4)
+def _library(hdri_folder: str | None) -> dict[str, Path]:
+    from rh_dataset.lights import bundled_hdris, hdri_library
+
+    try:
+        return dict(hdri_library(hdri_folder)) if hdri_folder else dict(bundled_hdris())
+    except (FileNotFoundError, ValueError):
+        return {}
+
+
+def hdri_path(light: dict, hdri_folder: str | None) -> Path | None:
+    """The HDRI file a frame's light came from on this machine, or None (sunsky, or the map is not here)."""
+    if light.get("kind") != "envmap":
+        return None
+    p = _library(hdri_folder).get(light["name"])
+    if p is not None and Path(p).name == light.get("source", Path(p).name):
+        return Path(p)
+    if hdri_folder and (Path(hdri_folder) / light.get("source", "")).is_file():
+        return Path(hdri_folder) / light["source"]
+    return None
