@@ -45,7 +45,7 @@ def to_display(radiance: np.ndarray, exposure: float) -> np.ndarray:
     if not np.all(np.isfinite(radiance)):
         raise ValueError("to_display: radiance contains NaN or Inf")
     # Checked as the float32 it is multiplied in: 1e39 is finite in float64 but inf in float32 (0 * inf = NaN).
-    if not (np.isfinite(np.float32(exposure)) and exposure > 0):
+    if not (np.isfinite(exposure) and 0 < float(exposure) <= float(np.finfo(np.float32).max)):
         raise ValueError(f"to_display: exposure must be a positive number within float32 range, got {exposure!r}")
     return srgb_encode(radiance * np.float32(exposure))
 
