@@ -16,11 +16,11 @@ import functools
 import numpy as np
 
 from .body import ANNY_TOPOLOGY, body_topology, run_anny, vertex_normals
-from .garments import PartGeometry, build_garments
+from .garments import PartGeometry, build_garments, shoe_height_map
 from .geometry import body_features, split_faces
 from .hair import build_hair
 from .recipe import CharacterRecipe
-from .textures import body_layout_coords, garment_texture, hair_texture, skin_texture, texel_positions
+from .textures import body_layout_coords, garment_texture, hair_texture, shoe_sole, skin_texture, texel_positions
 
 __all__ = [
     "Material",
@@ -146,14 +146,25 @@ class PosedMesh:
     material: Material
 
 
-# Skin: a dielectric sheen on a rough surface; hair: a stronger, tighter sheen.
+# Skin: a dielectric sheen on a rough surface; hair: a stronger, tighter sheen (hair cuticles are smooth).
 SKIN_ROUGHNESS, SKIN_SPECULAR = 0.5, 0.35
-HAIR_ROUGHNESS, HAIR_SPECULAR = 0.35, 0.45
+HAIR_ROUGHNESS, HAIR_SPECULAR = 0.3, 0.6
 SHOE_SPECULAR = 0.45
 FABRIC_SPECULAR = 0.15
 
 # Independent noise streams per texture: np.random.default_rng([seed, stream]).
-_STREAM_SKIN, _STREAM_HAIR, _STREAM_GARMENT0 = 1, 2, 10
+_STREAM_SKIN, _STREAM_HAIR, _STREAM_SOLE, _STREAM_GARMENT0 = 1, 2, 3, 10
+
+# Shoe soles (linear RGB): white rubber, gum, black rubber; drawn per character, dark uppers favour white soles.
+_SOLE_COLOURS = np.array([[0.7, 0.7, 0.66], [0.32, 0.19, 0.09], [0.03, 0.03, 0.03]], dtype=np.float32)
+SOLE_HEIGHT = 0.024  # metres above the bottom of the shoe
+
+
+def _sole_colour(seed: int, upper_srgb: tuple[float, float, float]) -> np.ndarray:
+    rng = np.random.default_rng([seed, _STREAM_SOLE])
+    light = float(np.mean(upper_srgb)) > 0.55
+    p = [0.15, 0.35, 0.5] if light else [0.6, 0.2, 0.2]
+    return _SOLE_COLOURS[int(rng.choice(3, p=p))]
 
 
 def _own_layout_coords(resolution: int, metres_per_uv: float) -> np.ndarray:
@@ -217,6 +228,8 @@ def _build_cached(recipe_json: str, res: int) -> Character:
         else:
             r2 = max(res // 2, 16)
             tex = garment_texture(g, rng, r2, _own_layout_coords(r2, geo.metres_per_uv))
+            if g.kind == "shoes":
+                tex = shoe_sole(tex, shoe_height_map(geo, feats, r2), SOLE_HEIGHT, _sole_colour(seed, g.colour))
         spec = SHOE_SPECULAR if g.kind == "shoes" else FABRIC_SPECULAR
         parts.append(_to_part(geo, Material(tex, g.roughness, spec)))
 

@@ -169,60 +169,264 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str) -> 
     )
 
 
-def _smoothing_weights(
-    feats: BodyFeatures, rows: np.ndarray, radius: float = 0.03, k: int = 24, voxel: float = 0.012
-) -> tuple[np.ndarray, np.ndarray]:
-    """Convex weights that replace each of `rows` by a Gaussian-weighted mean (sigma = `radius`) of a coarse
-    subset of the same region (one vertex per `voxel`-sized cell): a smoothing whose reach is in metres, not in
-    edges, so dense detail such as toes is averaged away. Returns (indices (R, k), weights (R, k))."""
-    from scipy.spatial import cKDTree
-
-    v = feats.rest_vertices[rows]
-    cell = np.floor(v / voxel).astype(np.int64)
-    _, first = np.unique(cell, axis=0, return_index=True)
-    coarse = rows[np.sort(first)]
-    k = min(k, len(coarse))
-    dist, nn = cKDTree(feats.rest_vertices[coarse]).query(v, k=k)
-    dist, nn = dist.reshape(len(rows), k), nn.reshape(len(rows), k)
-    wts = np.exp(-0.5 * (dist / radius) ** 2) + 1e-12
-    wts /= wts.sum(axis=1, keepdims=True)
-    return coarse[nn].astype(np.int64), wts
+SHOE_CLEARANCE = 0.006  # metres between the foot and the shoe's upper
+SHOE_SOLE = 0.01  # extra thickness under the foot
+SHOE_TOE_ROOM = 0.02  # how far the toe cap reaches beyond the toes
+SHOE_COLLAR = 0.085  # height of the shoe's opening above the bottom of the foot
 
 
-def _smooth_shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str) -> PartGeometry:
-    """A shell whose anchors are smoothed body positions (blends of a neighbourhood), so fine body detail such as
-    toes disappears under the garment; the offset is raised wherever smoothing pulled the anchor inside the skin."""
-    geo = _shell(kind, feats, np.zeros_like(under), topology)
-    verts = np.unique(geo.body_vertex)
-    idx, wts = _smoothing_weights(feats, verts)
+def _polygon_exit(poly: np.ndarray, centre: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """Distance from `centre` along each 2D unit direction to where it leaves a convex polygon (CCW vertices)."""
+    a = poly - centre
+    e = np.roll(a, -1, axis=0) - a
+    out = np.zeros(len(dirs))
+    for k, d in enumerate(dirs):
+        den = d[0] * (-e[:, 1]) - d[1] * (-e[:, 0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = (a[:, 0] * (-e[:, 1]) - a[:, 1] * (-e[:, 0])) / den
+            t = (d[0] * a[:, 1] - d[1] * a[:, 0]) / den
+        ok = (t >= -1e-9) & (t <= 1 + 1e-9) & (s > 0) & np.isfinite(s)
+        out[k] = float(s[ok].max()) if ok.any() else float(np.max(a @ d))
+    return out
+
+
+def _shoe_shape(feats: BodyFeatures, side: str, n_sections: int = 24, n_around: int = 28):
+    """A closed shoe around one foot, in the rest pose: rings (S, K, 3) swept from heel to toe, each the convex hull
+    of the foot's cross-section (so toes and the gaps between them vanish) pushed out by the clearance, smoothed
+    along the foot, with a flat thick sole; plus heel and toe poles."""
+    from scipy.spatial import ConvexHull
+
+    v = feats.rest_vertices
+    sign = 1.0 if side == "L" else -1.0
+    foot = (feats.in_groups("foot") | feats.masks[f"foot.{side}"]) & (v[:, 0] * sign > 0)
+    z_floor = float(v[foot, 2].min())
+    z_collar = z_floor + SHOE_COLLAR
+    pts_m = (foot | (feats.in_groups("lowerleg") & (v[:, 0] * sign > 0))) & (v[:, 2] < z_collar)
+    pts = v[pts_m]
+    low = pts[pts[:, 2] < z_floor + 0.04]
+    xy = low[:, :2] - low[:, :2].mean(0)
+    w, vec = np.linalg.eigh(xy.T @ xy)
+    ax = np.array([vec[0, 1], vec[1, 1], 0.0])
+    if ax[1] > 0:
+        ax = -ax  # heel to toe points to -Y (the front)
+    lat = np.cross([0.0, 0.0, 1.0], ax)
+    origin = np.array([low[:, 0].mean(), low[:, 1].mean(), 0.0])
+    s_all = (pts - origin) @ ax
+    s0, s1 = float(s_all.min()), float(s_all.max())
+    ss = np.linspace(s0 + 0.004, s1 - 0.002, n_sections)
+    half = 0.75 * (ss[1] - ss[0]) + 0.004
+    phi = np.linspace(0.0, 2 * np.pi, n_around, endpoint=False)  # 0 = up, then towards +lat
+    dirs2 = np.stack([np.sin(phi), np.cos(phi)], 1)  # (lateral, vertical)
+    radii, centres = [], []
+    prev = None
+    for s in ss:
+        sel = pts[np.abs(s_all - s) < half]
+        q = np.stack([(sel - origin) @ lat, sel[:, 2]], 1) if len(sel) else np.zeros((0, 2))
+        if len(q) >= 4 and np.ptp(q[:, 0]) > 1e-3 and np.ptp(q[:, 1]) > 1e-3:
+            hull = q[ConvexHull(q).vertices]
+            c = hull.mean(0)
+            r = _polygon_exit(hull, c, dirs2)
+            prev = (c, r)
+        else:
+            c, r = prev
+        centres.append(c)
+        radii.append(r)
+    centres = ndimage_gaussian(np.array(centres), 1.0)
+    radii = ndimage_gaussian(np.array(radii), 1.2)
+    radii = radii + SHOE_CLEARANCE
+    # Rings in 3D; the sole: everything within 1.5 cm of the floor is flattened onto a plane below the foot.
+    ring = (origin + ss[:, None, None] * ax + centres[:, None, :1] * lat
+            + radii[..., None] * dirs2[None, :, :1] * lat)
+    z = centres[:, None, 1] + radii * dirs2[None, :, 1]
+    bottom = z_floor - SHOE_CLEARANCE - SHOE_SOLE
+    z = np.maximum(z, bottom)
+    z = np.minimum(z, z_collar)
+    ring[..., 2] = z
+    # Toe box: the last sections round off forwards; the heel is pulled back a little.
+    tip_c = ring[-1].mean(0) + ax * SHOE_TOE_ROOM
+    tip_c[2] = bottom + 0.35 * (ring[-1, :, 2].max() - bottom)
+    heel_c = ring[0].mean(0) - ax * 0.006
+    heel_c[2] = bottom + 0.4 * (ring[0, :, 2].max() - bottom)
+    frac = np.linspace(0.0, 1.0, n_sections)
+    pull = _smoothstep((frac - 0.85) / 0.15) * 0.25
+    ring = ring + pull[:, None, None] * (tip_c - ring)
+    return ring, heel_c, tip_c, z_floor
+
+
+def _same_for_coincident(points: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """The per-group maximum of `values` over points at equal positions (copies of a vertex at a UV seam)."""
+    _, inv = np.unique(np.round(points / 1e-7).astype(np.int64), axis=0, return_inverse=True)
+    inv = inv.ravel()
+    m = np.full(inv.max() + 1, -np.inf)
+    np.maximum.at(m, inv, values)
+    return m[inv]
+
+
+def vol_sign(verts: np.ndarray, faces: np.ndarray) -> float:
+    tri = verts[faces]
+    return float((np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) * tri[:, 0]).sum())
+
+
+def ndimage_gaussian(a: np.ndarray, sigma: float) -> np.ndarray:
+    from scipy import ndimage
+
+    return ndimage.gaussian_filter1d(a, sigma, axis=0, mode="nearest")
+
+
+def _shoes(feats: BodyFeatures, under: np.ndarray) -> PartGeometry:
+    """Two closed shoes, bound to the feet and ankles (blend anchoring, like hair), with their own UV layout:
+    u around the foot (0 = the top of the instep), v from the toe (1) to the heel (0)."""
+    from .geometry import bind_points, drop_unreferenced, surface_clearance
+
+    verts, faces, uvs = [], [], []
     v, nrm = feats.rest_vertices, feats.rest_normals
-    anchor = (v[idx] * wts[..., None]).sum(1)
-    nb = (nrm[idx] * wts[..., None]).sum(1)
-    nb /= np.linalg.norm(nb, axis=1, keepdims=True)
-    base = np.zeros(len(v))
-    base[geo.body_vertex] = geo.offset
-    inside = ((v[verts] - anchor) * nb).sum(1)  # > 0: the skin sticks out beyond the smoothed anchor
-    # Lift by an envelope of that protrusion (max over a 2 cm ball, then averaged over it, never below the vertex's
-    # own): lifting each vertex by exactly its own protrusion would print the toes back onto the shoe.
+    for side in ("L", "R"):
+        ring, heel, tip, z_floor = _shoe_shape(feats, side)
+        S, K, _ = ring.shape
+        sign = 1.0 if side == "L" else -1.0
+        cand = np.flatnonzero((feats.in_groups("foot", "lowerleg")) & (v[:, 0] * sign > 0))
+        # Push any ring point that still lies within the clearance of the skin straight out from its section's axis.
+        centre = ring.mean(1, keepdims=True)
+        d = ring - centre
+        d /= np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
+        flat = ring.reshape(-1, 3)
+        for _ in range(3):
+            h = surface_clearance(flat, v, nrm, cand)
+            need = np.maximum(0.004 - h, 0.0)
+            if not need.any():
+                break
+            flat = flat + 1.1 * need[:, None] * d.reshape(-1, 3)
+        ring = flat.reshape(S, K, 3)
+        grid = np.concatenate([np.repeat(heel[None, None], K + 1, 1), np.concatenate([ring, ring[:, :1]], 1),
+                               np.repeat(tip[None, None], K + 1, 1)], 0)
+        n_rows, n_cols = S + 2, K + 1
+        f = []
+        for j in range(n_rows - 1):
+            for c in range(n_cols - 1):
+                a, b = j * n_cols + c, j * n_cols + c + 1
+                dd, e = a + n_cols, b + n_cols
+                if j == 0:
+                    f.append((a, dd, e))
+                elif j == n_rows - 2:
+                    f.append((a, dd, b))
+                else:
+                    f += [(a, dd, b), (b, dd, e)]
+        f = np.array(f, dtype=np.int64)
+        pv = grid.reshape(-1, 3)
+        # Every foot vertex below the collar must be inside the shoe (with 3 mm to spare): where one is not, push the
+        # shoe vertices around it outwards from their section's axis (the toe tips are the usual culprits).
+        from scipy.spatial import cKDTree
+
+        from .body import vertex_normals
+
+        inner = v[cand[v[cand, 2] < z_floor + SHOE_COLLAR - 0.01]]
+        axis_pt = np.concatenate([np.repeat(heel[None], K + 1, 0), np.repeat(ring.mean(1), K + 1, 0),
+                                  np.repeat(tip[None], K + 1, 0)])
+        for _ in range(4):
+            sn = vertex_normals(pv, f if vol_sign(pv, f) > 0 else f[:, ::-1])
+            h = surface_clearance(inner, pv, sn, np.arange(len(pv)))
+            bad = h > -0.003
+            if not bad.any():
+                break
+            dist, nn = cKDTree(pv).query(inner[bad], k=6)
+            push = np.zeros(len(pv))
+            np.maximum.at(push, nn.ravel(), np.repeat(h[bad] + 0.004, 6))
+            push = _same_for_coincident(pv, push)
+            dirs = pv - axis_pt
+            dirs /= np.maximum(np.linalg.norm(dirs, axis=1, keepdims=True), 1e-9)
+            pv = pv + push[:, None] * dirs
+        tri = pv[f]
+        vol = float((np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) * tri[:, 0]).sum())
+        if vol < 0:
+            f = f[:, ::-1]
+        u = np.arange(n_cols) / K
+        vv = np.linspace(0.0, 1.0, n_rows)  # heel (0) to toe (1)
+        uv = np.stack(np.broadcast_arrays(u[None, :], vv[:, None]), -1).reshape(-1, 2)
+        pv, f, uv = drop_unreferenced(pv, f, uv)
+        faces.append(f + sum(len(x) for x in verts))
+        verts.append(pv)
+        uvs.append(uv)
+        # Register the shoe as the layer under the trouser hems: body vertices inside it get its clearance.
+        inside = cand[v[cand, 2] < z_floor + SHOE_COLLAR]
+        from scipy.spatial import cKDTree
+
+        _, nn = cKDTree(pv).query(v[inside])
+        h = ((pv[nn] - v[inside]) * nrm[inside]).sum(1)
+        under[inside] = np.maximum(under[inside], np.clip(h, 0.0, 0.05))
+    pv = np.concatenate(verts)
+    region = np.flatnonzero(feats.in_groups("foot", "lowerleg"))
+    b = bind_points(pv, region, feats, smooth_radius=0.015)
+    all_faces = np.concatenate(faces)
+    # The binding reproduces the design to within millimetres; re-check that the foot is inside the reconstructed
+    # shoe and raise the offsets of the shoe vertices around any foot vertex that is not.
     from scipy.spatial import cKDTree
 
-    balls = cKDTree(v[verts]).query_ball_point(v[verts], r=0.02)
-    pos = np.maximum(inside, 0.0)
-    env = np.array([pos[b].max() for b in balls])
-    env = np.maximum(np.array([env[b].mean() for b in balls]), pos)
-    off = base[verts] + env
-    # Distance of the shell above this body vertex, for the layers laid on top.
-    clearance = off - inside
-    need = np.where(under[verts] > 0, under[verts] + LAYER_GAP - clearance, 0.0)
-    off = off + np.maximum(need, 0.0)
-    under[verts] = np.maximum(under[verts], off - inside)
-    row = np.searchsorted(verts, geo.body_vertex)
-    return dataclasses.replace(
-        geo,
-        offset=off[row].astype(np.float32),
-        blend_vertices=idx[row],
-        blend_weights=wts[row].astype(np.float32),
+    from .body import vertex_normals
+
+    w = b.blend_weights.astype(np.float64)[..., None]
+    base = (v[b.blend_vertices] * w).sum(1)
+    nb = (nrm[b.blend_vertices] * w).sum(1)
+    nb /= np.linalg.norm(nb, axis=1, keepdims=True)
+    off = b.offset.astype(np.float64)
+    feet = feats.in_groups("foot", "lowerleg")
+    z_floor = float(v[feats.in_groups("foot"), 2].min())
+    inner = v[feet & (v[:, 2] < z_floor + SHOE_COLLAR - 0.01)]
+    for _ in range(6):
+        pos = base + off[:, None] * nb
+        h = surface_clearance(inner, pos, vertex_normals(pos, all_faces), np.arange(len(pos)))
+        bad = h > -0.004
+        if not bad.any():
+            break
+        _, nn = cKDTree(pos).query(inner[bad], k=8)
+        push = np.zeros(len(pos))
+        np.maximum.at(push, nn.ravel(), np.repeat(h[bad] + 0.005, 8))
+        # A smooth envelope of the needed lift (max over a 2 cm ball, then its mean over 2.5 cm), so fixing one toe
+        # does not print a toe-shaped bump onto the shoe.
+        tree = cKDTree(pv)
+        env = np.array([push[b].max() for b in tree.query_ball_point(pv, r=0.02)])
+        env = np.array([env[b].mean() for b in tree.query_ball_point(pv, r=0.025)])
+        off += _same_for_coincident(pv, np.maximum(env, 0.5 * push))  # UV-seam and pole copies stay welded
+    b = dataclasses.replace(b, offset=off.astype(np.float32))
+    length = float(np.linalg.norm(verts[0][-1] - verts[0][0]))
+    return PartGeometry(
+        name="shoes",
+        faces=all_faces.astype(np.int32),
+        uvs=np.concatenate(uvs).astype(np.float32),
+        body_vertex=b.body_vertex,
+        offset=b.offset,
+        uv_layout="own",
+        metres_per_uv=max(length, 0.25),
+        blend_vertices=b.blend_vertices,
+        blend_weights=b.blend_weights,
     )
+
+
+def shoe_height_map(part: PartGeometry, feats: BodyFeatures, resolution: int) -> np.ndarray:
+    """Rest height above the bottom of the shoe (metres) of every texel of the shoes' own layout (H, W) float32,
+    row 0 = v 1: where the sole band goes. The layout is a regular grid (u = column / K around the foot, v = row /
+    (rows - 1) from heel to toe), so texel heights are a bilinear lookup in the left shoe's grid of vertex heights."""
+    from scipy import ndimage
+
+    v, nrm = feats.rest_vertices, feats.rest_normals
+    w = part.blend_weights.astype(np.float64)[..., None]
+    p = (v[part.blend_vertices] * w).sum(1)
+    nb = (nrm[part.blend_vertices] * w).sum(1)
+    nb /= np.linalg.norm(nb, axis=1, keepdims=True)
+    pos = p + part.offset[:, None].astype(np.float64) * nb
+    left = pos[:, 0] > 0
+    z = pos[left, 2] - pos[left, 2].min()
+    uv = part.uvs[left].astype(np.float64)
+    vs, us = np.unique(np.round(uv[:, 1], 6)), np.unique(np.round(uv[:, 0], 6))
+    grid = np.full((len(vs), len(us)), np.nan)
+    grid[np.searchsorted(vs, np.round(uv[:, 1], 6)), np.searchsorted(us, np.round(uv[:, 0], 6))] = z
+    rows_mean = np.nanmean(grid, axis=1, keepdims=True)
+    grid = np.where(np.isnan(grid), rows_mean, grid)  # the poles' spare column
+    res = int(resolution)
+    g = (np.arange(res) + 0.5) / res
+    rr = np.interp(1.0 - g, vs, np.arange(len(vs)))
+    cc = np.interp(g, us, np.arange(len(us)))
+    r2, c2 = np.meshgrid(rr, cc, indexing="ij")
+    return ndimage.map_coordinates(grid, [r2, c2], order=1, mode="nearest").astype(np.float32)
 
 
 def _skirt(feats: BodyFeatures, under: np.ndarray, n_rings: int = 14, n_around: int = 64) -> PartGeometry:
@@ -305,7 +509,7 @@ def build_garments(
         if g.kind == "skirt":
             out.append(_skirt(feats, under))
         elif g.kind == "shoes":
-            out.append(_smooth_shell(g.kind, feats, under, topology))
+            out.append(_shoes(feats, under))
         else:
             out.append(_shell(g.kind, feats, under, topology))
     return out

@@ -13,7 +13,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
-from scipy.spatial import ConvexHull
+from scipy.spatial import ConvexHull, cKDTree
 
 from .body import ANNY_TOPOLOGY, BodyTopology, body_topology, run_anny, vertex_normals
 
@@ -24,6 +24,10 @@ __all__ = [
     "split_faces",
     "boundary_distance",
     "hull_anchors",
+    "smoothing_weights",
+    "bind_points",
+    "surface_clearance",
+    "drop_unreferenced",
     "uv_raster",
     "anny_data_dir",
     "GROUPS",
@@ -271,6 +275,147 @@ def hull_anchors(
         idx[k] = (candidates[ring[j]], candidates[ring[(j + 1) % len(ring)]])
         wts[k] = (1.0 - tt, tt)
     return idx, wts
+
+
+def smoothing_weights(
+    vertices: np.ndarray, rows: np.ndarray, radius: float = 0.03, k: int = 24, voxel: float = 0.012
+) -> tuple[np.ndarray, np.ndarray]:
+    """Convex weights that replace each of `rows` by a Gaussian-weighted mean (sigma = `radius`) of a coarse
+    subset of the same region (one vertex per `voxel`-sized cell): a smoothing whose reach is in metres, not in
+    edges, so dense detail such as toes is averaged away. Returns (indices (R, k), weights (R, k))."""
+    rows = np.asarray(rows, dtype=np.int64)
+    v = vertices[rows]
+    cell = np.floor(v / voxel).astype(np.int64)
+    _, first = np.unique(cell, axis=0, return_index=True)
+    coarse = rows[np.sort(first)]
+    k = min(k, len(coarse))
+    dist, nn = cKDTree(vertices[coarse]).query(v, k=k)
+    dist, nn = dist.reshape(len(rows), k), nn.reshape(len(rows), k)
+    wts = np.exp(-0.5 * (dist / radius) ** 2) + 1e-12
+    wts /= wts.sum(axis=1, keepdims=True)
+    return coarse[nn].astype(np.int64), wts
+
+
+@dataclasses.dataclass(frozen=True)
+class Binding:
+    """Points expressed in the anchoring scheme of `PartGeometry`: point_i = sum_k w_ik v[idx_ik] + offset_i * n_i,
+    n_i = normalise(sum_k w_ik n[idx_ik]) over posed body vertices v / normals n. `error` (N,) metres is how far
+    the rest-pose reconstruction lies from the requested point (0 where the projection converged)."""
+
+    blend_vertices: np.ndarray  # (N, K) int64
+    blend_weights: np.ndarray  # (N, K) float32, rows sum to 1
+    offset: np.ndarray  # (N,) float32 >= 0
+    error: np.ndarray  # (N,) float64
+
+    @property
+    def body_vertex(self) -> np.ndarray:
+        return self.blend_vertices[np.arange(len(self.blend_vertices)), np.argmax(self.blend_weights, axis=1)]
+
+
+def _barycentric(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    v0, v1, v2 = b - a, c - a, p - a
+    d00, d01, d11 = (v0 * v0).sum(-1), (v0 * v1).sum(-1), (v1 * v1).sum(-1)
+    d20, d21 = (v2 * v0).sum(-1), (v2 * v1).sum(-1)
+    den = d00 * d11 - d01 * d01
+    den = np.where(np.abs(den) < 1e-20, 1e-20, den)
+    y = (d11 * d20 - d01 * d21) / den
+    z = (d00 * d21 - d01 * d20) / den
+    return np.stack([1.0 - y - z, y, z], axis=-1)
+
+
+def bind_points(
+    points: np.ndarray,
+    region: np.ndarray,
+    feats: BodyFeatures,
+    topology: str = ANNY_TOPOLOGY,
+    smooth_radius: float = 0.02,
+    n_candidates: int = 16,
+    iterations: int = 12,
+) -> Binding:
+    """Bind rest-pose points to the body ("wrap"): each point becomes a blend of body vertices plus an offset along
+    the blended normal, the anchoring `pose_character` already applies to skirts and hanging hair.
+
+    The anchor surface is the body's faces inside `region` (a vertex mask or index array), with every vertex
+    replaced by a Gaussian blend of its neighbourhood (`smooth_radius` metres; 0 = the raw surface), so hair that
+    stands off the head follows a smooth frame instead of the skin's facets. Each point is projected along the
+    interpolated normal field (not to the closest point): a fixed-point iteration finds, on the best of the nearest
+    `n_candidates` faces, barycentrics b with point = B(b) + d n(b), which the pose then reproduces exactly in the
+    rest pose and moves with the skin in any other."""
+    topo = body_topology(topology)
+    v, n = feats.rest_vertices, feats.rest_normals
+    pts = np.asarray(points, dtype=np.float64)
+    inreg = np.zeros(len(v), dtype=bool)
+    inreg[np.asarray(region)] = True
+    faces = topo.faces[inreg[topo.faces].all(axis=1)]
+    used = np.unique(faces)
+    if smooth_radius > 0:
+        sidx, sw = smoothing_weights(v, used, radius=smooth_radius)
+    else:
+        sidx, sw = used[:, None], np.ones((len(used), 1))
+    local = np.full(len(v), -1, dtype=np.int64)
+    local[used] = np.arange(len(used))
+    fl = local[faces]
+    S = (v[sidx] * sw[..., None]).sum(1)  # smoothed positions
+    N = (n[sidx] * sw[..., None]).sum(1)  # unnormalised smoothed normals (what the pose blends)
+    tri = S[fl]  # (F, 3, 3)
+    k = min(n_candidates, len(fl))
+    _, cand = cKDTree(tri.mean(1)).query(pts, k=k)
+    cand = cand.reshape(len(pts), k)
+    A, B, C = tri[cand, 0], tri[cand, 1], tri[cand, 2]  # (P, k, 3)
+    NA, NB, NC = N[fl[cand, 0]], N[fl[cand, 1]], N[fl[cand, 2]]
+    fn = np.cross(B - A, C - A)
+    fn /= np.maximum(np.linalg.norm(fn, axis=-1, keepdims=True), 1e-20)
+    P = pts[:, None, :]
+    bc = _barycentric(P - ((P - A) * fn).sum(-1, keepdims=True) * fn, A, B, C)
+    for _ in range(iterations):
+        bc = np.clip(bc, 0.0, None)
+        bc /= bc.sum(-1, keepdims=True)
+        nb = bc[..., :1] * NA + bc[..., 1:2] * NB + bc[..., 2:] * NC
+        nb /= np.maximum(np.linalg.norm(nb, axis=-1, keepdims=True), 1e-20)
+        den = (nb * fn).sum(-1, keepdims=True)
+        den = np.where(np.abs(den) < 1e-3, np.copysign(1e-3, den), den)
+        t = ((P - A) * fn).sum(-1, keepdims=True) / den
+        bc = _barycentric(P - t * nb, A, B, C)
+    bc = np.clip(bc, 0.0, None)
+    bc /= bc.sum(-1, keepdims=True)
+    base = bc[..., :1] * A + bc[..., 1:2] * B + bc[..., 2:] * C
+    nb = bc[..., :1] * NA + bc[..., 1:2] * NB + bc[..., 2:] * NC
+    nb /= np.maximum(np.linalg.norm(nb, axis=-1, keepdims=True), 1e-20)
+    d = ((P - base) * nb).sum(-1)
+    dd = np.maximum(d, 0.0)
+    err = np.linalg.norm(P - (base + dd[..., None] * nb), axis=-1)
+    best = np.argmin(err + 1e-6 * np.arange(k)[None, :], axis=1)  # ties: the nearest candidate
+    rows = np.arange(len(pts))
+    face = cand[rows, best]
+    b = bc[rows, best]  # (P, 3)
+    ks = sidx.shape[1]
+    bv = sidx[fl[face]].reshape(len(pts), 3 * ks)
+    bw = (b[:, :, None] * sw[fl[face]]).reshape(len(pts), 3 * ks)
+    bw /= bw.sum(1, keepdims=True)
+    return Binding(bv.astype(np.int64), bw.astype(np.float32), dd[rows, best].astype(np.float32), err[rows, best])
+
+
+def surface_clearance(
+    points: np.ndarray, vertices: np.ndarray, normals: np.ndarray, candidates: np.ndarray, k: int = 6
+) -> np.ndarray:
+    """Approximate signed distance of points above a surface given as vertices with normals (> 0 outside): the
+    height above the tangent plane of the nearest of `k` candidate vertices, taken at the most negative of them
+    when the point lies within their spacing (so a point sunk between two vertices is not missed)."""
+    cand = np.asarray(candidates, dtype=np.int64)
+    dist, nn = cKDTree(vertices[cand]).query(points, k=min(k, len(cand)))
+    dist, nn = dist.reshape(len(points), -1), nn.reshape(len(points), -1)
+    idx = cand[nn]
+    h = ((points[:, None, :] - vertices[idx]) * normals[idx]).sum(-1)
+    near = dist <= dist[:, :1] * 1.5 + 1e-9
+    return np.where(near, h, np.inf).min(axis=1)
+
+
+def drop_unreferenced(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray):
+    """Remove vertices no face uses (e.g. the spare copy of a pole at a UV seam); returns (vertices, faces, uvs)."""
+    used = np.unique(faces)
+    remap = np.full(len(vertices), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return vertices[used], remap[faces], uvs[used]
 
 
 @functools.lru_cache(maxsize=4)
