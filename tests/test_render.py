@@ -130,3 +130,18 @@ def test_only_the_requested_passes_run():
     assert set(out.layers) == {"albedo", "mask"} and set(out.seconds) == {"load", "aov"}
     with pytest.raises(ValueError, match="unknown layers"):
         render_frame([uv_sphere()], constant_env(1.0), front_camera(), RenderSettings(), ["beauty"], seed=0)
+
+
+def test_high_sample_counts_render_in_chunks_that_average_correctly():
+    # 300 spp = a 256-sample chunk and a 44-sample chunk, averaged with weights 256/300 and 44/300.
+    from rh_dataset.render.passes import MAX_SPP_PER_CALL
+
+    assert MAX_SPP_PER_CALL < 300
+    L = 1.3
+    s = RenderSettings(spp=300, aov_spp=2, max_depth=3)
+    a = render_frame([uv_sphere()], constant_env(L), front_camera(w=16, h=16), s, ["image", "mask"], seed=5).layers
+    b = render_frame([uv_sphere()], constant_env(L), front_camera(w=16, h=16), s, ["image", "mask"], seed=5).layers
+    assert np.array_equal(a["image"], b["image"])
+    inside = a["mask"] > 0.999
+    vals = a["image"][inside][:, 0].astype(np.float64)
+    assert abs(vals.mean() - L) < 4 * vals.std() / np.sqrt(vals.size) + 1e-4

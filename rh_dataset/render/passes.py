@@ -64,7 +64,7 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict, camera: Camera, sett
     try:
         if "image" in layers:
             t = time.perf_counter()
-            img = np.array(mi.render(scene, spp=settings.spp, seed=seed), dtype=np.float32)
+            img = _render_chunked(mi, scene, settings.spp, seed)
             out["image"] = np.ascontiguousarray(img[..., :3])
             seconds["beauty"] = time.perf_counter() - t
         denoise = bool(settings.denoise) and "image" in layers
@@ -136,6 +136,23 @@ def count_fireflies(image: np.ndarray, k: float = FIREFLY_K, window: int = FIREF
     local = median_filter(lum, size=int(window), mode="reflect")
     floor = 1e-4 * float(lum.mean())
     return int(np.count_nonzero(lum > k * np.maximum(local, floor)))
+
+
+# One Mitsuba call traces width*height*spp paths as one wavefront; at 512x512 x 4096 spp that is 1e9 lanes and
+# runs out of memory. Beyond this many samples per pixel the beauty pass is split into chunks with derived seeds
+# and averaged, which the box filter makes equivalent to one pass with the total sample count.
+MAX_SPP_PER_CALL = 256
+
+
+def _render_chunked(mi, scene, spp: int, seed: int) -> np.ndarray:
+    if spp <= MAX_SPP_PER_CALL:
+        return np.array(mi.render(scene, spp=spp, seed=seed), dtype=np.float32)
+    chunks = [MAX_SPP_PER_CALL] * (spp // MAX_SPP_PER_CALL) + ([spp % MAX_SPP_PER_CALL] if spp % MAX_SPP_PER_CALL else [])
+    acc = None
+    for k, n in enumerate(chunks):
+        part = np.array(mi.render(scene, spp=n, seed=seed + 1000003 * (k + 1)), dtype=np.float64) * (n / spp)
+        acc = part if acc is None else acc + part
+    return acc.astype(np.float32)
 
 
 def _postprocess_aovs(aov: np.ndarray, camera: Camera, layers: Sequence[str]) -> dict[str, np.ndarray]:
