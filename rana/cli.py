@@ -86,6 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--subject", default="all", help="subject_NNN, comma-separated list, or 'all'")
         q.add_argument("--background", default="sh", choices=["sh", "black"],
                        help="outside the person: the target light's SH environment (default) or black")
+        q.add_argument("--name", default=None,
+                       help="method name in method.json (what rh-leaderboard shows; default 'RANA' / 'SMPL+D')")
         q.add_argument("--no-progress", action="store_true")
         if name == "smpld":
             q.add_argument("--preset", default="cpu", choices=sorted(PRESETS),
@@ -144,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
 
             subs = None if args.subject == "all" else _subjects(args.subject, args.dataset, args.protocol, "test")
             n = predict_rana(args.dataset, args.protocol, args.runs, args.out, subjects=subs,
-                             background=args.background, progress=not args.no_progress)
+                             background=args.background, progress=not args.no_progress, name=args.name)
             print(f"rana predict: {n} frames written to {args.out}")
         elif args.cmd == "smpld":
             from .predict import predict_smpld
@@ -158,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
                 ensure_coarse(args.dataset, s, args.protocol, args.runs / s, cfg, pretrained=args.pretrained,
                               progress=not args.no_progress)
             n = predict_smpld(args.dataset, args.protocol, args.runs, args.out, subjects=subs,
-                              background=args.background, progress=not args.no_progress)
+                              background=args.background, progress=not args.no_progress, name=args.name)
             print(f"rana smpld: {n} frames written to {args.out}")
         elif args.cmd == "plot":
             out = plot_losses(args.run, args.out or args.run / "losses.png",

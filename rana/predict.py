@@ -105,12 +105,13 @@ def _subject_frames(dataset: Path, protocol: str, subjects: list[str] | None) ->
 
 
 def predict_rana(dataset: str | Path, protocol: str, runs_root: str | Path, out: str | Path, *,
-                 subjects: list[str] | None = None, background: str = "sh", progress: bool = True) -> int:
+                 subjects: list[str] | None = None, background: str = "sh", progress: bool = True,
+                 name: str | None = None) -> int:
     from tqdm import tqdm
 
     runs_root, dataset = Path(runs_root), Path(dataset)
     by = _subject_frames(dataset, protocol, subjects)
-    writer = PredictionWriter(out, {"name": "RANA", "kind": "method", "runs": str(runs_root.resolve()),
+    writer = PredictionWriter(out, {"name": name or "RANA", "kind": "method", "runs": str(runs_root.resolve()),
                                     "background": background,
                                     "description": "RANA (Iqbal et al. 2023) on anny, rana/ in this repository"})
     n = 0
@@ -128,13 +129,14 @@ def predict_rana(dataset: str | Path, protocol: str, runs_root: str | Path, out:
 
 
 def predict_smpld(dataset: str | Path, protocol: str, runs_root: str | Path, out: str | Path, *,
-                  subjects: list[str] | None = None, background: str = "sh", progress: bool = True) -> int:
+                  subjects: list[str] | None = None, background: str = "sh", progress: bool = True,
+                  name: str | None = None) -> int:
     """SMPL+D for every subject that has a coarse stage (`<runs>/<subject>/coarse.pt`)."""
     from tqdm import tqdm
 
     runs_root, dataset = Path(runs_root), Path(dataset)
     by = _subject_frames(dataset, protocol, subjects)
-    writer = PredictionWriter(out, {"name": "SMPL+D", "kind": "method", "runs": str(runs_root.resolve()),
+    writer = PredictionWriter(out, {"name": name or "SMPL+D", "kind": "method", "runs": str(runs_root.resolve()),
                                     "background": background,
                                     "description": "coarse albedo texture x SH2 shading of coarse SMPL+D normals"})
     n = 0

@@ -22,7 +22,7 @@ from .geometry import fit_offsets, silhouette_iou
 from .model import RanaModel, coarse_buffers, stack_batch
 from .nets import PatchDiscriminator, VGGPerceptual, hinge_d_loss
 from .runs import RunDir
-from .texture import extract_texture, fill_holes, grey_world_delight
+from .texture import exposure_sh_delight, extract_texture, fill_holes, grey_world_delight, texel_observations
 
 __all__ = ["Coarse", "coarse_stage", "load_coarse", "personalize", "cosine_lr", "build_training_state",
            "training_step", "ensure_coarse"]
@@ -36,9 +36,10 @@ class Coarse:
     shaded_texture: torch.Tensor  # (3, S, S) median of the most camera-facing observations (exposure-scaled)
     valid: torch.Tensor  # (S, S) observed texels
     albedo_texture: torch.Tensor  # (3, S, S) coarse albedo T_A (linear)
-    albedo_source: str  # "texturenet" or "grey-world"
+    albedo_source: str  # "texturenet", "exposure-sh", "grey-world" or "shaded"
     iou_before: float
     iou_after: float
+    light_world: torch.Tensor | None = None  # (9, 3) training light estimated by 'exposure-sh' (exposure units)
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
@@ -54,15 +55,23 @@ def coarse_stage(frames: list[FrameData], cfg: RanaConfig, *, texturenet=None, p
     iou0 = silhouette_iou(frames, topo, None)
     D = fit_offsets(frames, topo, cfg.geometry, seed=cfg.seed, progress=progress, log=log)
     iou1 = silhouette_iou(frames, topo, D)
-    shaded, valid = extract_texture(frames, topo, D, cfg.texture, layer="image")
-    if texturenet is not None and cfg.texture.use_texturenet:
+    tc = cfg.texture
+    obs = texel_observations(frames, topo, D, tc, layer="image")
+    shaded, valid = extract_texture(frames, topo, D, tc, obs=obs)
+    light = None
+    if texturenet is not None and tc.use_texturenet:
         albedo, source = texturenet.apply(shaded, valid), "texturenet"
+    elif not tc.delight:
+        albedo, source = fill_holes(shaded, valid).clamp(0, 1), "shaded"
+    elif tc.delight_mode == "exposure-sh":
+        tex, tvalid, light = exposure_sh_delight(obs, tc, ridge=tc.delight_ridge)
+        albedo, source = fill_holes(tex, tvalid).clamp(0, 1), "exposure-sh"
+    elif tc.delight_mode == "grey-world":
+        albedo = grey_world_delight(fill_holes(shaded, valid), valid, tc.assumed_mean_albedo)
+        source = "grey-world"
     else:
-        filled = fill_holes(shaded, valid)
-        albedo = grey_world_delight(filled, valid, cfg.texture.assumed_mean_albedo) if cfg.texture.delight \
-            else filled.clamp(0, 1)
-        source = "grey-world" if cfg.texture.delight else "shaded"
-    return Coarse(D, shaded, valid, albedo.contiguous(), source, iou0, iou1)
+        raise ValueError(f"texture.delight_mode: expected 'exposure-sh' or 'grey-world', got {tc.delight_mode!r}")
+    return Coarse(D, shaded, valid, albedo.contiguous(), source, iou0, iou1, light)
 
 
 def cosine_lr(step: int, start: int, total: int, lr: float, lr_min: float) -> float:

@@ -145,3 +145,18 @@ def test_high_sample_counts_render_in_chunks_that_average_correctly():
     inside = a["mask"] > 0.999
     vals = a["image"][inside][:, 0].astype(np.float64)
     assert abs(vals.mean() - L) < 4 * vals.std() / np.sqrt(vals.size) + 1e-4
+
+
+def test_specular_materials_keep_the_image_close_to_albedo_times_irradiance():
+    # The diffuse base must not be darkened (as a coated plastic's 1/eta^2 would): under uniform light the
+    # radiance is albedo * L plus a little specular, and the albedo layer stays exactly the texture colour.
+    from analytic_scenes import AnalyticMaterial
+
+    sph = uv_sphere(albedo=(0.4, 0.4, 0.4))
+    sph.material = AnalyticMaterial(sph.material.albedo, roughness=0.7, specular=0.5)
+    out = render_frame([sph], constant_env(1.0), front_camera(w=32, h=32), RenderSettings(spp=64, aov_spp=4,
+                       max_depth=3), ["image", "mask", "albedo"], seed=2).layers
+    inside = out["mask"] > 0.999
+    ratio = out["image"][inside].mean() / 0.4
+    assert 1.0 < ratio < 1.2, ratio
+    np.testing.assert_allclose(out["albedo"][inside], 0.4, atol=1e-5)

@@ -64,19 +64,20 @@ def mitsuba_bsdf(material: MaterialLike) -> Any:
     # bottom), so the texture is flipped once here rather than every UV set being rewritten.
     tex = np.ascontiguousarray(np.flipud(np.asarray(material.albedo, dtype=np.float32)))
     reflectance = {"type": "bitmap", "bitmap": mi.Bitmap(tex), "raw": True, "filter_type": "bilinear"}
+    # Disney principled: a diffuse base whose reflected radiance stays close to albedo x irradiance / pi (+6 to 13%
+    # from the specular lobe under uniform light, measured), so the albedo layer (its base_color, exactly the
+    # texture) and the image agree as a Lambertian reading expects. `roughplastic` was tried first: its 1/eta^2
+    # internal-refraction factor darkened the diffuse part to ~0.54 x albedo, breaking that agreement.
     if material.specular <= 0.0:
-        return mi.load_dict({"type": "diffuse", "reflectance": reflectance})
-    # A diffuse base under a rough dielectric coat: skin and fabric sheen. The albedo AOV of `roughplastic`
-    # is its diffuse_reflectance, i.e. exactly the texture: the ground-truth albedo stays the texture colour.
-    alpha = float(np.clip(material.roughness, 0.02, 1.0)) ** 2
-    return mi.load_dict({
-        "type": "roughplastic",
-        "distribution": "ggx",
-        "alpha": alpha,
-        "diffuse_reflectance": reflectance,
-        "specular_reflectance": float(np.clip(material.specular, 0.0, 1.0)),
-        "nonlinear": True,
-    })
+        bsdf = {"type": "diffuse", "reflectance": reflectance}
+    else:
+        bsdf = {"type": "principled", "base_color": reflectance,
+                "roughness": float(np.clip(material.roughness, 0.02, 1.0)),
+                "specular": float(np.clip(material.specular, 0.0, 1.0))}
+    # Hems, skirts and hair sheets are seen from inside: shade both faces alike.
+    if getattr(material, "two_sided", False):
+        bsdf = {"type": "twosided", "material": bsdf}
+    return mi.load_dict(bsdf)
 
 
 def mitsuba_mesh(mesh: MeshLike) -> Any:
