@@ -19,7 +19,7 @@ from scipy import sparse
 from scipy.sparse import csgraph
 
 from .body import ANNY_TOPOLOGY, body_topology
-from .geometry import BodyFeatures, boundary_distance, hull_anchors, split_faces
+from .geometry import BodyFeatures, boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
 __all__ = ["PartGeometry", "build_garments", "garment_vertex_mask", "BASE_OFFSET", "LAYER_GAP"]
@@ -297,22 +297,8 @@ def _shoes(feats: BodyFeatures, under: np.ndarray) -> PartGeometry:
                 break
             flat = flat + 1.1 * need[:, None] * d.reshape(-1, 3)
         ring = flat.reshape(S, K, 3)
-        grid = np.concatenate([np.repeat(heel[None, None], K + 1, 1), np.concatenate([ring, ring[:, :1]], 1),
-                               np.repeat(tip[None, None], K + 1, 1)], 0)
         n_rows, n_cols = S + 2, K + 1
-        f = []
-        for j in range(n_rows - 1):
-            for c in range(n_cols - 1):
-                a, b = j * n_cols + c, j * n_cols + c + 1
-                dd, e = a + n_cols, b + n_cols
-                if j == 0:
-                    f.append((a, dd, e))
-                elif j == n_rows - 2:
-                    f.append((a, dd, b))
-                else:
-                    f += [(a, dd, b), (b, dd, e)]
-        f = np.array(f, dtype=np.int64)
-        pv = grid.reshape(-1, 3)
+        pv, f = closed_tube(ring, heel, tip)
         # Every foot vertex below the collar must be inside the shoe (with 3 mm to spare): where one is not, push the
         # shoe vertices around it outwards from their section's axis (the toe tips are the usual culprits).
         from scipy.spatial import cKDTree

@@ -456,3 +456,27 @@ def uv_raster(resolution: int, topology: str = ANNY_TOPOLOGY) -> tuple[np.ndarra
     bary = bary.astype(np.float32)
     bary.setflags(write=False)
     return face, bary
+
+
+def closed_tube(rings: np.ndarray, start: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A closed tube through `rings` (S, K, 3), capped by pole points `start` and `end`.
+
+    Returns vertices ((S + 2) * (K + 1), 3), a grid whose seam column is duplicated so UVs can wrap, and faces
+    (int64). Shared by shoes and hair buns/ponytails.
+    """
+    S, K, _ = rings.shape
+    grid = np.concatenate([np.repeat(start[None, None], K + 1, 1), np.concatenate([rings, rings[:, :1]], 1),
+                           np.repeat(end[None, None], K + 1, 1)], 0)  # (S + 2, K + 1, 3)
+    n_rows, n_cols = S + 2, K + 1
+    faces = []
+    for j in range(n_rows - 1):
+        for c in range(n_cols - 1):
+            a, b = j * n_cols + c, j * n_cols + c + 1
+            d, e = a + n_cols, b + n_cols
+            if j == 0:
+                faces.append((a, d, e))
+            elif j == n_rows - 2:
+                faces.append((a, d, b))
+            else:
+                faces += [(a, d, b), (b, d, e)]
+    return grid.reshape(-1, 3), np.array(faces, dtype=np.int64)

@@ -26,7 +26,7 @@ from scipy import ndimage
 
 from .body import ANNY_TOPOLOGY
 from .garments import PartGeometry, _smoothstep
-from .geometry import BodyFeatures, bind_points, drop_unreferenced, surface_clearance
+from .geometry import BodyFeatures, bind_points, closed_tube, drop_unreferenced, surface_clearance
 
 __all__ = ["build_hair", "hair_frame", "CAP_THICKNESS", "HAIR_METRES_PER_UV", "HAIR_PARTS"]
 
@@ -347,22 +347,8 @@ def _tube(rings: np.ndarray, start: np.ndarray, end: np.ndarray, u_scale: float,
           arc: np.ndarray):
     """A closed tube: rings (S, K, 3) plus pole points at both ends; seam column duplicated for UVs."""
     S, K, _ = rings.shape
-    grid = np.concatenate([np.repeat(start[None, None], K + 1, 1), np.concatenate([rings, rings[:, :1]], 1),
-                           np.repeat(end[None, None], K + 1, 1)], 0)  # (S + 2, K + 1, 3)
     n_rows, n_cols = S + 2, K + 1
-    faces = []
-    for j in range(n_rows - 1):
-        for c in range(n_cols - 1):
-            a, b = j * n_cols + c, j * n_cols + c + 1
-            d, e = a + n_cols, b + n_cols
-            if j == 0:
-                faces.append((a, d, e))
-            elif j == n_rows - 2:
-                faces.append((a, d, b))
-            else:
-                faces += [(a, d, b), (b, d, e)]
-    faces = np.array(faces, dtype=np.int64)
-    verts = grid.reshape(-1, 3)
+    verts, faces = closed_tube(rings, start, end)
     u = (np.arange(n_cols) / K) * u_scale
     arc_full = np.concatenate([[arc[0]], arc, [arc[-1] + 0.004]])
     v = v0 - arc_full / HAIR_METRES_PER_UV
