@@ -70,6 +70,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="GPUs Ray reserves per task; use with --variant cuda_ad_rgb on GPU nodes")
     p.add_argument("--hdri-folder", default=None,
                    help="folder of .exr/.hdr environment maps to light with instead of the bundled Poly Haven set")
+    p.add_argument("--motion", type=Path, default=None,
+                   help="a .bvh (or .fbx/.glb/.gltf) motion file whose frames, retargeted onto each subject's anny "
+                        "body, replace the pose prior: protocol a's test poses, protocol b's train poses (which its "
+                        "test split reuses). Read through Blender (bash setup.sh installs it); the frame JSON "
+                        "records the file's name, sha256 and frame (docs/INTEROP.md)")
+    p.add_argument("--motion-start", type=int, default=0, help="first motion frame used (0-based)")
+    p.add_argument("--motion-stride", type=int, default=None,
+                   help="motion frames between consecutive dataset frames (default: spread the split over the clip)")
+    p.add_argument("--motion-heading", default="file", choices=["file", "front"],
+                   help="'file': the body faces where the actor faced; 'front': every frame turned to face the "
+                        "camera")
     p.add_argument("--overwrite", action="store_true",
                    help="replace this protocol's frames in --out if they were made with other settings")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (for logs)")
@@ -79,10 +90,17 @@ def build_parser() -> argparse.ArgumentParser:
 def options_from_args(args: argparse.Namespace):
     from rh_dataset.generate import GenerateOptions
     from rh_dataset.render.scene import RenderSettings
-    from rh_dataset.spec import SpecError, load_presets, load_protocol
+    from rh_dataset.spec import MotionSpec, SpecError, load_presets, load_protocol
 
+    motion = None
+    if args.motion is not None:
+        motion = MotionSpec.from_file(args.motion, start=args.motion_start, stride=args.motion_stride,
+                                      heading=args.motion_heading)
+    elif args.motion_stride is not None or args.motion_start != 0 or args.motion_heading != "file":
+        raise SpecError("--motion-start, --motion-stride and --motion-heading need --motion FILE")
     spec = load_protocol(args.protocol).with_overrides(
-        subjects=args.subjects, frames=args.frames, resolution=args.resolution, hdri_folder=args.hdri_folder)
+        subjects=args.subjects, frames=args.frames, resolution=args.resolution, hdri_folder=args.hdri_folder,
+        motion=motion)
     presets = load_presets()
     if args.preset not in presets:
         raise SpecError(f"unknown --preset {args.preset!r}; choose one of {sorted(presets)}")

@@ -181,14 +181,74 @@ def read_json_roundtrip(obj: dict) -> dict:
     return json.loads(dumps_json(obj))
 
 
-def _pose_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int):
+def _pose_source(opts: GenerateOptions, split: SplitSpec) -> SplitSpec:
+    """The split whose pose source a split uses ('train' reuses the train split's)."""
+    return opts.spec.split("train") if split.poses == "train" else split
+
+
+def _motion_frame(motion_spec, i: int) -> int:
+    return motion_spec.start + i * motion_spec.stride
+
+
+def _pose_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int, phenotype=None):
     from rh_dataset.characters.body import load_anny
     from rh_dataset.poses import sample_pose, turntable
 
     if split.poses == "turntable":
         return turntable(split.frames)[i]
+    source = _pose_source(opts, split)
+    if source.poses == "motion":
+        from rh_dataset.poses.motion import read_motion_cached
+        from rh_dataset.poses.retarget import motion_to_anny
+
+        ms = source.motion
+        motion = read_motion_cached(ms.file, ms.sha256)
+        # Retargeted onto this subject's own body, so the leg-length scaling of the root fits it.
+        return motion_to_anny(motion, phenotype, frames=[_motion_frame(ms, i)], in_place=ms.in_place,
+                              heading=ms.heading, model=load_anny())[0]
     key = "train" if split.poses == "train" else split.name
     return sample_pose(rng_for(opts.seed, "pose", s, key, i), load_anny())
+
+
+def _motion_record(opts: GenerateOptions, split: SplitSpec, i: int, pose, phenotype) -> dict | None:
+    """For a pose from captured motion: the file (name, sha256), its frame, and the self-intersections the prior's
+    check finds (reported, not rejected: the frame shows what the capture did, retargeted)."""
+    if split.poses == "turntable" or _pose_source(opts, split).poses != "motion":
+        return None
+    from rh_dataset.characters.body import load_anny
+    from rh_dataset.poses import find_intersections
+    from rh_dataset.poses.motion import read_motion_cached
+
+    ms = _pose_source(opts, split).motion
+    record = read_motion_cached(ms.file, ms.sha256).record(_motion_frame(ms, i))
+    record.update(start=ms.start, stride=ms.stride, heading=ms.heading, in_place=ms.in_place)
+    record["intersections"] = [dataclasses.asdict(x) for x in find_intersections(pose, load_anny(),
+                                                                                  phenotype=phenotype)]
+    return record
+
+
+def resolve_motion(spec: ProtocolSpec) -> ProtocolSpec:
+    """Read every split's motion once (failing early, before any file is written), check that the split's frames
+    fit in the clip, and fix an automatic stride (the split's frames spread over the clip)."""
+    from rh_dataset.poses.motion import read_motion_cached
+
+    splits = []
+    for split in spec.splits:
+        if split.motion is not None:
+            ms = split.motion
+            n = len(read_motion_cached(ms.file, ms.sha256))
+            if ms.start >= n:
+                raise GenerateError(f"motion {ms.file} has {n} frames; start {ms.start} is past its end")
+            stride = ms.stride if ms.stride is not None else max(1, (n - ms.start) // split.frames)
+            last = ms.start + (split.frames - 1) * stride
+            if last >= n:
+                raise GenerateError(
+                    f"split {split.name} needs {split.frames} frames from motion {ms.file} (frames {ms.start}, "
+                    f"{ms.start + stride}, ... {last}) but the clip has {n}: lower --frames, --motion-stride or "
+                    f"--motion-start")
+            split = dataclasses.replace(split, motion=dataclasses.replace(ms, stride=stride))
+        splits.append(split)
+    return dataclasses.replace(spec, splits=tuple(splits))
 
 
 def _light_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int, library: dict):
@@ -279,7 +339,7 @@ def run_subject(opts: GenerateOptions, s: int, on_frame: Callable[[FrameTask, bo
                 continue
             if subj is None:
                 subj = build_subject(opts, s)
-            pose = _pose_for(opts, split, s, i)
+            pose = _pose_for(opts, split, s, i, subj.character.phenotype)
             light = _light_for(opts, split, s, i, library)
             meshes = pose_character(subj.character, dict(pose.bones), pose.root_transform)
             render_seed = int(rng_for(opts.seed, "render", s, key, split.name, i).integers(0, 2**31 - 2))
@@ -287,6 +347,8 @@ def run_subject(opts: GenerateOptions, s: int, on_frame: Callable[[FrameTask, bo
                                   render_seed)
             exposure = exposure_for(light)
             meta = frame_meta(opts, subj, split, i, pose, light, render_seed, exposure)
+            if (motion := _motion_record(opts, split, i, pose, subj.character.phenotype)) is not None:
+                meta["body"]["motion"] = motion
             write_frame(split_dir, i, result.layers, meta)
             on_frame(task, False)
         if sheets:
@@ -312,6 +374,8 @@ def generate(opts: GenerateOptions, *, progress: bool = True) -> dict:
         raise GenerateError(f"no .exr/.hdr environment maps in {opts.spec.hdri_folder}; point --hdri-folder at maps")
     for path in library.values():
         load_hdri(path)
+    # A motion file is read (through Blender) and checked before anything is written, like the lights.
+    opts = dataclasses.replace(opts, spec=resolve_motion(opts.spec))
     select_variant(opts.variant)
     prepare_out(opts)
     tasks = plan(opts.spec)

@@ -18,6 +18,7 @@ __all__ = [
     "SCENES_DIR",
     "SpecError",
     "SplitSpec",
+    "MotionSpec",
     "ProtocolSpec",
     "Preset",
     "load_protocol",
@@ -27,7 +28,7 @@ __all__ = [
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
-POSE_SOURCES = ("turntable", "random", "train")
+POSE_SOURCES = ("turntable", "random", "train", "motion")
 LIGHT_SOURCES = ("fixed", "random")
 KNOWN_LAYERS = ("image", "mask", "albedo", "normal", "depth")
 
@@ -48,6 +49,49 @@ def _check_keys(where: str, data: dict, allowed: set[str], required: set[str]) -
 
 
 @dataclass(frozen=True)
+class MotionSpec:
+    """Captured motion as a split's pose source (rh_dataset.poses.motion / retarget): frame i of the split is the
+    file's frame `start + i * stride`, retargeted onto each subject's anny body."""
+
+    file: str = field(compare=False)
+    """Path of the .bvh (or .fbx/.glb/.gltf) file. Not part of the digest: the content (sha256) is."""
+    sha256: str
+    start: int = 0
+    stride: int | None = None
+    """Motion frames between consecutive split frames; None = spread the split over the clip (resolved when a run
+    starts, when the clip's length is known)."""
+    heading: str = "file"
+    """'file': the body faces where the actor faced; 'front': every frame turned to face the camera."""
+    in_place: bool = True
+    """Keep the pelvis above its rest position (the camera frames it); False keeps the clip's trajectory."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.start, int) or isinstance(self.start, bool) or self.start < 0:
+            raise SpecError(f"motion {self.file}: start must be a non-negative integer, got {self.start!r}")
+        if self.stride is not None and (not isinstance(self.stride, int) or isinstance(self.stride, bool)
+                                        or self.stride < 1):
+            raise SpecError(f"motion {self.file}: stride must be a positive integer, got {self.stride!r}")
+        if self.heading not in ("file", "front"):
+            raise SpecError(f"motion {self.file}: heading must be 'file' or 'front', got {self.heading!r}")
+        if not isinstance(self.in_place, bool):
+            raise SpecError(f"motion {self.file}: in_place must be true or false, got {self.in_place!r}")
+
+    @classmethod
+    def from_file(cls, path: str | Path, **kwargs) -> "MotionSpec":
+        """A MotionSpec for a file on disk (its sha256 computed now); a missing file is a SpecError."""
+        from rh_dataset.poses.motion import file_sha256
+
+        path = Path(path)
+        if not path.is_file():
+            raise SpecError(f"motion file {path} does not exist: pass the path of a .bvh (or .fbx/.glb/.gltf) file")
+        return cls(file=str(path), sha256=file_sha256(path), **kwargs)
+
+    def to_json(self) -> dict:
+        return {"name": Path(self.file).name, "sha256": self.sha256, "start": self.start, "stride": self.stride,
+                "heading": self.heading, "in_place": self.in_place}
+
+
+@dataclass(frozen=True)
 class SplitSpec:
     name: str
     frames: int
@@ -56,8 +100,13 @@ class SplitSpec:
     light: str
     """fixed (one light for the whole split) or random (a new light per frame)."""
     layers: tuple[str, ...]
+    motion: MotionSpec | None = None
+    """The captured motion when poses is 'motion' (None otherwise)."""
 
     def __post_init__(self) -> None:
+        if (self.poses == "motion") != (self.motion is not None):
+            raise SpecError(f"split {self.name}: poses 'motion' and a 'motion' block go together (got poses "
+                            f"{self.poses!r} {'with' if self.motion else 'without'} a motion block)")
         if not isinstance(self.frames, int) or self.frames < 1:
             raise SpecError(f"split {self.name}: frames must be a positive integer, got {self.frames!r}")
         if self.poses not in POSE_SOURCES:
@@ -121,9 +170,19 @@ class ProtocolSpec:
         raise KeyError(name)
 
     def with_overrides(self, *, subjects: int | None = None, frames: int | None = None,
-                       resolution: tuple[int, int] | None = None, hdri_folder: str | None = None) -> "ProtocolSpec":
-        """A copy with command-line overrides applied; `frames` caps every split (for small runs)."""
+                       resolution: tuple[int, int] | None = None, hdri_folder: str | None = None,
+                       motion: MotionSpec | None = None) -> "ProtocolSpec":
+        """A copy with command-line overrides applied; `frames` caps every split (for small runs); `motion`
+        replaces the pose prior: every split drawing random poses takes the motion's (protocol a: test; protocol
+        b: train, whose poses its test split reuses)."""
         spec = self
+        if motion is not None:
+            if not any(s.poses == "random" for s in spec.splits):
+                raise SpecError(f"{spec.source or spec.name}: no split draws poses from the prior ('random'), so "
+                                f"there is nothing for --motion to replace")
+            spec = dataclasses.replace(spec, splits=tuple(
+                dataclasses.replace(s, poses="motion", motion=motion) if s.poses == "random" else s
+                for s in spec.splits))
         if subjects is not None:
             spec = dataclasses.replace(spec, subjects=subjects)
         if frames is not None:
@@ -141,6 +200,11 @@ class ProtocolSpec:
         d = dataclasses.asdict(self)
         d.pop("source")
         d["splits"] = [dataclasses.asdict(s) for s in self.splits]
+        for split, out in zip(self.splits, d["splits"]):
+            if split.motion is None:
+                out.pop("motion")  # datasets without motion keep the record (and digest) they always had
+            else:
+                out["motion"] = split.motion.to_json()
         return d
 
     def digest(self) -> str:
@@ -158,7 +222,8 @@ class Preset:
 
 _PROTOCOL_KEYS = {"format", "name", "protocol", "description", "subjects", "character_pool", "resolution",
                   "fov_y_deg", "splits", "lights"}
-_SPLIT_KEYS = {"frames", "poses", "light", "layers"}
+_SPLIT_KEYS = {"frames", "poses", "light", "layers", "motion"}
+_MOTION_KEYS = {"file", "start", "stride", "heading", "in_place"}
 _LIGHT_KEYS = {"sunsky", "exposure_ev_range", "hdri_folder"}
 
 
@@ -174,9 +239,17 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
     if not isinstance(data["splits"], dict):
         raise SpecError(f"{where}: splits must be an object of split name -> split")
     for name, s in data["splits"].items():
-        _check_keys(f"{where}: split {name}", s, _SPLIT_KEYS, _SPLIT_KEYS)
+        _check_keys(f"{where}: split {name}", s, _SPLIT_KEYS, _SPLIT_KEYS - {"motion"})
+        motion = None
+        if "motion" in s:
+            m = s["motion"]
+            _check_keys(f"{where}: split {name}: motion", m, _MOTION_KEYS, {"file"})
+            file = Path(m["file"])
+            if not file.is_absolute():
+                file = path.parent / file  # relative to the scene file, like any path in it
+            motion = MotionSpec.from_file(file, **{k: v for k, v in m.items() if k != "file"})
         splits.append(SplitSpec(name=name, frames=s["frames"], poses=s["poses"], light=s["light"],
-                                layers=tuple(s["layers"])))
+                                layers=tuple(s["layers"]), motion=motion))
     lights = data.get("lights", {})
     _check_keys(f"{where}: lights", lights, _LIGHT_KEYS, set())
     return ProtocolSpec(
