@@ -30,6 +30,7 @@ Times are wall-clock seconds of the beauty (or AOV) pass only, excluding scene l
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import json
 import math
@@ -43,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 SCENES = ("interior-apose", "sunrise-random")
+SCENE_CLASS = {"interior-apose": "apose-envmap", "sunrise-random": "posed-envmap"}  # scenes/presets.json
 RELMSE_EPS = 0.01
 DEPTH_TOLERANCE_DB = 50.0  # truncation error <= 1/10 of the 40 dB noise budget (in MSE)
 
@@ -391,6 +393,7 @@ def main(argv=None) -> dict:
         if not args.skip_presets:
             rows, psweep = [], []
             for pname, pr in load_presets().items():
+                pr = dataclasses.replace(pr, max_depth=pr.depth_for(SCENE_CLASS[name]))
                 lay, b, _, _ = render(scene, ["image"], pr.spp, pr.max_depth, seed=5000 + pr.spp, chunk=args.chunk_spp)
                 e = sc.beauty(lay["image"])
                 # the reference's own variance inflates a measured MSE by (1 + spp/ref_spp) (unbiased noise)
@@ -429,7 +432,7 @@ def main(argv=None) -> dict:
             rows, ao = [], []
             for pname in ("draft", "standard"):
                 pr = load_presets()[pname]
-                st = RenderSettings(spp=pr.spp, aov_spp=pr.aov_spp, max_depth=pr.max_depth)
+                st = RenderSettings(spp=pr.spp, aov_spp=pr.aov_spp, max_depth=pr.depth_for(SCENE_CLASS[name]))
                 t = time.perf_counter()
                 render_frame(scene.meshes, scene.emitter, scene.camera, st, ["mask", "albedo", "normal", "depth"], 1)
                 t_aov = time.perf_counter() - t

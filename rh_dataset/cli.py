@@ -47,10 +47,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--aov-spp", type=int, default=None,
                    help="samples per pixel of the albedo/normal/mask/depth pass (overrides the preset)")
     p.add_argument("--max-depth", type=int, default=None,
-                   help="longest light path; 2 = direct light only (overrides the preset)")
+                   help="longest light path; 2 = direct light only (overrides the preset; by default the draft and "
+                        "standard presets take each split's scene_class depth from scenes/presets.json)")
     p.add_argument("--denoise", action="store_true",
                    help="denoise the beauty image with Intel Open Image Denoise guided by the albedo and normal AOVs; "
                         "biased (docs/TRADEOFFS.md), recorded in every frame's JSON, off for benchmark ground truth")
+    p.add_argument("--no-cull", action="store_true",
+                   help="load every triangle: by default skin hidden under clothes (and, in AOV-only frames, "
+                        "triangles outside the view) is left out, which changes the image by far less than its noise "
+                        "(docs/TRADEOFFS.md); each frame's JSON records what was left out")
     p.add_argument("--seed", type=int, default=0, help="dataset seed: characters, poses, lights and sampler seeds")
     p.add_argument("--variant", default=None, choices=["llvm_ad_rgb", "cuda_ad_rgb", "scalar_rgb"],
                    help="Mitsuba variant (default: cuda_ad_rgb if a GPU works, else llvm_ad_rgb)")
@@ -112,6 +117,7 @@ def options_from_args(args: argparse.Namespace):
         max_depth=args.max_depth if args.max_depth is not None else pr.max_depth,
         preset=f"{pr.name}+overrides" if overridden else pr.name,
         denoise=bool(args.denoise),
+        cull=not args.no_cull,
     )
     return GenerateOptions(out=args.out, spec=spec, settings=settings, seed=args.seed, variant=args.variant,
                            overwrite=args.overwrite, workers=args.workers, backend=args.backend,

@@ -323,6 +323,7 @@ def run_subject(opts: GenerateOptions, s: int, on_frame: Callable[[FrameTask, bo
     `sheets=False` leaves the contact sheets to whoever knows that every frame of the split is done."""
     from rh_dataset.characters import pose_character
     from rh_dataset.lights import mitsuba_emitter_dict
+    from rh_dataset.render.cull import hidden_faces
 
     select_variant(opts.variant)
     library = _light_library(opts.spec)
@@ -343,10 +344,16 @@ def run_subject(opts: GenerateOptions, s: int, on_frame: Callable[[FrameTask, bo
             light = _light_for(opts, split, s, i, library)
             meshes = pose_character(subj.character, dict(pose.bones), pose.root_transform)
             render_seed = int(rng_for(opts.seed, "render", s, key, split.name, i).integers(0, 2**31 - 2))
-            result = render_frame(meshes, mitsuba_emitter_dict(light), subj.camera, opts.settings, split.layers,
-                                  render_seed)
+            # Only what the split needs: its scene class's path depth, no emitter without path tracing, no skin
+            # the clothes hide (rh_dataset.render.cull); the frame JSON records it under render.scene_model.
+            settings = opts.settings.for_split(split)
+            result = render_frame(meshes, mitsuba_emitter_dict(light) if split.path_traced else None, subj.camera,
+                                  settings, split.layers, render_seed,
+                                  hidden=hidden_faces(subj.character) if settings.cull else None)
             exposure = exposure_for(light)
-            meta = frame_meta(opts, subj, split, i, pose, light, render_seed, exposure)
+            meta = frame_meta(dataclasses.replace(opts, settings=settings), subj, split, i, pose, light, render_seed,
+                              exposure)
+            meta["render"]["scene_model"] = result.info
             if (motion := _motion_record(opts, split, i, pose, subj.character.phenotype)) is not None:
                 meta["body"]["motion"] = motion
             write_frame(split_dir, i, result.layers, meta)

@@ -23,6 +23,8 @@ __all__ = [
     "Preset",
     "load_protocol",
     "load_presets",
+    "load_scene_classes",
+    "SceneClass",
     "available_protocols",
 ]
 
@@ -102,6 +104,17 @@ class SplitSpec:
     layers: tuple[str, ...]
     motion: MotionSpec | None = None
     """The captured motion when poses is 'motion' (None otherwise)."""
+    scene_class: str | None = None
+    """What kind of scene the split path-traces (`scene_classes` in scenes/presets.json): it picks the beauty pass's
+    path depth. Required when the split has an `image` layer, absent otherwise (nothing is path-traced)."""
+    max_depth: int | None = None
+    """The scene class's path depth, resolved on load (so a changed class table changes the spec's digest and a
+    resumed run refuses to mix depths). None for splits that do not path-trace."""
+
+    @property
+    def path_traced(self) -> bool:
+        """Only the `image` layer needs light transport; every other layer comes from the AOV pass."""
+        return "image" in self.layers
 
     def __post_init__(self) -> None:
         if (self.poses == "motion") != (self.motion is not None):
@@ -116,6 +129,12 @@ class SplitSpec:
         bad = [x for x in self.layers if x not in KNOWN_LAYERS]
         if bad or not self.layers:
             raise SpecError(f"split {self.name}: layers must be a non-empty subset of {KNOWN_LAYERS}, got {bad or '[]'}")
+        if self.path_traced and self.scene_class is None:
+            raise SpecError(f"split {self.name}: a split with an 'image' layer must declare its scene_class (one of "
+                            f"{sorted(load_scene_classes())}); it chooses the path depth")
+        if not self.path_traced and self.scene_class is not None:
+            raise SpecError(f"split {self.name}: scene_class {self.scene_class!r} given but the split has no 'image' "
+                            "layer, so nothing is path-traced; remove it")
 
 
 @dataclass(frozen=True)
@@ -216,13 +235,38 @@ class Preset:
     name: str
     spp: int
     aov_spp: int
-    max_depth: int
+    max_depth: int | None
+    """None ("scene_class" in the JSON): each split's scene class chooses the depth (`SplitSpec.max_depth`)."""
     description: str = ""
+
+    def depth_for(self, scene_class: str) -> int:
+        """The path depth this preset renders a scene of `scene_class` with."""
+        if self.max_depth is not None:
+            return self.max_depth
+        classes = load_scene_classes()
+        if scene_class not in classes:
+            raise SpecError(f"unknown scene class {scene_class!r}; known: {sorted(classes)}")
+        return classes[scene_class].max_depth
+
+
+@dataclass(frozen=True)
+class SceneClass:
+    """A kind of scene whose light transport behaves alike, so one path depth serves all of it.
+
+    `max_depth` is the smallest depth whose truncation error (display-space PSNR over the person against the same
+    render at depth 16, same samples) is at least `tolerance_db`; `measured` records the measurement it rests on
+    (bench/bench_savings.py, docs/TRADEOFFS.md)."""
+
+    name: str
+    max_depth: int
+    tolerance_db: float
+    description: str = ""
+    measured: dict = field(default_factory=dict, compare=False)
 
 
 _PROTOCOL_KEYS = {"format", "name", "protocol", "description", "subjects", "character_pool", "resolution",
                   "fov_y_deg", "splits", "lights"}
-_SPLIT_KEYS = {"frames", "poses", "light", "layers", "motion"}
+_SPLIT_KEYS = {"frames", "poses", "light", "layers", "motion", "scene_class"}
 _MOTION_KEYS = {"file", "start", "stride", "heading", "in_place"}
 _LIGHT_KEYS = {"sunsky", "exposure_ev_range", "hdri_folder"}
 
@@ -239,7 +283,7 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
     if not isinstance(data["splits"], dict):
         raise SpecError(f"{where}: splits must be an object of split name -> split")
     for name, s in data["splits"].items():
-        _check_keys(f"{where}: split {name}", s, _SPLIT_KEYS, _SPLIT_KEYS - {"motion"})
+        _check_keys(f"{where}: split {name}", s, _SPLIT_KEYS, _SPLIT_KEYS - {"motion", "scene_class"})
         motion = None
         if "motion" in s:
             m = s["motion"]
@@ -248,8 +292,14 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
             if not file.is_absolute():
                 file = path.parent / file  # relative to the scene file, like any path in it
             motion = MotionSpec.from_file(file, **{k: v for k, v in m.items() if k != "file"})
+        cls = s.get("scene_class")
+        classes = load_scene_classes()
+        if cls is not None and cls not in classes:
+            raise SpecError(f"{where}: split {name}: unknown scene_class {cls!r}; known: {sorted(classes)} "
+                            f"(scenes/presets.json)")
         splits.append(SplitSpec(name=name, frames=s["frames"], poses=s["poses"], light=s["light"],
-                                layers=tuple(s["layers"]), motion=motion))
+                                layers=tuple(s["layers"]), motion=motion, scene_class=cls,
+                                max_depth=classes[cls].max_depth if cls is not None else None))
     lights = data.get("lights", {})
     _check_keys(f"{where}: lights", lights, _LIGHT_KEYS, set())
     return ProtocolSpec(
@@ -288,5 +338,24 @@ def load_presets() -> dict[str, Preset]:
     for name, p in data["presets"].items():
         _check_keys(f"{path}: preset {name}", p, {"spp", "aov_spp", "max_depth", "description"},
                     {"spp", "aov_spp", "max_depth"})
+        p = dict(p)
+        if p["max_depth"] == "scene_class":
+            p["max_depth"] = None
+        elif not isinstance(p["max_depth"], int) or p["max_depth"] < 2:
+            raise SpecError(f"{path}: preset {name}: max_depth must be an integer >= 2 or \"scene_class\"")
         out[name] = Preset(name=name, **p)
+    return out
+
+
+def load_scene_classes() -> dict[str, SceneClass]:
+    """The scene classes of scenes/presets.json, each with the path depth its measurement chose."""
+    path = SCENES_DIR / "presets.json"
+    data = json.loads(path.read_text())
+    out = {}
+    for name, c in data.get("scene_classes", {}).items():
+        _check_keys(f"{path}: scene class {name}", c, {"max_depth", "tolerance_db", "description", "measured"},
+                    {"max_depth", "tolerance_db"})
+        if not isinstance(c["max_depth"], int) or c["max_depth"] < 2:
+            raise SpecError(f"{path}: scene class {name}: max_depth must be an integer >= 2")
+        out[name] = SceneClass(name=name, **c)
     return out

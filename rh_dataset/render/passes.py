@@ -1,17 +1,20 @@
 """Render one frame: a path-traced beauty pass and, separately, a cheap AOV pass; return `{layer: ndarray}`.
 
 Two passes rather than one `aov` integrator wrapping `path`: the AOVs converge at a few samples per pixel while
-the beauty image needs many, and RESEARCH.md measured the split arrangement ~2x faster. Only the passes the
-requested layers need are run: an AOV-only frame (pretraining data) never path-traces.
+the beauty image needs many, and RESEARCH.md measured the split arrangement ~2x faster. Only what the requested
+layers need is built and run: an AOV-only frame (pretraining data) never path-traces, and its scene has neither the
+path integrator nor the environment emitter (the AOV pass reads primary hits only, which no light changes); with
+`RenderSettings.cull` it also leaves out triangles outside the view frustum. `FrameRender.info` says what was built.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
 from .camera import Camera
+from .cull import drop_faces, outside_frustum
 from .scene import MeshLike, RenderSettings, scene_dict
 from .variant import require_variant
 
@@ -25,6 +28,10 @@ _AOV_LAYERS = {"mask", "albedo", "normal", "depth"}
 class FrameRender:
     layers: dict[str, np.ndarray]
     seconds: dict[str, float]
+    info: dict
+    """What the scene held and ran (recorded in the frame JSON as `render.scene_model`): path_traced,
+    emitter_loaded, max_depth (None without path tracing), cull, triangles (as loaded), culled_faces
+    {hidden_under_clothes, outside_frustum}."""
 
 
 # The inner path integrator with max_depth 1 and hidden emitters only contributes the alpha channel (coverage);
@@ -33,8 +40,8 @@ _AOV_INTEGRATOR = {"type": "aov", "aovs": "alb:albedo,nrm:sh_normal,pos:position
                    "inner": {"type": "path", "max_depth": 1, "hide_emitters": True}}
 
 
-def render_frame(meshes: Sequence[MeshLike], emitter: dict, camera: Camera, settings: RenderSettings,
-                 layers: Sequence[str], seed: int) -> FrameRender:
+def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camera, settings: RenderSettings,
+                 layers: Sequence[str], seed: int, *, hidden: Mapping[str, np.ndarray] | None = None) -> FrameRender:
     """Render the requested layers of one frame.
 
     Returned arrays (H, W, ...) float32:
@@ -46,6 +53,9 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict, camera: Camera, sett
     Both passes use a box reconstruction filter over the same pixel footprint, so that
     image = coverage * person + (1 - coverage) * background holds exactly and compositing over another
     background with the mask is consistent. The scene is loaded once and rendered by both integrators.
+
+    `emitter` may be None when no `image` is requested (it is never loaded then anyway). `hidden`: {mesh name: face
+    mask} of faces no camera can see (`rh_dataset.render.cull.hidden_faces`), left out when `settings.cull`.
     """
     import time
 
@@ -54,20 +64,41 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict, camera: Camera, sett
     unknown = set(layers) - set(LAYERS)
     if unknown:
         raise ValueError(f"unknown layers {sorted(unknown)}; known: {LAYERS}")
+    path_traced = "image" in layers
+    if path_traced and emitter is None:
+        raise ValueError("render_frame: the image layer is path-traced and needs an emitter; got None")
+    if path_traced and settings.max_depth is None:
+        raise ValueError("render_frame: max_depth is None; resolve it from the split's scene class first "
+                         "(RenderSettings.for_split)")
     require_variant()
     out: dict[str, np.ndarray] = {}
     seconds: dict[str, float] = {}
+    culled = {"hidden_under_clothes": 0, "outside_frustum": 0}
+    meshes = list(meshes)
+    if settings.cull and hidden:
+        meshes, culled["hidden_under_clothes"] = drop_faces(meshes, hidden)
+    if settings.cull and not path_traced:
+        # Only primary hits reach the AOVs, so what lies outside the frustum cannot show (see cull.py).
+        meshes, culled["outside_frustum"] = drop_faces(
+            meshes, [outside_frustum(m.vertices, m.faces, camera) for m in meshes])
+    info = {"path_traced": path_traced, "emitter_loaded": path_traced,
+            "max_depth": int(settings.max_depth) if path_traced else None, "cull": bool(settings.cull),
+            "triangles": int(sum(len(m.faces) for m in meshes)), "culled_faces": culled}
     t = time.perf_counter()
-    beauty = {"type": "path", "max_depth": int(settings.max_depth), "hide_emitters": False}
-    scene = mi.load_dict(scene_dict(meshes, emitter, camera, beauty, settings.spp, pixel_format="rgba"))
+    if path_traced:
+        integrator = {"type": "path", "max_depth": int(settings.max_depth), "hide_emitters": False}
+    else:
+        integrator = _AOV_INTEGRATOR
+    scene = mi.load_dict(scene_dict(meshes, emitter if path_traced else None, camera, integrator, settings.spp,
+                                    pixel_format="rgba"))
     seconds["load"] = time.perf_counter() - t
     try:
-        if "image" in layers:
+        if path_traced:
             t = time.perf_counter()
             img = _render_chunked(mi, scene, settings.spp, seed)
             out["image"] = np.ascontiguousarray(img[..., :3])
             seconds["beauty"] = time.perf_counter() - t
-        denoise = bool(settings.denoise) and "image" in layers
+        denoise = bool(settings.denoise) and path_traced
         if _AOV_LAYERS & set(layers) or denoise:
             t = time.perf_counter()
             aov = np.array(mi.render(scene, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp,
@@ -81,7 +112,7 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict, camera: Camera, sett
         aux = _postprocess_aovs(aov, camera, ("mask", "albedo", "normal"))
         out["image"] = denoise_image(out["image"], aux["albedo"], aux["normal"], aux["mask"])
         seconds["denoise"] = time.perf_counter() - t
-    return FrameRender(layers=out, seconds=seconds)
+    return FrameRender(layers=out, seconds=seconds, info=info)
 
 
 def denoise_image(image: np.ndarray, albedo: np.ndarray | None = None, normal: np.ndarray | None = None,

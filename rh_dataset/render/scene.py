@@ -4,6 +4,7 @@ One plain function builds the dict (as Mitsuba's own `cornell_box()` does), so t
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
@@ -38,22 +39,35 @@ class RenderSettings:
     """Samples per pixel of the path-traced beauty pass."""
     aov_spp: int = 16
     """Samples per pixel of the AOV pass (albedo, normal, mask, depth): these converge far faster."""
-    max_depth: int = 6
-    """Longest path (Mitsuba `max_depth`): 2 = direct light only; each extra unit adds one bounce."""
+    max_depth: int | None = 6
+    """Longest path (Mitsuba `max_depth`): 2 = direct light only; each extra unit adds one bounce. None: the split's
+    scene class decides (`for_split`); a path-traced pass refuses an unresolved None."""
     preset: str = "custom"
     denoise: bool = False
     """Opt-in: run Intel Open Image Denoise (pyoidn, HDR mode, guided by the albedo and normal AOVs) on the beauty
     image. Biased (docs/TRADEOFFS.md measures it); recorded in the frame JSON as `render.denoise`/`render.denoised`."""
+    cull: bool = True
+    """Leave out geometry the camera cannot see (skin hidden under clothes; for AOV-only frames also triangles outside
+    the view frustum): `rh_dataset.render.cull`. Changes the beauty image by far less than its noise (measured,
+    docs/TRADEOFFS.md); the frame JSON records what was left out. False renders every triangle."""
 
     def __post_init__(self) -> None:
-        if not isinstance(self.denoise, bool):
-            raise ValueError(f"render setting denoise must be a bool, got {self.denoise!r}")
+        for name in ("denoise", "cull"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"render setting {name} must be a bool, got {getattr(self, name)!r}")
         for name in ("spp", "aov_spp"):
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
                 raise ValueError(f"render setting {name} must be a positive integer, got {v!r}")
-        if not isinstance(self.max_depth, int) or self.max_depth < 2:
-            raise ValueError(f"render setting max_depth must be an integer >= 2, got {self.max_depth!r}")
+        if self.max_depth is not None and (not isinstance(self.max_depth, int) or self.max_depth < 2):
+            raise ValueError(f"render setting max_depth must be an integer >= 2 or None, got {self.max_depth!r}")
+
+    def for_split(self, split) -> "RenderSettings":
+        """These settings for one split of a scene description: an unset max_depth becomes the depth of the split's
+        scene class (`SplitSpec.max_depth`); a split that does not path-trace keeps None (it has no depth)."""
+        if self.max_depth is not None or not split.path_traced:
+            return self
+        return dataclasses.replace(self, max_depth=int(split.max_depth))
 
 
 def mitsuba_bsdf(material: MaterialLike) -> Any:
@@ -107,15 +121,17 @@ def mitsuba_mesh(mesh: MeshLike) -> Any:
     return m
 
 
-def scene_dict(meshes: Sequence[MeshLike], emitter: dict, camera: Camera, integrator: dict, spp: int,
+def scene_dict(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camera, integrator: dict, spp: int,
                *, pixel_format: str) -> dict:
-    """The whole Mitsuba scene: one sensor, one environment emitter, the character's meshes."""
+    """The whole Mitsuba scene: one sensor, the environment emitter (None: no light at all, for passes that read
+    only primary hits), the character's meshes."""
     d: dict[str, Any] = {
         "type": "scene",
         "integrator": integrator,
         "sensor": camera.mitsuba_sensor(spp, pixel_format=pixel_format),
-        "environment": emitter,
     }
+    if emitter is not None:
+        d["environment"] = emitter
     for i, mesh in enumerate(meshes):
         d[f"mesh_{i:02d}_{mesh.name}"] = mitsuba_mesh(mesh)
     return d
