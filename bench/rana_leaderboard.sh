@@ -9,8 +9,8 @@
 # SKIP_DATA=1 reuses existing datasets as they are (rh-generate refuses to resume a folder made by another version
 # of the generator). Benchmark: 2 subjects x protocols a and b, 20 train + 20 test frames at 128 px, draft render preset.
 # Methods (rows): RANA (cpu preset, STEPS personalization steps, no pretraining), RANA without the albedo
-# regulariser (Table 1 ablation), RANA with pretraining (6 pretraining characters x 20 AOV-only frames; TextureNet
-# and G_N/G_A pretrained for a few hundred steps), SMPL+D (coarse stage of the RANA runs), and the Lambertian-SH
+# regulariser (Table 1 ablation), RANA with pretraining (PRE_SUBJECTS pretraining characters x PRE_FRAMES AOV-only
+# frames; TextureNet TEX_STEPS and G_N/G_A PRE_STEPS steps), SMPL+D (coarse stage of the RANA runs), and the Lambertian-SH
 # oracle bound (listed apart, never ranked). Pretraining and the two protocols run in parallel, one torch
 # thread each.
 set -euo pipefail
@@ -22,6 +22,10 @@ STEPS=${STEPS:-50}
 FREEZE=${FREEZE:-10}
 PRETRAIN=${PRETRAIN:-1}   # 0 = leave out the "RANA + pretraining" row (and the pretraining)
 THREADS=${THREADS:-1}
+PRE_SUBJECTS=${PRE_SUBJECTS:-6}    # pretraining characters (the paper: 400)
+PRE_FRAMES=${PRE_FRAMES:-20}       # AOV-only frames per pretraining character (the paper: 150)
+PRE_STEPS=${PRE_STEPS:-400}        # G_N/G_A pretraining steps
+TEX_STEPS=${TEX_STEPS:-300}        # TextureNet steps
 DATA=${DATA:-$WORK/data}
 PRE_DATA=${PRE_DATA:-$WORK/pretrain_data}
 PRE=${PRE:-$WORK/pretrained}
@@ -36,7 +40,7 @@ else
   for p in a b; do
     rh-generate --protocol $p --out "$DATA" --subjects 2 --frames 20 --resolution 128 --preset draft --no-progress
   done
-  rh-generate --protocol scenes/rana_pretrain.json --out "$PRE_DATA" --subjects 6 --frames 20 --resolution 128 \
+  rh-generate --protocol scenes/rana_pretrain.json --out "$PRE_DATA" --subjects "$PRE_SUBJECTS" --frames "$PRE_FRAMES" --resolution 128 \
     --preset draft --no-progress
 fi
 
@@ -44,7 +48,7 @@ fi
 pretraining() {
   stamp "pretraining"
   if rana-pretrain --dataset "$PRE_DATA" --out "$PRE" --preset cpu --threads "$THREADS" --geometry.steps 60 \
-      --texture.steps 300 --pretrain.steps 400 --pretrain.checkpoint_every 100 --no-progress; then
+      --texture.steps "$TEX_STEPS" --pretrain.steps "$PRE_STEPS" --pretrain.checkpoint_every 100 --no-progress; then
     touch "$WORK/pretraining.ok"
   else
     touch "$WORK/pretraining.failed"
@@ -75,7 +79,7 @@ protocol() {
   if [ "$PRETRAIN" = 1 ] && wait_pretraining; then
     rana train --dataset "$DATA" --protocol $p --runs "$R/pretrained" "${COMMON[@]}" --pretrained "$PRE/pretrained.pt"
     rana predict --dataset "$DATA" --protocol $p --runs "$R/pretrained" --out "$P/pretrained" --no-progress \
-      --name "RANA + pretraining (6 chars)"
+      --name "RANA + pretraining ($PRE_SUBJECTS chars)"
     methods="$methods pretrained"
   fi
   stamp "protocol $p: predictions"
