@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import sys
 from collections import OrderedDict, deque
 from concurrent.futures import ThreadPoolExecutor
@@ -57,6 +58,10 @@ class EvalOptions:
     """Threads that decode files and compute the CPU metrics beside the networks (None: torch's thread count)."""
     prefetch: int | None = None
     """Frames prepared ahead of the networks (None: two batches)."""
+    overlap: bool | None = None
+    """Prepare frames while the networks run (True) or in turns with them (False). None: overlap only when there
+    are cores for both the torch threads and the workers; on fewer, torch's threads, which wait for each other at
+    every operation, lose more to a busy core than overlapping gains (measured: docs/EVALUATION.md, Speed)."""
     preload_mb: int = 1024
     """Prediction pixels decoded by the up-front check are kept (up to this many MB) instead of decoded again."""
 
@@ -311,8 +316,12 @@ class Evaluator:
                 if m in metrics:
                     row[f"{prefix}_{m}"] = None
             return
-        p = composite(pred_crop, region, conv)
-        g = composite(gt_crop, region, conv)
+        cpu = [m for m in ("psnr", "ssim", "flip") if m in metrics]
+        net = any(m in metrics for m in _NETWORK_METRICS)
+        p = g = None
+        if cpu or (net and region.alpha is not None):
+            p = composite(pred_crop, region, conv)
+            g = composite(gt_crop, region, conv)
         mm = region.metric_mask
         if "psnr" in metrics:
             row[f"{prefix}_psnr"] = psnr(p, g, data_range=1.0, mask=mm)
@@ -320,8 +329,10 @@ class Evaluator:
             row[f"{prefix}_ssim"] = ssim(p, g, data_range=1.0, mask=mm)
         if "flip" in metrics:
             row[f"{prefix}_flip"] = flip(p, g, data_range=1.0, mask=mm, ppd=conv.flip_ppd)
-        if any(m in metrics for m in _NETWORK_METRICS):
+        if net:
             key = f"{gt_key}|{prefix.replace('_aligned', '')}|{conv.region_key()}|{region.y0},{region.y1},{region.x0},{region.x1}"
+            if p is None:  # nothing to composite: float32 straight from the crop, the same values as via float64
+                p, g = pred_crop, gt_crop
             items.append(_NetItem(row, prefix, _chw32(p), _chw32(g), key))
 
     def _flush_full_groups(self) -> None:
@@ -454,7 +465,9 @@ class Evaluator:
             from tqdm import tqdm
             bar = tqdm(total=len(pred.frames), desc=f"rh-eval {pred.method.get('name', '')}", unit="frame",
                        file=sys.stderr)
-        ahead = opts.prefetch or 2 * opts.batch_size
+        overlap = opts.overlap if opts.overlap is not None else \
+            (os.cpu_count() or 1) >= torch.get_num_threads() + self._workers()
+        ahead = opts.prefetch or (2 * opts.batch_size if overlap else opts.batch_size)
         pool = ThreadPoolExecutor(self._workers())
         try:
             # frames are prepared on the workers, in order, a bounded number ahead of the networks (memory)
@@ -462,13 +475,14 @@ class Evaluator:
             pending = deque(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, ahead))
             while pending:
                 row, items = pending.popleft().result()
-                nxt = next(todo, None)
-                if nxt is not None:
-                    pending.append(pool.submit(self._prepare, nxt, pred, stored))
+                if overlap:
+                    pending.extend(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, 1))
                 rows.append(row)
                 self._queue.extend(items)
                 if len(self._queue) >= opts.batch_size:
                     self._flush_full_groups()
+                if not overlap and not pending:
+                    pending.extend(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, ahead))
                 if bar is not None:
                     bar.update(1)
                 if on_frame is not None:

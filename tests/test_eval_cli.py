@@ -337,7 +337,8 @@ def test_rows_do_not_depend_on_workers_prefetch_or_preload(ds, noisy):
     _, base, _ = Evaluator(EvalOptions(**opts)).evaluate(noisy, ds)
     assert [(r["subject"], r["frame"]) for r in base] == [(s, f) for s in ("subject_000", "subject_001")
                                                           for f in (0, 1)]  # dataset order
-    for kw in (dict(workers=1, prefetch=1, preload_mb=0), dict(workers=3, prefetch=7)):  # batch size: see the cache test (kernels vary with N)
+    for kw in (dict(workers=1, prefetch=1, preload_mb=0, overlap=False), dict(workers=3, prefetch=7, overlap=True)):
+        # (batch size: see the cache test; oneDNN kernels vary with N)
         _, rows, _ = Evaluator(EvalOptions(**opts, **kw)).evaluate(noisy, ds)
         assert rows == base, kw
 
