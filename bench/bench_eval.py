@@ -62,9 +62,11 @@ def bare_forward(net, n: int, size: int, batch: int, repeat: int) -> float:
     return _time(run, repeat)
 
 
-def pipeline(ds: Path, pred: Path, metrics, conv: Convention, batch: int, repeat: int) -> tuple[float, float]:
+def pipeline(ds: Path, pred: Path, metrics, conv: Convention, batch: int, repeat: int,
+             **options) -> tuple[float, float]:
     def evaluator():
-        return Evaluator(EvalOptions(convention=conv, metrics=tuple(metrics), batch_size=batch, progress=False))
+        return Evaluator(EvalOptions(convention=conv, metrics=tuple(metrics), batch_size=batch, progress=False,
+                                     **options))
 
     evaluator().evaluate(pred, ds)  # warm-up: imports, file system cache, allocator
     t_cold = _time(lambda: evaluator().evaluate(pred, ds), repeat)  # a fresh, empty ground-truth feature cache
@@ -105,6 +107,9 @@ def main(argv=None) -> int:
     p.add_argument("--only", choices=("lpips", "all"), default="all",
                    help="lpips: only the LPIPS rows (quick); all: every metric and the whole set (default)")
     p.add_argument("--profile", action="store_true", help="also print a cProfile of one cold LPIPS run")
+    p.add_argument("--compare-overlap", action="store_true",
+                   help="also time the LPIPS pipeline with the workers in turns with the networks and overlapping "
+                        "them (EvalOptions.overlap False/True), against the same bare passes")
     args = p.parse_args(argv)
     n, size, bs, rep = args.frames, args.size, args.batch_size, args.repeat
     conv = Convention(region=args.region)
@@ -134,6 +139,11 @@ def main(argv=None) -> int:
             bare_all = bare_forward(lp, 2 * n, size, bs, rep) + bare_forward(dn, 2 * n, size, bs, rep)
             cold, warm = pipeline(ds, pred_all, ["lpips", "dists", "ssim", "psnr", "flip", "normal"], conv, bs, rep)
             rows.append(("whole set (all 6)", n / cold, n / warm, n / bare_all, cold / bare_all, warm / bare_all))
+        if args.compare_overlap:
+            bare = bare_forward(lp, n, size, bs, rep)
+            for ov in (False, True):
+                cold, warm = pipeline(ds, pred_img, ["lpips"], conv, bs, rep, overlap=ov)
+                rows.append((f"lpips overlap={ov}", n / cold, n / warm, n / bare, cold / bare, warm / bare))
         if args.profile:
             profile_cold(ds, pred_img, conv, bs)
     print(f"{'metric':20s} {'pairs/s cold':>13s} {'pairs/s warm':>13s} {'bare pairs/s':>13s} "

@@ -13,19 +13,17 @@ import os
 import sys
 from collections import OrderedDict, deque
 from concurrent.futures import ThreadPoolExecutor
-from itertools import islice
 from dataclasses import dataclass, field
+from itertools import islice
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 import torch
 
-from rh_common.imageio import sha256_file
+from rh_common.imageio import ImageFileError, sha256_file
 
 from . import __version__
-from rh_common.imageio import ImageFileError
-
 from .conventions import Convention, align_albedo, albedo_to_space, composite, compute_region
 from .dataset_io import (DatasetIndex, PredictionError, PredictionIndex, albedo_from_stored, check_header,
                          decode_layer, display_from_stored, load_dataset, normal_from_stored, read_gt_albedo,
