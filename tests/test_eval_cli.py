@@ -98,7 +98,7 @@ def test_help_explains_every_flag():
     text = build_parser().format_help()
     for flag in ("--dataset", "--protocol", "--out", "--backbone", "--region", "--align-albedo",
                  "--allow-incomplete", "--metrics", "--batch-size", "--cache-dir", "--background",
-                 "--albedo-space", "--kind"):
+                 "--albedo-space", "--kind", "--flip-ppd", "--workers", "--preload-mb"):
         assert flag in text
 
 
