@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -15,9 +16,20 @@ Exit status: 0 on success, 2 when the inputs are refused (the message names each
 """
 
 
+def _ppd(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number of pixels per degree, got {text!r}")
+    return v
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .conventions import BACKGROUNDS, REGIONS
     from .evaluate import ALL_METRICS
+    from .metrics.flip import FLIP_PPD
 
     p = argparse.ArgumentParser(
         prog="rh-eval", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=_EPILOG,
@@ -44,6 +56,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--align-albedo", action="store_true",
                    help="also report albedo after a per-channel least-squares scale onto the GT (linear, inside "
                         "the mask, then clipped to [0,1]); reported as albedo_aligned_* beside the raw scores")
+    p.add_argument("--flip-ppd", type=_ppd, default=FLIP_PPD, metavar="PPD",
+                   help=f"FLIP pixels per degree of the assumed viewing condition (default {FLIP_PPD:.4f}, FLIP's "
+                        f"default: 0.7 m from a 0.7 m wide 3840-px monitor); recorded in the result, and results "
+                        f"with different values are not combined by rh-leaderboard")
     p.add_argument("--allow-incomplete", action="store_true",
                    help="evaluate the frames that exist when some are missing; the result is marked incomplete "
                         "and lists them (invalid files are still refused)")
@@ -59,6 +75,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override method.json's kind: 'bound' marks an oracle, listed apart on the leaderboard")
     p.add_argument("--name", default=None, help="override the method name from method.json")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="threads that decode and check files and compute SSIM/PSNR/FLIP/normal error beside the "
+                        "networks (default: as many as torch's threads)")
+    p.add_argument("--preload-mb", type=int, default=1024,
+                   help="prediction pixels decoded by the up-front check are kept up to this many MB instead of "
+                        "decoded a second time (default 1024; 0 = always decode again)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
 
@@ -75,10 +97,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         metrics = tuple(m.strip() for m in args.metrics.split(",") if m.strip())
         conv = Convention(region=args.region, background=args.background, albedo_space=args.albedo_space,
-                          align_albedo=args.align_albedo, backbone=args.backbone)
+                          align_albedo=args.align_albedo, backbone=args.backbone, flip_ppd=args.flip_ppd)
         opts = EvalOptions(convention=conv, metrics=metrics, batch_size=args.batch_size, cache_dir=args.cache_dir,
                            cache_mb=args.cache_mb, allow_incomplete=args.allow_incomplete,
-                           progress=False if args.no_progress else None, threads=args.threads)
+                           progress=False if args.no_progress else None, threads=args.threads,
+                           workers=args.workers, preload_mb=args.preload_mb)
         ev = Evaluator(opts)
         result, rows, cols = ev.evaluate(args.predictions, args.dataset, args.protocol)
     except (PredictionError, ImageFileError, WeightError, FileNotFoundError, ValueError) as exc:
@@ -92,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     ov = result["overall"]
     status = "complete" if result["complete"] else f"INCOMPLETE ({len(result['missing'])} missing)"
     print(f"rh-eval: {result['method'].get('name')}: {result['n_frames_evaluated']} frames, {status}; "
-          f"backbone={conv.backbone} region={conv.region}")
+          f"backbone={conv.backbone} region={conv.region} flip_ppd={conv.flip_ppd:.6g}")
     for c in cols:
         s = ov[c]
         extra = f" (+{s['n_infinite']} inf)" if s.get("n_infinite") else ""

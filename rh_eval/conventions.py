@@ -44,6 +44,7 @@ __all__ = [
     "margin_for",
     "compute_region",
     "apply_region",
+    "composite",
     "align_albedo",
     "albedo_to_space",
 ]
@@ -88,7 +89,8 @@ class Convention:
             raise ValueError(f"albedo_space must be 'srgb' or 'linear', got {self.albedo_space!r}")
         if self.backbone not in ("alex", "vgg"):
             raise ValueError(f"backbone must be 'alex' or 'vgg', got {self.backbone!r}")
-        if not (np.isfinite(self.flip_ppd) and self.flip_ppd > 0):
+        if isinstance(self.flip_ppd, bool) or not isinstance(self.flip_ppd, (int, float, np.integer, np.floating)) \
+                or not (np.isfinite(self.flip_ppd) and self.flip_ppd > 0):
             raise ValueError(f"flip_ppd must be positive and finite, got {self.flip_ppd!r}")
 
     def to_json(self) -> dict:
@@ -157,7 +159,12 @@ def compute_region(mask_u8: np.ndarray, conv: Convention) -> Region:
 
 def apply_region(img: np.ndarray, region: Region, conv: Convention) -> np.ndarray:
     """Crop (H, W, 3) `img` to the region and composite it over the background; float64 in [0, 1]."""
-    crop = np.asarray(img[region.y0:region.y1, region.x0:region.x1], dtype=np.float64)
+    return composite(img[region.y0:region.y1, region.x0:region.x1], region, conv)
+
+
+def composite(crop: np.ndarray, region: Region, conv: Convention) -> np.ndarray:
+    """An image already cropped to `region`, composited over the background; float64 in [0, 1]."""
+    crop = np.asarray(crop, dtype=np.float64)
     if region.alpha is None:
         return crop
     bg = np.asarray(BACKGROUNDS[conv.background], dtype=np.float64)

@@ -40,6 +40,12 @@ __all__ = [
     "read_pred_normal",
     "decode_normal_png",
     "protocol_dir",
+    "check_header",
+    "decode_layer",
+    "display_from_stored",
+    "albedo_from_stored",
+    "normal_from_stored",
+    "read_gt_image_stored",
 ]
 
 LAYERS = ("image", "albedo", "normal")
@@ -228,11 +234,7 @@ _PNG_CTYPES = {0: "greyscale (1 channel)", 2: "RGB", 3: "palette", 4: "greyscale
 
 def _read_rgb_png(path: Path, frame: GTFrame) -> np.ndarray:
     w, h, depth, ctype = _png_header(path)
-    if depth != 8:
-        raise ImageFileError(f"{path}: {depth}-bit PNG; predictions must be 8-bit RGB or RGBA (or float32 EXR)")
-    if ctype not in (2, 6):
-        raise ImageFileError(f"{path}: PNG colour type {_PNG_CTYPES.get(ctype, ctype)}; expected 8-bit RGB or RGBA "
-                             f"(3 or 4 channels)")
+    _check_png_type(path, depth, ctype)
     _check_size(path, (h, w), frame)
     arr = read_png(path)
     if arr.ndim != 3 or arr.shape[2] not in (3, 4) or arr.dtype != np.uint8:
@@ -243,26 +245,88 @@ def _read_rgb_png(path: Path, frame: GTFrame) -> np.ndarray:
 def _check_size(path: Path, hw: tuple[int, int], frame: GTFrame) -> None:
     if tuple(hw) != (frame.height, frame.width):
         raise ImageFileError(f"{path}: resolution {hw[1]}x{hw[0]} (WxH) differs from the ground truth's "
-                             f"{frame.width}x{frame.height}")
+                             f"{frame.width}x{frame.height}; write it at {frame.width}x{frame.height}")
 
 
-def _read_rgb_exr(path: Path, frame: GTFrame) -> np.ndarray:
+def _exr_header(path: Path) -> tuple[list[str], tuple[int, int]]:
+    """(channel names, (height, width) of the data window) without decoding any pixel."""
+    import OpenEXR
+
+    try:
+        with OpenEXR.File(str(path), header_only=True) as f:
+            parts = f.parts
+            if len(parts) != 1:
+                raise ImageFileError(f"{path}: multi-part EXR ({len(parts)} parts); write one RGB part")
+            head = parts[0].header
+            names = [c.name for c in head["channels"]]
+            lo, hi = head["dataWindow"]
+    except ImageFileError:
+        raise
+    except Exception as exc:  # OpenEXR raises plain Exceptions for corrupt files
+        raise ImageFileError(f"{path}: not a readable EXR file ({exc}); re-export it") from exc
+    return names, (int(hi[1]) - int(lo[1]) + 1, int(hi[0]) - int(lo[0]) + 1)
+
+
+def check_header(path: Path, frame: GTFrame) -> None:
+    """Everything about a prediction file that its header tells, without decoding pixels: it exists, it is a PNG or
+    EXR, its resolution, channel count and (PNG) bit depth. Raises `ImageFileError` naming the file."""
+    if not path.is_file():
+        raise ImageFileError(f"{path}: no such file")
+    if path.suffix == ".png":
+        w, h, depth, ctype = _png_header(path)
+        _check_png_type(path, depth, ctype)
+        _check_size(path, (h, w), frame)
+        return
+    names, hw = _exr_header(path)
+    if sorted(names) not in (["B", "G", "R"], ["A", "B", "G", "R"]):
+        raise ImageFileError(f"{path}: {len(names)} channel(s) ({','.join(sorted(names))}); expected R,G,B (or "
+                             f"R,G,B,A, alpha ignored)")
+    _check_size(path, hw, frame)
+
+
+def _check_png_type(path: Path, depth: int, ctype: int) -> None:
+    if depth != 8:
+        raise ImageFileError(f"{path}: {depth}-bit PNG; predictions must be 8-bit RGB or RGBA (or float32 EXR)")
+    if ctype not in (2, 6):
+        raise ImageFileError(f"{path}: PNG colour type {_PNG_CTYPES.get(ctype, ctype)}; expected 8-bit RGB or RGBA "
+                             f"(3 or 4 channels)")
+
+
+def _check_finite(path: Path, arr: np.ndarray) -> None:
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        per_pixel = bad.any(axis=-1)
+        y, x = (int(v[0]) for v in np.nonzero(per_pixel))
+        raise ImageFileError(f"{path}: {int(per_pixel.sum())} pixel(s) with NaN or Inf (first at x={x}, y={y}); "
+                             f"write finite values")
+
+
+def decode_layer(path: Path, frame: GTFrame) -> np.ndarray:
+    """A prediction layer decoded and fully checked, in its stored form: uint8 (H, W, 3) for a PNG, finite float32
+    (H, W, 3) for an EXR (alpha dropped). `read_pred_*` turn it into values; the evaluator decodes every prediction
+    file this way before it computes anything."""
+    if path.suffix == ".png":
+        return _read_rgb_png(path, frame)
+    return _read_rgb_exr32(path, frame)
+
+
+def _read_rgb_exr32(path: Path, frame: GTFrame) -> np.ndarray:
     arr = read_exr(path)
     _check_size(path, arr.shape[:2], frame)
     if arr.shape[2] not in (3, 4):
         raise ImageFileError(f"{path}: {arr.shape[2]} channel(s); expected R,G,B (or R,G,B,A, alpha ignored)")
     arr = arr[..., :3]
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        n = int(bad.any(axis=-1).sum())
-        raise ImageFileError(f"{path}: {n} pixel(s) with NaN or Inf")
-    return arr.astype(np.float64)
+    _check_finite(path, arr)
+    return arr
+
+
+def _read_rgb_exr(path: Path, frame: GTFrame) -> np.ndarray:
+    return _read_rgb_exr32(path, frame).astype(np.float64)
 
 
 # --------------------------------------------------------------------------------------------- ground truth
 def read_gt_display(frame: GTFrame) -> np.ndarray:
-    path = frame.layer("image.exr")
-    return to_display(_read_rgb_exr(path, frame), frame.exposure).astype(np.float64)
+    return display_from_stored(_read_rgb_exr32(frame.layer("image.exr"), frame), frame).astype(np.float64)
 
 
 def read_gt_mask(frame: GTFrame) -> np.ndarray:
@@ -276,6 +340,11 @@ def read_gt_mask(frame: GTFrame) -> np.ndarray:
     return arr.astype(np.uint8)
 
 
+def read_gt_image_stored(frame: GTFrame) -> np.ndarray:
+    """The ground-truth radiance, finite float32 (H, W, 3)."""
+    return _read_rgb_exr32(frame.layer("image.exr"), frame)
+
+
 def read_gt_albedo(frame: GTFrame) -> np.ndarray:
     """Linear albedo, float64 in [0, 1]."""
     return np.clip(_read_rgb_exr(frame.layer("albedo.exr"), frame), 0.0, 1.0)
@@ -286,18 +355,40 @@ def read_gt_normal(frame: GTFrame) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------------- predictions
+# Each `*_from_stored` takes what `decode_layer` returned (or a crop of it: every conversion is per pixel, so the
+# evaluator crops to the evaluated region first and converts only that).
+_PNG_TO_UNIT = np.arange(256, dtype=np.float64) / 255.0  # the exact values of v / 255.0, looked up
+
+
+def display_from_stored(stored: np.ndarray, frame: GTFrame) -> np.ndarray:
+    """Display-space image: EXR radiance with the ground truth's exposure (float32), PNG as is (float64)."""
+    if stored.dtype == np.uint8:
+        return _PNG_TO_UNIT[stored]
+    return to_display(stored, frame.exposure)
+
+
+def albedo_from_stored(stored: np.ndarray) -> np.ndarray:
+    """Linear albedo, float64 in [0, 1]: EXR clipped to [0, 1] (the albedo range), PNG sRGB-decoded."""
+    if stored.dtype == np.uint8:
+        return srgb_decode(_PNG_TO_UNIT[stored]).astype(np.float64)
+    return np.clip(stored.astype(np.float64), 0.0, 1.0)
+
+
+def normal_from_stored(stored: np.ndarray) -> np.ndarray:
+    """Normal vectors, float64, not yet renormalised."""
+    if stored.dtype == np.uint8:
+        return decode_normal_png(stored)
+    return stored.astype(np.float64)
+
+
 def read_pred_display(path: Path, frame: GTFrame) -> np.ndarray:
     """An image prediction in display space: EXR radiance with the ground truth's exposure, PNG as is."""
-    if path.suffix == ".exr":
-        return to_display(_read_rgb_exr(path, frame), frame.exposure).astype(np.float64)
-    return _read_rgb_png(path, frame).astype(np.float64) / 255.0
+    return display_from_stored(decode_layer(path, frame), frame).astype(np.float64)
 
 
 def read_pred_albedo(path: Path, frame: GTFrame) -> np.ndarray:
     """Linear albedo: EXR as stored (clipped to [0, 1], the albedo range), PNG sRGB-decoded."""
-    if path.suffix == ".exr":
-        return np.clip(_read_rgb_exr(path, frame), 0.0, 1.0)
-    return srgb_decode(_read_rgb_png(path, frame).astype(np.float64) / 255.0).astype(np.float64)
+    return albedo_from_stored(decode_layer(path, frame))
 
 
 def decode_normal_png(v: np.ndarray) -> np.ndarray:
@@ -307,6 +398,4 @@ def decode_normal_png(v: np.ndarray) -> np.ndarray:
 
 def read_pred_normal(path: Path, frame: GTFrame) -> np.ndarray:
     """Camera-space normal vectors (OpenGL convention), not yet renormalised."""
-    if path.suffix == ".exr":
-        return _read_rgb_exr(path, frame)
-    return decode_normal_png(_read_rgb_png(path, frame))
+    return normal_from_stored(decode_layer(path, frame))

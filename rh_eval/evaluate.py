@@ -9,25 +9,28 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import sys
-from collections import OrderedDict
+from collections import OrderedDict, deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from itertools import islice
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 import torch
 
-from rh_common.imageio import sha256_file
+from rh_common.imageio import ImageFileError, sha256_file
 
 from . import __version__
-from .conventions import Convention, align_albedo, albedo_to_space, apply_region, compute_region
-from .dataset_io import (DatasetIndex, PredictionIndex, load_dataset, read_gt_albedo, read_gt_display,
-                         read_gt_mask, read_gt_normal, read_pred_albedo, read_pred_display, read_pred_normal,
-                         scan_predictions)
+from .conventions import Convention, align_albedo, albedo_to_space, composite, compute_region
+from .dataset_io import (DatasetIndex, PredictionError, PredictionIndex, albedo_from_stored, check_header,
+                         decode_layer, display_from_stored, load_dataset, normal_from_stored, read_gt_albedo,
+                         read_gt_image_stored, read_gt_mask, read_gt_normal, scan_predictions)
 from .metrics import flip, normal_angular_error, psnr, ssim
 from .metrics.dists import get_dists_net
-from .metrics.lpips import get_lpips_net, to_tensor01
+from .metrics.lpips import get_lpips_net
 from .weights import WEIGHTS, weights_record
 
 __all__ = ["ALL_METRICS", "EvalOptions", "Evaluator", "FeatureCache", "summarise", "metric_columns",
@@ -49,6 +52,16 @@ class EvalOptions:
     allow_incomplete: bool = False
     progress: bool | None = None  # None: only on a terminal
     threads: int | None = None
+    workers: int | None = None
+    """Threads that decode files and compute the CPU metrics beside the networks (None: torch's thread count)."""
+    prefetch: int | None = None
+    """Frames prepared ahead of the networks (None: two batches)."""
+    overlap: bool | None = None
+    """Prepare frames while the networks run (True) or in turns with them (False). None: overlap only when there
+    are cores for both the torch threads and the workers; on fewer, torch's threads, which wait for each other at
+    every operation, lose more to a busy core than overlapping gains (measured: docs/EVALUATION.md, Speed)."""
+    preload_mb: int = 1024
+    """Prediction pixels decoded by the up-front check are kept (up to this many MB) instead of decoded again."""
 
     def __post_init__(self) -> None:
         bad = [m for m in self.metrics if m not in ALL_METRICS]
@@ -56,6 +69,12 @@ class EvalOptions:
             raise ValueError(f"unknown metric(s) {bad}; choose from {ALL_METRICS}")
         if self.batch_size < 1:
             raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
+        for name in ("workers", "prefetch", "threads"):
+            v = getattr(self, name)
+            if v is not None and v < 1:
+                raise ValueError(f"{name} must be >= 1, got {v}")
+        if self.preload_mb < 0:
+            raise ValueError(f"preload_mb must be >= 0, got {self.preload_mb}")
 
 
 def metric_columns(metrics, *, albedo: bool, aligned: bool, normal: bool) -> list[str]:
@@ -173,9 +192,18 @@ def summarise(values: list, *, psnr_like: bool) -> dict:
 class _NetItem:
     row: dict
     column_prefix: str  # image | albedo | albedo_aligned
-    pred: np.ndarray
+    pred: np.ndarray  # (3, h, w) float32, the network's input layout
     gt: np.ndarray
     gt_key: str  # file-identity + convention part of the cache key
+
+    @property
+    def hw(self) -> tuple[int, int]:
+        return self.pred.shape[1:]
+
+
+def _chw32(img: np.ndarray) -> np.ndarray:
+    """(h, w, 3) float64 in [0, 1] -> (3, h, w) contiguous float32, the networks' layout."""
+    return np.ascontiguousarray(img.transpose(2, 0, 1), dtype=np.float32)
 
 
 class Evaluator:
@@ -229,17 +257,19 @@ class Evaluator:
         todo = [first[k] for k, v in found.items() if v is None]
         cached = [found[k] for k in keys]
         if todo:
-            x = batch[todo] if len(todo) < len(items) else batch
+            # The whole batch, not just the missing items: oneDNN picks its kernels by batch size (a crop's
+            # features at N=1 differ from N=2 in the last bits), and ground truth run exactly like the
+            # prediction makes a prediction equal to the ground truth score exactly 0.
             if net == "lpips":
-                feats = self.lpips_net.features(x)
-                per = [[f[j:j + 1] for f in feats] for j in range(len(todo))]
+                feats = self.lpips_net.features(batch)
+                per = [[f[i:i + 1] for f in feats] for i in todo]
             else:
-                prep = self.dists_net.prepare(self.dists_net.features(x))
-                per = [[(m[j:j + 1], c[j:j + 1], v[j:j + 1]) for (m, c, v) in prep] for j in range(len(todo))]
+                prep = self.dists_net.prepare(self.dists_net.features(batch))
+                per = [[(m[i:i + 1], c[i:i + 1], v[i:i + 1]) for (m, c, v) in prep] for i in todo]
             for j, i in enumerate(todo):
                 self.cache.put(keys[i], per[j])
                 found[keys[i]] = per[j]
-            if len(todo) == len(items):  # computed here, in batch order: use the batched tensors as they are
+            if len(todo) == len(items):  # in batch order: the batched tensors as they are
                 return feats if net == "lpips" else prep
             cached = [found[k] for k in keys]
         # stack per-item features back into batched tensors
@@ -253,14 +283,14 @@ class Evaluator:
             return
         groups: dict[tuple[int, int], list[_NetItem]] = {}
         for it in self._queue:
-            groups.setdefault(it.pred.shape[:2], []).append(it)
+            groups.setdefault(it.hw, []).append(it)
         self._queue = []
         bs = self.options.batch_size
         for items_all in groups.values():
             for s in range(0, len(items_all), bs):
                 items = items_all[s:s + bs]
-                xp = to_tensor01(np.stack([it.pred for it in items]), 1.0)
-                xg = to_tensor01(np.stack([it.gt for it in items]), 1.0)
+                xp = torch.from_numpy(np.stack([it.pred for it in items]))
+                xg = torch.from_numpy(np.stack([it.gt for it in items]))
                 if self.lpips_net is not None:
                     fg = self._gt_features("lpips", items, xg)
                     d = self.lpips_net.distance(self.lpips_net.features(xp), fg).numpy()
@@ -273,8 +303,10 @@ class Evaluator:
                     for it, v in zip(items, d):
                         it.row[f"{it.column_prefix}_dists"] = float(v)
 
-    # ---------------------------------------------------------------- per frame
-    def _pair(self, row: dict, prefix: str, pred_full: np.ndarray, gt_full: np.ndarray, region, gt_key: str) -> None:
+    # ---------------------------------------------------------------- per frame (worker threads)
+    def _pair(self, row: dict, items: list, prefix: str, pred_crop: np.ndarray, gt_crop: np.ndarray, region,
+              gt_key: str) -> None:
+        """CPU metrics of one cropped pair into `row`; its network inputs appended to `items`."""
         conv = self.options.convention
         metrics = self.options.metrics
         if region.empty:
@@ -282,8 +314,12 @@ class Evaluator:
                 if m in metrics:
                     row[f"{prefix}_{m}"] = None
             return
-        p = apply_region(pred_full, region, conv)
-        g = apply_region(gt_full, region, conv)
+        cpu = [m for m in ("psnr", "ssim", "flip") if m in metrics]
+        net = any(m in metrics for m in _NETWORK_METRICS)
+        p = g = None
+        if cpu or (net and region.alpha is not None):
+            p = composite(pred_crop, region, conv)
+            g = composite(gt_crop, region, conv)
         mm = region.metric_mask
         if "psnr" in metrics:
             row[f"{prefix}_psnr"] = psnr(p, g, data_range=1.0, mask=mm)
@@ -291,83 +327,172 @@ class Evaluator:
             row[f"{prefix}_ssim"] = ssim(p, g, data_range=1.0, mask=mm)
         if "flip" in metrics:
             row[f"{prefix}_flip"] = flip(p, g, data_range=1.0, mask=mm, ppd=conv.flip_ppd)
-        if any(m in metrics for m in _NETWORK_METRICS):
+        if net:
             key = f"{gt_key}|{prefix.replace('_aligned', '')}|{conv.region_key()}|{region.y0},{region.y1},{region.x0},{region.x1}"
-            self._queue.append(_NetItem(row, prefix, p.astype(np.float32), g.astype(np.float32), key))
-            if len(self._queue) >= self.options.batch_size:
-                self._flush_full_groups()
+            if p is None:  # nothing to composite: float32 straight from the crop, the same values as via float64
+                p, g = pred_crop, gt_crop
+            items.append(_NetItem(row, prefix, _chw32(p), _chw32(g), key))
 
     def _flush_full_groups(self) -> None:
         """Run every shape group that has a full batch; keep the rest queued."""
         counts: dict[tuple[int, int], int] = {}
         for it in self._queue:
-            counts[it.pred.shape[:2]] = counts.get(it.pred.shape[:2], 0) + 1
+            counts[it.hw] = counts.get(it.hw, 0) + 1
         ready = {s for s, n in counts.items() if n >= self.options.batch_size}
         if len(self._queue) > 8 * self.options.batch_size:  # many odd shapes: bound the memory
             ready = set(counts)
         if not ready:
             return
-        keep = [it for it in self._queue if it.pred.shape[:2] not in ready]
-        self._queue = [it for it in self._queue if it.pred.shape[:2] in ready]
+        keep = [it for it in self._queue if it.hw not in ready]
+        self._queue = [it for it in self._queue if it.hw in ready]
         self._flush()
         self._queue = keep
 
-    def _frame(self, pf, pred: PredictionIndex) -> dict:
+    def _prepare(self, pf, pred: PredictionIndex, stored: dict) -> tuple[dict, list]:
+        """Everything about one frame except the networks: read, crop, convert, CPU metrics. Runs in a worker
+        thread; returns the frame's row and its network inputs."""
         conv = self.options.convention
         metrics = self.options.metrics
         gt = pf.gt
+
+        def pred_layer(path: Path) -> np.ndarray:
+            arr = stored.pop(path, None)
+            return arr if arr is not None else decode_layer(path, gt)
+
         row: dict[str, Any] = {"subject": gt.subject, "frame": gt.index}
+        items: list[_NetItem] = []
         mask = read_gt_mask(gt)
         region = compute_region(mask, conv)
+        crop = (slice(region.y0, region.y1), slice(region.x0, region.x1))
         inside = mask >= conv.mask_threshold
         row["empty_mask"] = not inside.any()
         frame_id = "|".join([self._file_sha(gt.json_path), self._file_sha(gt.layer("mask.png"))])
-        if any(m in metrics for m in _IMAGE_METRICS):
-            gt_img = read_gt_display(gt)
-            pr_img = read_pred_display(pf.image, gt)
-            self._pair(row, "image", pr_img, gt_img, region,
-                       frame_id + "|" + self._file_sha(gt.layer("image.exr")))
-        if pred.has_albedo and pf.albedo is not None and any(m in metrics for m in _IMAGE_METRICS):
+        image_metrics = any(m in metrics for m in _IMAGE_METRICS)
+        if image_metrics:
+            pr = pred_layer(pf.image)
+            gt_img = read_gt_image_stored(gt)
+            # per-pixel conversions: only the evaluated region is brought to display space
+            self._pair(row, items, "image", display_from_stored(pr[crop], gt), display_from_stored(gt_img[crop], gt),
+                       region, frame_id + "|" + self._file_sha(gt.layer("image.exr")))
+        if pred.has_albedo and pf.albedo is not None and image_metrics:
             gt_lin = read_gt_albedo(gt)
-            pr_lin = read_pred_albedo(pf.albedo, gt)
+            pr_lin = albedo_from_stored(pred_layer(pf.albedo))
             akey = frame_id + "|" + self._file_sha(gt.layer("albedo.exr"))
-            g_sp = albedo_to_space(gt_lin, conv)
-            self._pair(row, "albedo", albedo_to_space(pr_lin, conv), g_sp, region, akey)
+            g_sp = albedo_to_space(gt_lin[crop], conv)
+            self._pair(row, items, "albedo", albedo_to_space(pr_lin[crop], conv), g_sp, region, akey)
             if conv.align_albedo:
-                aligned, scales = align_albedo(pr_lin, gt_lin, inside)
+                aligned, scales = align_albedo(pr_lin, gt_lin, inside)  # scales from the whole mask
                 row["albedo_scale"] = scales
-                self._pair(row, "albedo_aligned", albedo_to_space(aligned, conv), g_sp, region, akey)
+                self._pair(row, items, "albedo_aligned", albedo_to_space(aligned[crop], conv), g_sp, region, akey)
         if pred.has_normal and pf.normal is not None and "normal" in metrics:
-            row["normal_deg"] = normal_angular_error(read_pred_normal(pf.normal, gt), read_gt_normal(gt),
+            row["normal_deg"] = normal_angular_error(normal_from_stored(pred_layer(pf.normal)), read_gt_normal(gt),
                                                      mask=inside)
-        return row
+        return row, items
+
+    def _workers(self) -> int:
+        return self.options.workers or max(1, torch.get_num_threads())
+
+    def check_predictions(self, pred: PredictionIndex) -> dict:
+        """Check the whole prediction set before anything is computed, listing every bad file: headers first
+        (resolution, channel count, bit depth, format) for every file, then every file decoded in full (corrupt
+        data, NaN/Inf) on the worker threads. Returns decoded pixels to reuse, up to `preload_mb`."""
+        metrics = self.options.metrics
+        image_metrics = any(m in metrics for m in _IMAGE_METRICS)
+        problems: list[str] = []
+        files = []
+        for pf in pred.frames:
+            needed = ["mask.png"]
+            if image_metrics:
+                needed.append("image.exr")
+                if pf.albedo is not None:
+                    needed.append("albedo.exr")
+            if pf.normal is not None and "normal" in metrics:
+                needed.append("normal.exr")
+            for name in needed:
+                if not pf.gt.layer(name).is_file():
+                    problems.append(f"{pf.gt.layer(name)}: ground-truth file missing (the dataset is incomplete: "
+                                    f"regenerate or re-copy it)")
+            used = [pf.image if image_metrics else None, pf.albedo if image_metrics else None,
+                    pf.normal if "normal" in metrics else None]
+            for path in used:
+                if path is None:
+                    continue
+                try:
+                    check_header(path, pf.gt)
+                except ImageFileError as exc:
+                    problems.append(str(exc))
+                else:
+                    files.append((path, pf.gt))
+        stored: dict[Path, np.ndarray] = {}
+        budget, used_bytes = self.options.preload_mb << 20, 0
+
+        def decode(item):
+            try:
+                return decode_layer(*item)
+            except ImageFileError as exc:
+                return exc
+
+        with ThreadPoolExecutor(self._workers()) as pool:
+            for (path, _), arr in zip(files, pool.map(decode, files)):
+                if isinstance(arr, Exception):
+                    problems.append(str(arr))
+                elif used_bytes + arr.nbytes <= budget and not problems:
+                    stored[path] = arr
+                    used_bytes += arr.nbytes
+        if problems:
+            raise PredictionError(pred.root, problems)
+        return stored
 
     # ---------------------------------------------------------------- public
     def evaluate(self, pred_root: str | Path, dataset: DatasetIndex | str | Path, protocol: str = "a",
                  on_frame: Callable[[int, int], None] | None = None) -> tuple[dict, list[dict], list[str]]:
-        """Evaluate one predictions folder. Returns (result JSON dict, per-frame rows, CSV columns)."""
+        """Evaluate one predictions folder. Returns (result JSON dict, per-frame rows, CSV columns).
+
+        Every prediction file is checked (`check_predictions`) before any metric is computed; nothing is
+        returned (or written by the CLI) unless every frame was evaluated."""
         ds = dataset if isinstance(dataset, DatasetIndex) else load_dataset(dataset, protocol)
         pred = scan_predictions(pred_root, ds, allow_incomplete=self.options.allow_incomplete)
+        stored = self.check_predictions(pred)
         self._cache_start = {k: getattr(self.cache, k) for k in ("hits", "disk_hits", "misses")}
         opts = self.options
         conv = opts.convention
         rows: list[dict] = []
         progress = opts.progress if opts.progress is not None else sys.stderr.isatty()
-        iterator = pred.frames
         bar = None
         if progress and len(pred.frames) > 1:
             from tqdm import tqdm
             bar = tqdm(total=len(pred.frames), desc=f"rh-eval {pred.method.get('name', '')}", unit="frame",
                        file=sys.stderr)
-        for i, pf in enumerate(iterator):
-            rows.append(self._frame(pf, pred))
+        overlap = opts.overlap if opts.overlap is not None else \
+            (os.cpu_count() or 1) >= torch.get_num_threads() + self._workers()
+        ahead = opts.prefetch or (2 * opts.batch_size if overlap else opts.batch_size)
+        pool = ThreadPoolExecutor(self._workers())
+        try:
+            # frames are prepared on the workers, in order, a bounded number ahead of the networks (memory)
+            todo = iter(pred.frames)
+            pending = deque(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, ahead))
+            while pending:
+                row, items = pending.popleft().result()
+                if overlap:
+                    pending.extend(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, 1))
+                rows.append(row)
+                self._queue.extend(items)
+                if len(self._queue) >= opts.batch_size:
+                    self._flush_full_groups()
+                if not overlap and not pending:
+                    pending.extend(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, ahead))
+                if bar is not None:
+                    bar.update(1)
+                if on_frame is not None:
+                    on_frame(len(rows), len(pred.frames))
+            self._flush()
+        except BaseException:
+            self._queue = []
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
             if bar is not None:
-                bar.update(1)
-            if on_frame is not None:
-                on_frame(i + 1, len(pred.frames))
-        self._flush()
-        if bar is not None:
-            bar.close()
+                bar.close()
         cols = metric_columns(opts.metrics, albedo=pred.has_albedo, aligned=conv.align_albedo,
                               normal=pred.has_normal)
         for r in rows:

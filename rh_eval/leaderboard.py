@@ -32,6 +32,11 @@ COLUMNS = [
     ("albedo_ssim", "Albedo", "SSIM", False, 4),
     ("albedo_psnr", "Albedo", "PSNR", False, 2),
 ]
+# FLIP is not in Table 2; shown after it, headed by its pixels per degree, when a result has it.
+FLIP_COLUMNS = [
+    ("image_flip", "FLIP", "Image", True, 4),
+    ("albedo_flip", "FLIP", "Albedo", True, 4),
+]
 ALIGNED_COLUMNS = [(f"albedo_aligned_{k.split('_', 1)[1]}", "Albedo (scale-aligned)", lab, low, dec)
                    for k, _, lab, low, dec in COLUMNS if k.startswith("albedo_")]
 _CONSISTENT = ("convention",)
@@ -108,7 +113,14 @@ def load_results(paths: list[Path], *, allow_mixed: bool = False) -> tuple[list[
                 problems.append(f"{e.path}: {label} {b!r} differs from {ref.path}'s {a!r}")
         ca = {k: v for k, v in ref.result.get("convention", {}).items() if k != "align_albedo"}
         cb = {k: v for k, v in e.result.get("convention", {}).items() if k != "align_albedo"}
+        if not (_has_flip(ref) and _has_flip(e)):  # pixels per degree only matter where both carry FLIP
+            ca.pop("flip_ppd", None)
+            cb.pop("flip_ppd", None)
         diff = sorted(k for k in set(ca) | set(cb) if ca.get(k) != cb.get(k))
+        if "flip_ppd" in diff:
+            problems.append(f"{e.path}: FLIP computed at {_ppd(e)} pixels per degree, {ref.path} at {_ppd(ref)}: "
+                            f"their FLIP values are not comparable (rerun rh-eval with the same --flip-ppd)")
+            diff.remove("flip_ppd")
         if diff:
             problems.append(f"{e.path}: convention differs from {ref.path}'s in "
                             + ", ".join(f"{k} ({cb.get(k)!r} vs {ca.get(k)!r})" for k in diff))
@@ -116,6 +128,32 @@ def load_results(paths: list[Path], *, allow_mixed: bool = False) -> tuple[list[
         raise ValueError("results are not comparable (use --allow-mixed to combine anyway):\n  - "
                          + "\n  - ".join(problems))
     return entries, problems
+
+
+def _has_flip(e: Entry) -> bool:
+    return any(e.value(k) is not None for k, *_ in FLIP_COLUMNS)
+
+
+def _ppd(e: Entry):
+    return e.result.get("convention", {}).get("flip_ppd", e.result.get("flip_ppd"))
+
+
+def _columns(entries: list[Entry]) -> list[tuple]:
+    """Table 2's columns, then FLIP's when any result has it (group label carries the pixels per degree, or
+    says they differ: each cell then names its own)."""
+    flips = [e for e in entries if _has_flip(e)]
+    if not flips:
+        return list(COLUMNS)
+    ppds = sorted({_ppd(e) for e in flips}, key=str)
+    group = f"FLIP (ppd {ppds[0]:.4g})" if len(ppds) == 1 else "FLIP (different ppd per row!)"
+    return list(COLUMNS) + [(k, group, lab, low, dec) for k, _, lab, low, dec in FLIP_COLUMNS]
+
+
+def _cell(e: Entry, key: str, v, dec: int, mixed_ppd: bool) -> str:
+    s = _fmt(v, dec)
+    if mixed_ppd and v is not None and key.endswith("_flip"):
+        s += f" (ppd {_ppd(e):.4g})"
+    return s
 
 
 def _fmt(v, dec: int) -> str:
@@ -149,17 +187,24 @@ def _groups(entries):
     ]
 
 
+def _ppd_text(entries: list[Entry]) -> str:
+    ppds = sorted({_ppd(e) for e in entries if _has_flip(e)}, key=str) or sorted({_ppd(e) for e in entries}, key=str)
+    if len(ppds) == 1 and ppds[0] is not None:
+        return f"FLIP at {ppds[0]:.4g} pixels per degree"
+    return "FLIP at different pixels per degree (" + ", ".join(str(p) for p in ppds) + "): not comparable"
+
+
 def _convention_line(entries: list[Entry]) -> str:
     c = entries[0].result.get("convention", {})
     d = entries[0].result.get("dataset", {})
     return (f"Protocol {d.get('protocol')}, dataset manifest sha256 `{str(d.get('manifest_sha256'))[:16]}…`; "
             f"region `{c.get('region')}` over {c.get('background')}, LPIPS backbone `{c.get('backbone')}` (v0.1), "
-            f"albedo in {c.get('albedo_space')}, FLIP ppd {c.get('flip_ppd'):.4g}. "
+            f"albedo in {c.get('albedo_space')}, {_ppd_text(entries)}. "
             f"↓ lower is better, ↑ higher is better; **bold** = best complete method; ∞ = identical to the "
             f"ground truth on every frame.")
 
 
-def _md_table(rows: list[Entry], cols, best, mixed: bool = False) -> list[str]:
+def _md_table(rows: list[Entry], cols, best, mixed: bool = False, mixed_ppd: bool = False) -> list[str]:
     head = "| Method | " + " | ".join(f"{g} {lab} {'↓' if low else '↑'}" for _, g, lab, low, _ in cols) + " | Frames |"
     sep = "|---|" + "---:|" * len(cols) + "---:|"
     out = [head, sep]
@@ -167,7 +212,7 @@ def _md_table(rows: list[Entry], cols, best, mixed: bool = False) -> list[str]:
         cells = []
         for key, _, _, _, dec in cols:
             v = e.value(key)
-            s = _fmt(v, dec)
+            s = _cell(e, key, v, dec, mixed_ppd)
             if e.group == "method" and v is not None and key in best and v == best[key]:
                 s = f"**{s}**"
             cells.append(s)
@@ -178,7 +223,9 @@ def _md_table(rows: list[Entry], cols, best, mixed: bool = False) -> list[str]:
 
 
 def build_markdown(entries: list[Entry], warnings: list[str] | None = None) -> str:
-    best = _best(entries, COLUMNS)
+    cols = _columns(entries)
+    mixed_ppd = any(g.startswith("FLIP (different") for _, g, *_ in cols)
+    best = _best(entries, cols) if not mixed_ppd else _best(entries, COLUMNS)
     lines = ["# Relighting Humans leaderboard", "", _convention_line(entries), ""]
     for w in warnings or []:
         lines.append(f"> **Warning:** {w}")
@@ -188,7 +235,7 @@ def build_markdown(entries: list[Entry], warnings: list[str] | None = None) -> s
     for title, _, rows in _groups(entries):
         if not rows:
             continue
-        lines += [f"## {title}", ""] + _md_table(rows, COLUMNS, best) + [""]
+        lines += [f"## {title}", ""] + _md_table(rows, cols, best, mixed_ppd=mixed_ppd) + [""]
     if any_aligned:
         best_a = _best(entries, ALIGNED_COLUMNS)
         rows = [e for _, _, rs in _groups(entries) for e in rs if any(e.value(k) is not None
@@ -249,7 +296,7 @@ document.querySelectorAll('table.sortable').forEach(table => {
 """
 
 
-def _html_table(rows: list[Entry], cols, best, table_id: str) -> str:
+def _html_table(rows: list[Entry], cols, best, table_id: str, mixed_ppd: bool = False) -> str:
     e = html.escape
     groups: list[tuple[str, int]] = []
     for _, g, *_ in cols:
@@ -273,7 +320,7 @@ def _html_table(rows: list[Entry], cols, best, table_id: str) -> str:
             dv = "" if v is None else ("inf" if math.isinf(v) else repr(v))
             is_best = ent.group == "method" and v is not None and key in best and v == best[key]
             best_attr = ' class="best"' if is_best else ""
-            cells.append(f'<td data-value="{dv}"{best_attr}>{_fmt(v, dec)}</td>')
+            cells.append(f'<td data-value="{dv}"{best_attr}>{e(_cell(ent, key, v, dec, mixed_ppd))}</td>')
         n = ent.result.get("n_frames_evaluated")
         tot = ent.result.get("dataset", {}).get("n_frames")
         cells.append(f'<td data-value="{n}">{n}/{tot}</td>')
@@ -330,7 +377,9 @@ def _plots(entries: list[Entry]) -> list[tuple[str, str]]:
 
 def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
     e = html.escape
-    best = _best(entries, COLUMNS)
+    cols = _columns(entries)
+    mixed_ppd = any(g.startswith("FLIP (different") for _, g, *_ in cols)
+    best = _best(entries, cols) if not mixed_ppd else _best(entries, COLUMNS)
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
              "<title>Relighting Humans leaderboard</title>", f"<style>{_CSS}</style></head><body>",
              "<h1>Relighting Humans leaderboard</h1>",
@@ -341,7 +390,7 @@ def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
     ids = {"method": "methods", "bound": "bounds", "incomplete": "incomplete"}
     for title, group, rows in _groups(entries):
         if rows:
-            parts += [f"<h2>{e(title)}</h2>", _html_table(rows, COLUMNS, best, ids[group])]
+            parts += [f"<h2>{e(title)}</h2>", _html_table(rows, cols, best, ids[group], mixed_ppd)]
     aligned_rows = [x for _, _, rs in _groups(entries) for x in rs
                     if any(x.value(k) is not None for k, *_ in ALIGNED_COLUMNS)]
     if aligned_rows:

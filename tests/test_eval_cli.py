@@ -6,13 +6,14 @@ import json
 import math
 import shutil
 import struct
+import warnings
 import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from rh_common.imageio import read_exr, write_exr, write_png
+from rh_common.imageio import read_exr, read_png, write_exr, write_png
 from rh_eval.cli import build_parser, main
 from rh_eval.conventions import Convention, MIN_CROP, compute_region, margin_for
 from rh_eval.evaluate import EvalOptions, Evaluator
@@ -97,7 +98,7 @@ def test_help_explains_every_flag():
     text = build_parser().format_help()
     for flag in ("--dataset", "--protocol", "--out", "--backbone", "--region", "--align-albedo",
                  "--allow-incomplete", "--metrics", "--batch-size", "--cache-dir", "--background",
-                 "--albedo-space", "--kind"):
+                 "--albedo-space", "--kind", "--flip-ppd", "--workers", "--preload-mb"):
         assert flag in text
 
 
@@ -305,3 +306,110 @@ def test_method_json_kind_is_checked(ds, oracle, tmp_path, capsys):
     (pred / "method.json").write_text(json.dumps({"name": "x", "kind": "oracle-ish"}))
     code, _, err = _run([pred, "--dataset", ds, "--out", tmp_path / "r.json", "--metrics", "psnr"], capsys)
     assert code == 2 and "method.json" in err and "kind" in err
+
+
+def test_whole_set_is_checked_before_any_metric(ds, oracle, tmp_path, capsys, monkeypatch):
+    """Bad files in the first and the last frame: both reported at once, before a single frame is evaluated."""
+    pred = _copy(oracle, tmp_path)
+    last = pred / "subject_001/protocol_a/test/frame_000001_image.exr"
+    a = read_exr(last)
+    a[40, 7, 1] = np.inf
+    write_exr(last, a)
+    first = pred / FRAME_DIR / "frame_000000_albedo.exr"
+    write_exr(first, np.zeros((64, 48, 3), np.float32))
+
+    def no_metrics(*_a, **_k):
+        raise AssertionError("a frame was evaluated before the prediction set was checked")
+
+    monkeypatch.setattr(Evaluator, "_prepare", no_metrics)
+    out = tmp_path / "r.json"
+    code, _, err = _run([pred, "--dataset", ds, "--out", out], capsys)
+    assert code == 2, err
+    assert f"{last}: 1 pixel(s) with NaN or Inf (first at x=7, y=40)" in err  # the file, the pixel, the fix
+    assert "write finite values" in err
+    assert f"{first}: resolution 48x64" in err and "write it at 64x64" in err
+    assert "2 problem(s)" in err  # every bad file at once, header and pixel problems alike
+    assert not out.exists() and not out.with_name("r.frames.csv").exists()
+
+
+def test_rows_do_not_depend_on_workers_prefetch_or_preload(ds, noisy):
+    opts = dict(metrics=("lpips", "ssim", "psnr", "flip", "normal"), progress=False)
+    _, base, _ = Evaluator(EvalOptions(**opts)).evaluate(noisy, ds)
+    assert [(r["subject"], r["frame"]) for r in base] == [(s, f) for s in ("subject_000", "subject_001")
+                                                          for f in (0, 1)]  # dataset order
+    for kw in (dict(workers=1, prefetch=1, preload_mb=0, overlap=False), dict(workers=3, prefetch=7, overlap=True)):
+        # (batch size: see the cache test; oneDNN kernels vary with N)
+        _, rows, _ = Evaluator(EvalOptions(**opts, **kw)).evaluate(noisy, ds)
+        assert rows == base, kw
+
+
+def test_networks_see_only_the_evaluated_region(tmp_path, monkeypatch):
+    """Default region: the networks run on the person's dilated box, not on the frame."""
+    ds = make_dataset(tmp_path / "ds", size=160, subjects=("subject_000",), frames=(0,))
+    pred = make_predictions(ds, tmp_path / "p", noise=0.05, layers=("image",))
+    ev = Evaluator(EvalOptions(metrics=("lpips",), progress=False))
+    shapes = []
+    real = ev.lpips_net.features
+    monkeypatch.setattr(ev.lpips_net, "features", lambda x: shapes.append(tuple(x.shape)) or real(x))
+    ev.evaluate(pred, ds)
+    mask = read_png(ds / FRAME_DIR / "frame_000000_mask.png")
+    r = compute_region(mask, Convention())
+    assert shapes == [(1, 3, r.y1 - r.y0, r.x1 - r.x0)] * 2 and r.x1 - r.x0 < 160  # prediction, ground truth
+    # the networks and their weights are loaded once per process
+    assert Evaluator(EvalOptions(metrics=("lpips",), progress=False)).lpips_net is ev.lpips_net
+
+
+def test_progress_bar_on_long_runs(ds, noisy, capsys):
+    Evaluator(EvalOptions(metrics=("psnr",), progress=True)).evaluate(noisy, ds)
+    err = capsys.readouterr().err
+    assert "rh-eval noisy" in err and "4/4" in err and "frame" in err
+
+
+def test_pipeline_edge_cases_raise_no_warning(tmp_path):
+    ds = make_dataset(tmp_path / "ds", empty_mask=("subject_001", 1))
+    pred = make_predictions(ds, tmp_path / "p")  # the ground truth itself, and one empty mask
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res, _, _ = Evaluator(EvalOptions(progress=False)).evaluate(pred, ds)
+    ov = res["overall"]
+    assert ov["image_psnr"]["mean"] == "inf" and ov["image_psnr"]["n_undefined"] == 1
+    assert ov["image_lpips"]["mean"] == 0.0 and ov["normal_deg"]["mean"] == 0.0
+
+
+def test_outputs_record_manifest_versions_and_counts(ds, noisy, tmp_path, capsys):
+    out = tmp_path / "n.json"
+    code, _, err = _run([noisy, "--dataset", ds, "--out", out, "--metrics", "psnr,lpips"], capsys)
+    assert code == 0, err
+    res = json.loads(out.read_text())
+    from rh_common.imageio import sha256_file
+    assert res["dataset"]["manifest_sha256"] == sha256_file(ds / "manifest.json")
+    assert {"rh_eval", "torch", "numpy", "scikit-image", "flip-evaluator", "lpips"} <= set(res["versions"])
+    assert res["n_frames_evaluated"] == 4 and res["complete"] is True
+    for block in [res["overall"]] + [s["metrics"] for s in res["per_subject"].values()]:
+        for col in ("image_psnr", "image_lpips"):
+            assert {"mean", "std", "n", "n_undefined"} <= set(block[col])
+
+
+# --------------------------------------------------------------------------------------------- FLIP ppd
+def test_flip_ppd_is_a_recorded_convention(ds, noisy, tmp_path, capsys):
+    vals = {}
+    for ppd in (None, "30"):
+        out = tmp_path / f"f{ppd}.json"
+        extra = ["--flip-ppd", ppd] if ppd else []
+        code, stdout, err = _run([noisy, "--dataset", ds, "--out", out, "--metrics", "flip", *extra], capsys)
+        assert code == 0, err
+        res = json.loads(out.read_text())
+        want = 30.0 if ppd else 67.02064514160156
+        assert res["convention"]["flip_ppd"] == want and res["flip_ppd"] == want
+        assert f"flip_ppd={want:.6g}" in stdout
+        vals[ppd] = res["overall"]["image_flip"]["mean"]
+    assert vals[None] != vals["30"]  # the viewing distance changes what FLIP sees
+
+
+@pytest.mark.parametrize("bad", ["0", "-67", "nan", "inf", "sixty"])
+def test_flip_ppd_is_validated(bad, ds, oracle, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main([str(oracle), "--dataset", str(ds), "--out", str(tmp_path / "r.json"), "--flip-ppd", bad])
+    assert exc.value.code == 2 and "--flip-ppd" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="flip_ppd"):
+        Convention(flip_ppd=float(bad) if bad != "sixty" else "sixty")

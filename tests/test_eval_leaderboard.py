@@ -131,3 +131,38 @@ def test_html_renders_to_a_screenshot(results, tmp_path):
                            "--window-size=1200,1600", f"--screenshot={shot}", (dst / "index.html").as_uri()],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and shot.is_file() and shot.stat().st_size > 20_000, proc.stderr[-2000:]
+
+
+def _with_flip(src: Path, dst: Path, ppd: float, value: float, name: str) -> Path:
+    res = json.loads(src.read_text())
+    res["convention"]["flip_ppd"] = res["flip_ppd"] = ppd
+    res["overall"]["image_flip"] = {"mean": value, "std": 0.0, "n": 4, "n_undefined": 0}
+    res["method"]["name"] = name
+    dst.write_text(json.dumps(res))
+    return dst
+
+
+def test_flip_ppd_is_shown_and_never_mixed_silently(results, tmp_path, capsys):
+    root, ds, out = results
+    a = _with_flip(out / "good.json", tmp_path / "a.json", 67.02064514160156, 0.125, "a")
+    b = _with_flip(out / "okay.json", tmp_path / "b.json", 67.02064514160156, 0.25, "b")
+    assert lb_main([str(a), str(b), "--out", str(tmp_path / "same")]) == 0
+    md = (tmp_path / "same" / "leaderboard.md").read_text()
+    assert "FLIP (ppd 67.02) Image ↓" in md and "**0.1250**" in md and "67.02 pixels per degree" in md
+    c = _with_flip(out / "okay.json", tmp_path / "c.json", 30.0, 0.05, "c")
+    code = lb_main([str(a), str(c), "--out", str(tmp_path / "mixed")])
+    err = capsys.readouterr().err
+    assert code == 2 and "pixels per degree" in err and "--flip-ppd" in err
+    assert lb_main([str(a), str(c), "--out", str(tmp_path / "mixed"), "--allow-mixed"]) == 0
+    md = (tmp_path / "mixed" / "leaderboard.md").read_text()
+    assert "Warning" in md and "FLIP (different ppd per row!)" in md
+    assert "0.1250 (ppd 67.02)" in md and "0.0500 (ppd 30)" in md and "**0.0500" not in md  # never a best
+    page = (tmp_path / "mixed" / "index.html").read_text()
+    assert "0.0500 (ppd 30)" in page and "not comparable" in page
+    # without FLIP values the viewing condition is irrelevant: combined without a word
+    res = json.loads((out / "okay.json").read_text())
+    res["convention"]["flip_ppd"] = 30.0
+    (tmp_path / "d.json").write_text(json.dumps(res))
+    assert lb_main([str(out / "good.json"), str(tmp_path / "d.json"), "--out", str(tmp_path / "noflip")]) == 0
+    md = (tmp_path / "noflip" / "leaderboard.md").read_text()
+    assert "FLIP (" not in md and "Warning" not in md

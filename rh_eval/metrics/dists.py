@@ -85,9 +85,11 @@ class DISTSNet:
         """Per tap: (mean (N, C), centred features, variance (N, C)), float32 as the official code. This is what
         the ground-truth cache keeps."""
         out = []
-        for f in feats:
+        for i, f in enumerate(feats):
             m = f.mean(dim=(2, 3), keepdim=True)
-            c = f - m
+            # Taps after the input are fresh activations held by no one else: centred in place, which spares a
+            # copy of the largest tensors (relu1_2 is 64 x H x W); tap 0 is the caller's input batch.
+            c = f.sub_(m) if i > 0 else f - m
             v = (c * c).mean(dim=(2, 3))
             out.append((m.flatten(1), c, v))
         return out

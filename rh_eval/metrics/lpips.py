@@ -49,13 +49,21 @@ class LPIPSNet:
     @torch.inference_mode()
     def features(self, x01: torch.Tensor) -> list[torch.Tensor]:
         taps = self.backbone_forward(x01)
-        return [f / (torch.sqrt(torch.sum(f * f, dim=1, keepdim=True)) + _EPS) for f in taps]
+        # In place: the taps are fresh ReLU outputs nobody else holds, and these heads cost a quarter of AlexNet
+        # at 512x512 when every step allocates. Same operations in the same order: the same bits as
+        # f / (sqrt(sum(f * f)) + eps).
+        for f in taps:
+            norm = torch.sum(f * f, dim=1, keepdim=True)
+            f.div_(norm.sqrt_().add_(_EPS))
+        return taps
 
     @torch.inference_mode()
     def distance(self, f0: list[torch.Tensor], f1: list[torch.Tensor]) -> torch.Tensor:
         total = None
         for a, b, w in zip(f0, f1, self.heads):
-            d = ((a - b) ** 2 * w).sum(dim=1).mean(dim=(1, 2), dtype=torch.float64)
+            d = a - b
+            d.mul_(d).mul_(w)  # torch computes x ** 2 as x * x: the same bits, two fewer allocations
+            d = d.sum(dim=1).mean(dim=(1, 2), dtype=torch.float64)
             total = d if total is None else total + d
         return total
 
