@@ -61,6 +61,7 @@ class Scene:
     light_name: str
     pose_label: str
     triangles: int
+    light: object = None  # the rh_dataset.lights.Light behind `emitter` (bench/bench_cycles.py re-creates it in Blender)
 
 
 def _sun_rotation(radiance: np.ndarray, target_phi_deg: float) -> float:
@@ -99,7 +100,7 @@ def build_scene(name: str, resolution: int, seed: int = 0) -> Scene:
     lo, hi = body_bounds(meshes)
     cam = frame_body(lo, hi, resolution, resolution, 30.0, fill=0.9)
     return Scene(name, meshes, mitsuba_emitter_dict(light), cam, exposure_for(light), hdri, pose.label,
-                 sum(len(m.faces) for m in meshes))
+                 sum(len(m.faces) for m in meshes), light)
 
 
 # ------------------------------------------------------------------------------------------------- rendering
