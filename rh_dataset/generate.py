@@ -52,6 +52,8 @@ class GenerateOptions:
     ray_frames_per_task: int = 8
     ray_cpus_per_task: float = 1.0
     ray_gpus_per_task: float = 0.0
+    # The file `spec.character` names (rh-generate --character): rendered for every subject instead of anny.
+    character_path: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -150,9 +152,61 @@ class SubjectState:
     camera: Camera
 
 
+def _imported_character(opts: GenerateOptions):
+    """The imported character of this run, checked against the description (its name and sha256)."""
+    from rh_dataset.characters.imported import character_digest, load_character_file
+
+    src, path = opts.spec.character, opts.character_path
+    if path is None:
+        raise GenerateError(f"this protocol renders the imported character {src.file}; pass --character PATH/{src.file}")
+    path = Path(path)
+    if not path.is_file():
+        raise GenerateError(f"--character {path}: no such file")
+    if path.name != src.file or character_digest(path) != src.sha256:
+        raise GenerateError(f"--character {path} is not the file this dataset was made with ({src.file}, sha256 "
+                            f"{src.sha256[:16]}...); pass that file, another --out, or --overwrite")
+    return load_character_file(path, scale=src.scale)
+
+
+def _motion_poses_used(opts: GenerateOptions, character) -> list:
+    """Every pose the motion splits of this run will take (for framing the camera around all of them)."""
+    from rh_dataset.characters.imported import motion_frames, split_pose
+
+    motion = motion_frames(character)
+    used = {}
+    for split in opts.spec.splits:
+        if split.poses != "turntable":
+            n = opts.spec.split("train").frames if split.poses == "train" else split.frames
+            for i in range(split.frames):
+                p = split_pose(split.poses, n, i, motion)
+                used[p.label] = p.pose
+    return list(used.values())
+
+
+def _build_imported_subject(opts: GenerateOptions, s: int) -> SubjectState:
+    from rh_dataset.characters.imported import imported_bounds
+
+    character = _imported_character(opts)
+    # Exact framing: the box every used pose fills at every turntable angle (imported_bounds), plus 3%.
+    lo, hi = imported_bounds(character, [None, *_motion_poses_used(opts, character)])
+    pad = 0.03 * (hi[2] - lo[2])
+    cam = frame_body(lo - pad, hi + pad, opts.spec.width, opts.spec.height, opts.spec.fov_y_deg, fill=0.96)
+    record = character.to_json()
+    path = opts.out / subject_name(s) / "character.json"
+    if path.is_file() and not opts.overwrite:
+        if read_json(path) != read_json_roundtrip(record):
+            raise GenerateError(f"{path} describes another character than this run would make; "
+                                "use another --out or --overwrite")
+    else:
+        write_json(path, record)
+    return SubjectState(s, character, record, cam)
+
+
 def build_subject(opts: GenerateOptions, s: int) -> SubjectState:
     from rh_dataset.characters import build_character, body_bounds, pose_character, sample_recipe
 
+    if opts.spec.character is not None:
+        return _build_imported_subject(opts, s)
     recipe = sample_recipe(rng_for(opts.seed, "character", s), pool=opts.spec.character_pool, index=s)
     character = build_character(recipe)
     lo, hi = body_bounds(pose_character(character, None, None))
@@ -190,10 +244,15 @@ def _motion_frame(motion_spec, i: int) -> int:
     return motion_spec.start + i * motion_spec.stride
 
 
-def _pose_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int, phenotype=None):
+def _pose_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int, character=None):
     from rh_dataset.characters.body import load_anny
     from rh_dataset.poses import sample_pose, turntable
 
+    if opts.spec.character is not None:  # an imported character: its rest-pose turntable, or its own motion
+        from rh_dataset.characters.imported import motion_frames, split_pose
+
+        n = opts.spec.split("train").frames if split.poses == "train" else split.frames
+        return split_pose(split.poses, n, i, motion_frames(character))
     if split.poses == "turntable":
         return turntable(split.frames)[i]
     source = _pose_source(opts, split)
@@ -204,7 +263,7 @@ def _pose_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int, phenotype
         ms = source.motion
         motion = read_motion_cached(ms.file, ms.sha256)
         # Retargeted onto this subject's own body, so the leg-length scaling of the root fits it.
-        return motion_to_anny(motion, phenotype, frames=[_motion_frame(ms, i)], in_place=ms.in_place,
+        return motion_to_anny(motion, character.phenotype, frames=[_motion_frame(ms, i)], in_place=ms.in_place,
                               heading=ms.heading, model=load_anny())[0]
     key = "train" if split.poses == "train" else split.name
     return sample_pose(rng_for(opts.seed, "pose", s, key, i), load_anny())
@@ -281,6 +340,12 @@ def frame_meta(opts: GenerateOptions, subj: SubjectState, split: SplitSpec, i: i
     cam = subj.camera
     R = cam.world_to_opengl_rotation()
     sh_world = np.asarray(light.sh_world, dtype=np.float64)
+    if opts.spec.character is not None:
+        body = {"model": "imported", "character": dataclasses.asdict(opts.spec.character),
+                "pose": pose.to_json(subj.character.skeleton), "turntable_deg": float(pose.turntable_deg)}
+    else:
+        body = {"model": "anny", "phenotype": subj.character.phenotype, "pose": pose.to_json(),
+                "turntable_deg": float(getattr(pose, "turntable_deg", 0.0))}
     return {
         "subject": subject_name(subj.index),
         "protocol": opts.spec.protocol,
@@ -288,8 +353,7 @@ def frame_meta(opts: GenerateOptions, subj: SubjectState, split: SplitSpec, i: i
         "width": cam.width,
         "height": cam.height,
         "camera": cam.to_json(),
-        "body": {"model": "anny", "phenotype": subj.character.phenotype, "pose": pose.to_json(),
-                 "turntable_deg": float(getattr(pose, "turntable_deg", 0.0))},
+        "body": body,
         "light": {**light_spec_json(light.spec), "sh_world": sh_world, "sh_camera": sh.rotate(sh_world, R),
                   "negative_pixels_clamped": int(light.negative_pixels_clamped)},
         "exposure": exposure,
@@ -340,21 +404,27 @@ def run_subject(opts: GenerateOptions, s: int, on_frame: Callable[[FrameTask, bo
                 continue
             if subj is None:
                 subj = build_subject(opts, s)
-            pose = _pose_for(opts, split, s, i, subj.character.phenotype)
+            pose = _pose_for(opts, split, s, i, subj.character)
             light = _light_for(opts, split, s, i, library)
-            meshes = pose_character(subj.character, dict(pose.bones), pose.root_transform)
+            if opts.spec.character is not None:
+                from rh_dataset.characters.imported import pose_imported
+
+                meshes = pose_imported(subj.character, pose.pose, pose.root_transform)
+            else:
+                meshes = pose_character(subj.character, dict(pose.bones), pose.root_transform)
             render_seed = int(rng_for(opts.seed, "render", s, key, split.name, i).integers(0, 2**31 - 2))
             # Only what the split needs: its scene class's path depth, no emitter without path tracing, no skin
             # the clothes hide (rh_dataset.render.cull); the frame JSON records it under render.scene_model.
             settings = opts.settings.for_split(split)
             result = render_frame(meshes, mitsuba_emitter_dict(light) if split.path_traced else None, subj.camera,
                                   settings, split.layers, render_seed,
-                                  hidden=hidden_faces(subj.character) if settings.cull else None)
+                                  hidden=hidden_faces(subj.character)
+                                  if settings.cull and opts.spec.character is None else None)
             exposure = exposure_for(light)
             meta = frame_meta(dataclasses.replace(opts, settings=settings), subj, split, i, pose, light, render_seed,
                               exposure)
             meta["render"]["scene_model"] = result.info
-            if (motion := _motion_record(opts, split, i, pose, subj.character.phenotype)) is not None:
+            if (motion := _motion_record(opts, split, i, pose, getattr(subj.character, "phenotype", None))) is not None:
                 meta["body"]["motion"] = motion
             write_frame(split_dir, i, result.layers, meta)
             on_frame(task, False)
@@ -383,6 +453,8 @@ def generate(opts: GenerateOptions, *, progress: bool = True) -> dict:
         load_hdri(path)
     # A motion file is read (through Blender) and checked before anything is written, like the lights.
     opts = dataclasses.replace(opts, spec=resolve_motion(opts.spec))
+    if opts.spec.character is not None:
+        _check_imported(opts)
     select_variant(opts.variant)
     prepare_out(opts)
     tasks = plan(opts.spec)
@@ -411,6 +483,19 @@ def generate(opts: GenerateOptions, *, progress: bool = True) -> dict:
     write_manifest(opts.out)
     counts["seconds"] = time.perf_counter() - t0
     return counts
+
+
+def _check_imported(opts: GenerateOptions) -> None:
+    """Read the imported character before any file is written (a bad file fails here, not in a worker; the reading
+    is cached on disk for the workers), and say once if its test poses fall back to the rest pose."""
+    import sys
+
+    character = _imported_character(opts)
+    motion_splits = [s.name for s in opts.spec.splits if s.poses != "turntable"]
+    if motion_splits and not character.clips:
+        print(f"rh-generate: {opts.spec.character.file} has no animation and no motion was given: the "
+              f"{', '.join(motion_splits)} split(s) render its rest pose (frame JSON pose label "
+              f"'rest (no motion source)'); use a file with an animation clip for novel poses", file=sys.stderr)
 
 
 def _worker(opts: GenerateOptions, s: int, queue) -> None:

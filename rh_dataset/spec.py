@@ -19,6 +19,7 @@ __all__ = [
     "SpecError",
     "SplitSpec",
     "MotionSpec",
+    "CharacterSource",
     "ProtocolSpec",
     "Preset",
     "load_protocol",
@@ -138,6 +139,29 @@ class SplitSpec:
 
 
 @dataclass(frozen=True)
+class CharacterSource:
+    """An imported rigged character (`rh-generate --character FILE`) rendered for every subject instead of anny
+    characters. Only the file's name and content hash enter the description, and so its digest: a dataset holds no
+    machine paths, and another file (or the same name with other content) is another dataset, never resumed into."""
+
+    file: str
+    """The file's name (.glb, .gltf or .fbx), without its folder."""
+    sha256: str
+    """`rh_dataset.characters.imported.character_digest` of the file (a .gltf's external buffers and images too)."""
+    scale: float | None = None
+    """Multiplier on the imported metres; None = detect metres or centimetres from the character's height."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.file, str) or not self.file or "/" in self.file or "\\" in self.file:
+            raise SpecError(f"character file must be a bare file name, got {self.file!r}")
+        if not (isinstance(self.sha256, str) and len(self.sha256) == 64
+                and all(c in "0123456789abcdef" for c in self.sha256)):
+            raise SpecError(f"character sha256 must be 64 lower-case hex digits, got {self.sha256!r}")
+        if self.scale is not None and not (isinstance(self.scale, (int, float)) and 0 < self.scale < 1e6):
+            raise SpecError(f"character scale must be a positive number, got {self.scale!r}")
+
+
+@dataclass(frozen=True)
 class ProtocolSpec:
     name: str
     protocol: str
@@ -153,6 +177,8 @@ class ProtocolSpec:
     exposure_ev_range: tuple[float, float] = (-0.5, 0.5)
     hdri_folder: str | None = None
     """A folder of .exr/.hdr maps to draw lights from instead of the bundled Poly Haven set."""
+    character: CharacterSource | None = None
+    """An imported character for every subject instead of anny characters; None = anny (the default)."""
     source: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
@@ -190,7 +216,8 @@ class ProtocolSpec:
 
     def with_overrides(self, *, subjects: int | None = None, frames: int | None = None,
                        resolution: tuple[int, int] | None = None, hdri_folder: str | None = None,
-                       motion: MotionSpec | None = None) -> "ProtocolSpec":
+                       motion: MotionSpec | None = None,
+                       character: CharacterSource | None = None) -> "ProtocolSpec":
         """A copy with command-line overrides applied; `frames` caps every split (for small runs); `motion`
         replaces the pose prior: every split drawing random poses takes the motion's (protocol a: test; protocol
         b: train, whose poses its test split reuses)."""
@@ -202,6 +229,8 @@ class ProtocolSpec:
             spec = dataclasses.replace(spec, splits=tuple(
                 dataclasses.replace(s, poses="motion", motion=motion) if s.poses == "random" else s
                 for s in spec.splits))
+        if character is not None:
+            spec = dataclasses.replace(spec, character=character)
         if subjects is not None:
             spec = dataclasses.replace(spec, subjects=subjects)
         if frames is not None:
@@ -218,6 +247,8 @@ class ProtocolSpec:
     def to_json(self) -> dict:
         d = dataclasses.asdict(self)
         d.pop("source")
+        if d["character"] is None:  # anny datasets keep the description (and digest) they had before imports
+            d.pop("character")
         d["splits"] = [dataclasses.asdict(s) for s in self.splits]
         for split, out in zip(self.splits, d["splits"]):
             if split.motion is None:
