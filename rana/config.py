@@ -314,6 +314,9 @@ def config_from_json(d: dict) -> RanaConfig:
             bad = set(v) - names
             if bad:
                 raise ValueError(f"config.{k}: unknown key(s) {sorted(bad)}")
+            if cls is ModelConfig and "residual_coarse" not in v:
+                # Written before the residual heads existed: its weights are direct outputs.
+                v = {**v, "residual_coarse": False}
             kw[k] = cls(**v)
         else:
             kw[k] = v

@@ -105,6 +105,15 @@ def test_untrained_avatar_renders_the_coarse_stage():
     assert out["mask"].masked_select(m).min() > 0.95 and out["mask"].masked_select(~m).max() < 0.05
 
 
+def test_configs_written_before_residual_heads_read_as_direct_outputs():
+    from rana.config import config_from_json, config_to_json
+
+    d = config_to_json(get_preset("tiny"))
+    assert config_from_json(d).model.residual_coarse is True
+    del d["model"]["residual_coarse"]
+    assert config_from_json(d).model.residual_coarse is False
+
+
 def test_light_init_sets_e():
     cfg = _tiny_cfg()
     light = torch.randn(9, 3)
