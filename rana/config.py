@@ -118,6 +118,10 @@ class ModelConfig:
     """G_A and G_N U-Nets: channels of the first level (doubled per level, capped at 8x)."""
     unet_depth: int = 4
     """G_A and G_N U-Nets: number of down-sampling levels."""
+    residual_coarse: bool = True
+    """G_N, G_A output corrections of the coarse (SMPL+D) normal, albedo and mask, their last layers zero-initialised,
+    so an untrained avatar renders exactly SMPL+D (ours; False = the paper's direct outputs, which from scratch start
+    at albedo 0.5, random normals and a random mask)."""
     disc_base: int = 32
     """PatchGAN discriminator: channels of the first layer."""
     disc_layers: int = 3
@@ -310,6 +314,9 @@ def config_from_json(d: dict) -> RanaConfig:
             bad = set(v) - names
             if bad:
                 raise ValueError(f"config.{k}: unknown key(s) {sorted(bad)}")
+            if cls is ModelConfig and "residual_coarse" not in v:
+                # Written before the residual heads existed: its weights are direct outputs.
+                v = {**v, "residual_coarse": False}
             kw[k] = cls(**v)
         else:
             kw[k] = v

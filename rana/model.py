@@ -31,6 +31,17 @@ __all__ = ["RanaModel", "coarse_buffers", "stack_batch", "shade", "AMBIENT_L0"]
 
 # Radiance coefficient L_0 of a uniform white environment whose shading is exactly 1: S = L_0 Y_0 = 1.
 AMBIENT_L0 = 2.0 * math.sqrt(math.pi)
+# Mask logit of the SMPL+D coverage in the residual parameterisation: sigmoid(+-4) = 0.982 / 0.018.
+MASK_LOGIT = 4.0
+# Scale of the default initialisation of the U-Nets' last (1x1) layers when they output corrections.
+HEAD_INIT_SCALE = 1e-2
+# Albedo range kept away from 0 and 1 before the logit (a coarse albedo of exactly 0 or 1 would be unreachable).
+_ALBEDO_EPS = 1e-3
+
+
+def _logit(x: torch.Tensor) -> torch.Tensor:
+    x = x.clamp(_ALBEDO_EPS, 1 - _ALBEDO_EPS)
+    return torch.log(x) - torch.log1p(-x)
 
 
 @torch.no_grad()
@@ -100,6 +111,14 @@ class RanaModel(nn.Module):
         c_in = cfg.latent_channels + 3 + pe_channels(cfg.pe_frequencies)
         self.G_N = UNet(c_in, 3, cfg.unet_base, cfg.unet_depth)
         self.G_A = UNet(c_in, 4, cfg.unet_base, cfg.unet_depth)
+        if cfg.residual_coarse:
+            # Near-zero heads: at initialisation the outputs are the coarse normal, albedo and mask (SMPL+D) up to
+            # ~1e-2 in logit / normal units. Not exactly zero: a zero head would stop every gradient to Z while
+            # G_A is frozen (the first `freeze_albedo_steps`).
+            with torch.no_grad():
+                for net in (self.G_N, self.G_A):
+                    net.head.weight.mul_(HEAD_INIT_SCALE)
+                    net.head.bias.zero_()
 
     # ------------------------------------------------------------------------------------------ forward
     def network_inputs(self, batch: dict) -> tuple[torch.Tensor, torch.Tensor]:
@@ -116,10 +135,17 @@ class RanaModel(nn.Module):
     def get_outputs(self, batch: dict, light: torch.Tensor | None = None) -> dict:
         """`light` (B, 9, 3) radiance SH in OpenGL camera axes; default = the learned E of `batch['light']`."""
         x_n, x_a = self.network_inputs(batch)
-        normal = F.normalize(self.G_N(x_n), dim=1, eps=1e-6)
+        dn = self.G_N(x_n)
         a = self.G_A(x_a)
-        albedo = torch.sigmoid(a[:, :3])
-        mask_logit = a[:, 3:4]
+        if self.cfg.residual_coarse:
+            # Corrections of the coarse stage: the normal is offset, the albedo and mask shifted in logit space.
+            normal = F.normalize(batch["coarse_normal"] + dn, dim=1, eps=1e-6)
+            albedo = torch.sigmoid(_logit(batch["coarse_albedo"]) + a[:, :3])
+            mask_logit = MASK_LOGIT * (2 * batch["smpl_mask"] - 1) + a[:, 3:4]
+        else:
+            normal = F.normalize(dn, dim=1, eps=1e-6)
+            albedo = torch.sigmoid(a[:, :3])
+            mask_logit = a[:, 3:4]
         if light is None:
             idx = batch.get("light")
             light = self.E[idx] if idx is not None else self.E[:1].expand(normal.shape[0], -1, -1)

@@ -106,10 +106,20 @@ class TrainingState:
             self.opt_disc.load_state_dict(d["opt_disc"])
 
 
-def build_training_state(cfg: RanaConfig, pretrained: dict | None = None, use_vgg: bool = True) -> TrainingState:
+def build_training_state(cfg: RanaConfig, pretrained: dict | None = None, use_vgg: bool = True,
+                         light_init: torch.Tensor | None = None) -> TrainingState:
+    """`light_init` (9, 3): E's starting value in OpenGL camera axes (default: uniform white, shading 1)."""
     torch.manual_seed(cfg.seed)
     model = RanaModel(cfg.model, n_subjects=1, n_lights=1, seed=cfg.seed)
+    if light_init is not None:
+        with torch.no_grad():
+            model.E.copy_(light_init.to(model.E.dtype).expand_as(model.E))
     if pretrained is not None:
+        pre_residual = "residual_coarse=True" in str(pretrained.get("config", ""))
+        if pre_residual != cfg.model.residual_coarse:
+            raise ValueError(f"pretrained G_N/G_A were trained with model.residual_coarse={pre_residual} but this run "
+                             f"uses {cfg.model.residual_coarse}: pretrain again, or pass --model.residual_coarse "
+                             f"{str(pre_residual).lower()}")
         # Only the networks transfer; Z and E of a new subject start from scratch.
         model.G_N.load_state_dict(pretrained["G_N"])
         model.G_A.load_state_dict(pretrained["G_A"])
@@ -158,6 +168,17 @@ def training_step(st: TrainingState, batch: dict, cfg: RanaConfig, step: int) ->
     rec["lr_net"] = lr
     rec["phase"] = 1 if frozen_a else 2
     return rec
+
+
+def initial_light(coarse: Coarse, frames: list[FrameData]) -> torch.Tensor | None:
+    """E's start: the coarse stage's estimated training light (world axes, exposure units) in the first training
+    frame's OpenGL camera axes, so that at step 0 the avatar reproduces the coarse albedo x shading the coarse
+    albedo was de-lit with. None when the coarse stage estimated no light (TextureNet, grey-world)."""
+    if coarse.light_world is None or not frames:
+        return None
+    from rh_common import sh
+
+    return sh.rotate(coarse.light_world.float(), frames[0].world_to_opengl).float()
 
 
 def _frame_buffers(frames: list[FrameData], coarse: Coarse) -> list[dict]:
@@ -210,7 +231,7 @@ def personalize(dataset: str | Path, subject: str, protocol: str, run_dir: str |
     run, coarse, frames, pre = ensure_coarse(dataset, subject, protocol, run_dir, cfg, pretrained=pretrained,
                                              progress=progress, force=force)
     bufs = _frame_buffers(frames, coarse)
-    st = build_training_state(cfg, pre)
+    st = build_training_state(cfg, pre, light_init=initial_light(coarse, frames))
     start = 0
     latest = run.latest()
     if latest is not None and not force:
