@@ -76,10 +76,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hdri-folder", default=None,
                    help="folder of .exr/.hdr environment maps to light with instead of the bundled Poly Haven set")
     p.add_argument("--motion", type=Path, default=None,
-                   help="a .bvh (or .fbx/.glb/.gltf) motion file whose frames, retargeted onto each subject's anny "
-                        "body, replace the pose prior: protocol a's test poses, protocol b's train poses (which its "
-                        "test split reuses). Read through Blender (bash setup.sh installs it); the frame JSON "
-                        "records the file's name, sha256 and frame (docs/INTEROP.md)")
+                   help="a .bvh (or .fbx/.glb/.gltf) motion file whose frames, retargeted onto each subject's body "
+                        "(anny's, or the --character rig), replace the pose prior: protocol a's test poses, "
+                        "protocol b's train poses (which its test split reuses). Read through Blender (bash "
+                        "setup.sh installs it); the frame JSON records the file's name, sha256 and frame "
+                        "(docs/INTEROP.md)")
     p.add_argument("--motion-start", type=int, default=0, help="first motion frame used (0-based)")
     p.add_argument("--motion-stride", type=int, default=None,
                    help="motion frames between consecutive dataset frames (default: spread the split over the clip)")
@@ -106,10 +107,6 @@ def options_from_args(args: argparse.Namespace):
 
     motion = None
     if args.motion is not None:
-        if args.character is not None:
-            # Retargeting onto an imported rig exists (rh_dataset.poses.retarget) but is not wired into generation.
-            raise SpecError("--motion with --character is not supported yet: an imported character's test poses "
-                            "come from its own animation clip")
         motion = MotionSpec.from_file(args.motion, start=args.motion_start, stride=args.motion_stride,
                                       heading=args.motion_heading)
     elif args.motion_stride is not None or args.motion_start != 0 or args.motion_heading != "file":

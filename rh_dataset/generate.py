@@ -168,17 +168,13 @@ def _imported_character(opts: GenerateOptions):
     return load_character_file(path, scale=src.scale)
 
 
-def _motion_poses_used(opts: GenerateOptions, character) -> list:
-    """Every pose the motion splits of this run will take (for framing the camera around all of them)."""
-    from rh_dataset.characters.imported import motion_frames, split_pose
-
-    motion = motion_frames(character)
+def _motion_poses_used(opts: GenerateOptions, s: int, character) -> list:
+    """Every pose the non-turntable splits of this run will take (for framing the camera around all of them)."""
     used = {}
     for split in opts.spec.splits:
         if split.poses != "turntable":
-            n = opts.spec.split("train").frames if split.poses == "train" else split.frames
             for i in range(split.frames):
-                p = split_pose(split.poses, n, i, motion)
+                p = _pose_for(opts, split, s, i, character)
                 used[p.label] = p.pose
     return list(used.values())
 
@@ -188,7 +184,7 @@ def _build_imported_subject(opts: GenerateOptions, s: int) -> SubjectState:
 
     character = _imported_character(opts)
     # Exact framing: the box every used pose fills at every turntable angle (imported_bounds), plus 3%.
-    lo, hi = imported_bounds(character, [None, *_motion_poses_used(opts, character)])
+    lo, hi = imported_bounds(character, [None, *_motion_poses_used(opts, s, character)])
     pad = 0.03 * (hi[2] - lo[2])
     cam = frame_body(lo - pad, hi + pad, opts.spec.width, opts.spec.height, opts.spec.fov_y_deg, fill=0.96)
     record = character.to_json()
@@ -249,8 +245,20 @@ def _pose_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int, character
     from rh_dataset.poses import sample_pose, turntable
 
     if opts.spec.character is not None:  # an imported character: its rest-pose turntable, or its own motion
-        from rh_dataset.characters.imported import motion_frames, split_pose
+        from rh_dataset.characters.imported import ImportedPose, motion_frames, split_pose
 
+        source = _pose_source(opts, split)
+        if split.poses != "turntable" and source.poses == "motion":  # --motion, retargeted onto its own rig
+            from rh_dataset.poses.motion import read_motion_cached
+            from rh_dataset.poses.retarget import retarget
+
+            ms = source.motion
+            motion = read_motion_cached(ms.file, ms.sha256)
+            frame = _motion_frame(ms, i)
+            pose = retarget(motion, character.skeleton, imported_bone_map(motion.skeleton, character.skeleton,
+                                                                          ms.file),
+                            frames=[frame], in_place=ms.in_place, heading=ms.heading)[0]
+            return ImportedPose(pose, label=f"motion:{Path(ms.file).name}#{frame}")
         n = opts.spec.split("train").frames if split.poses == "train" else split.frames
         return split_pose(split.poses, n, i, motion_frames(character))
     if split.poses == "turntable":
@@ -269,6 +277,21 @@ def _pose_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int, character
     return sample_pose(rng_for(opts.seed, "pose", s, key, i), load_anny())
 
 
+def imported_bone_map(source, target, motion_file) -> dict[str, str]:
+    """Motion bones onto an imported rig: `guess_bone_map` (anny, CMU, Mixamo tables, keywords), else the bones the
+    two rigs share by name (a clip exported from the character's own rig). Refuses a map that matches nothing."""
+    from rh_dataset.poses.retarget import guess_bone_map
+
+    bone_map = guess_bone_map(source, target)
+    if not bone_map:
+        bone_map = {n: n for n in source.names if n in target.index}
+    if not bone_map:
+        raise GenerateError(f"motion {motion_file}: none of its bones ({', '.join(source.names[:6])}, ...) match the "
+                            f"imported character's ({', '.join(target.names[:6])}, ...); rename the bones or "
+                            f"retarget with rh_dataset.poses.retarget.retarget and an explicit bone_map")
+    return bone_map
+
+
 def _motion_record(opts: GenerateOptions, split: SplitSpec, i: int, pose, phenotype) -> dict | None:
     """For a pose from captured motion: the file (name, sha256), its frame, and the self-intersections the prior's
     check finds (reported, not rejected: the frame shows what the capture did, retargeted)."""
@@ -281,8 +304,9 @@ def _motion_record(opts: GenerateOptions, split: SplitSpec, i: int, pose, phenot
     ms = _pose_source(opts, split).motion
     record = read_motion_cached(ms.file, ms.sha256).record(_motion_frame(ms, i))
     record.update(start=ms.start, stride=ms.stride, heading=ms.heading, in_place=ms.in_place)
-    record["intersections"] = [dataclasses.asdict(x) for x in find_intersections(pose, load_anny(),
-                                                                                  phenotype=phenotype)]
+    if phenotype is not None:  # anny's self-intersection check; an imported rig has no such model
+        record["intersections"] = [dataclasses.asdict(x) for x in find_intersections(pose, load_anny(),
+                                                                                      phenotype=phenotype)]
     return record
 
 
