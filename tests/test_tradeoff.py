@@ -84,7 +84,8 @@ def test_frame_metadata_records_denoised(tmp_path):
     light = build_light(LightSpec("envmap", "c", str(tmp_path / "c.exr"), 0.0, 1.0))
     subj = types.SimpleNamespace(index=0, camera=CAM, character=types.SimpleNamespace(phenotype={}))
     for flag in (False, True):
-        opts = types.SimpleNamespace(spec=types.SimpleNamespace(protocol="a"), settings=RenderSettings(denoise=flag))
+        opts = types.SimpleNamespace(spec=types.SimpleNamespace(protocol="a", character=None),
+                                     settings=RenderSettings(denoise=flag))
         meta = frame_meta(opts, subj, types.SimpleNamespace(name="test"), 0, BodyPose(bones={}, label="a"), light, 1, 1.0)
         assert meta["render"]["denoised"] is flag and meta["render"]["denoise"] is flag
 
