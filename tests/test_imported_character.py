@@ -185,3 +185,20 @@ def test_motion_retargets_onto_an_imported_rig(limb_files, tmp_path):
         rec = meta["body"]["motion"]
         assert rec["file"] == "limb.glb" and rec["frame"] == i and "intersections" not in rec
         assert meta["body"]["pose"]["label"] == f"motion:limb.glb#{i}"
+
+
+def test_export_refuses_an_imported_character_dataset(tmp_path, capsys):
+    """The export formats carry anny's body parameters; a dataset of an imported rig is refused by name, not
+    crashed on half-way (and nothing is written)."""
+    from rh_dataset.export.cli import main as export_main
+    from rh_common.imageio import write_json
+
+    root = tmp_path / "ds"
+    root.mkdir()
+    write_json(root / "dataset.json", {"format": "rh-dataset/1", "protocols": {"protocol_a": {
+        "spec": {"character": {"file": "scan.glb", "sha256": "0" * 64, "scale": None}}}}})
+    write_json(root / "manifest.json", {})
+    out = tmp_path / "exported"
+    assert export_main(["--dataset", str(root), "--protocol", "a", "--format", "usd", "--out", str(out)]) == 2
+    assert "imported character (scan.glb" in capsys.readouterr().err
+    assert not out.exists() or not any(out.iterdir())

@@ -48,6 +48,13 @@ def check_dataset(root: Path, protocol: str) -> dict:
     ds = read_json(ds_path)
     if f"protocol_{protocol}" not in ds.get("protocols", {}):
         raise ExportError(f"{root} holds no protocol {protocol!r} (it holds {sorted(ds.get('protocols', {}))})")
+    imported = ds["protocols"][f"protocol_{protocol}"].get("spec", {}).get("character")
+    if imported:
+        # Every export format carries the body model's parameters (anny's phenotype and pose); an imported rig has
+        # its own skeleton, which none of these layouts can describe.
+        raise ExportError(f"{root} protocol {protocol} renders an imported character ({imported.get('file')}, "
+                          f"rh-generate --character): rh-export needs anny body parameters, which it does not have; "
+                          f"export a dataset of anny characters, or read the frames directly (docs/ARCHITECTURE.md)")
     return ds
 
 
