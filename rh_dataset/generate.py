@@ -188,6 +188,13 @@ def _build_imported_subject(opts: GenerateOptions, s: int) -> SubjectState:
     pad = 0.03 * (hi[2] - lo[2])
     cam = frame_body(lo - pad, hi + pad, opts.spec.width, opts.spec.height, opts.spec.fov_y_deg, fill=0.96)
     record = character.to_json()
+    _keep_character_record(opts, s, record)
+    return SubjectState(s, character, record, cam)
+
+
+def _keep_character_record(opts: GenerateOptions, s: int, record: dict) -> None:
+    """Write the subject's character.json, or check that the one already there describes this character (a resumed
+    run must not mix characters)."""
     path = opts.out / subject_name(s) / "character.json"
     if path.is_file() and not opts.overwrite:
         if read_json(path) != read_json_roundtrip(record):
@@ -195,7 +202,6 @@ def _build_imported_subject(opts: GenerateOptions, s: int) -> SubjectState:
                                 "use another --out or --overwrite")
     else:
         write_json(path, record)
-    return SubjectState(s, character, record, cam)
 
 
 def build_subject(opts: GenerateOptions, s: int) -> SubjectState:
@@ -213,13 +219,7 @@ def build_subject(opts: GenerateOptions, s: int) -> SubjectState:
     hi = np.array([hi[0] + 0.05 * h, hi[1], hi[2] + 0.18 * h])
     cam = frame_body(lo, hi, opts.spec.width, opts.spec.height, opts.spec.fov_y_deg, fill=0.96)
     recipe_json = recipe.to_json()
-    path = opts.out / subject_name(s) / "character.json"
-    if path.is_file() and not opts.overwrite:
-        if read_json(path) != read_json_roundtrip(recipe_json):
-            raise GenerateError(f"{path} describes another character than this run would make; "
-                                "use another --out or --overwrite")
-    else:
-        write_json(path, recipe_json)
+    _keep_character_record(opts, s, recipe_json)
     return SubjectState(s, character, recipe_json, cam)
 
 
