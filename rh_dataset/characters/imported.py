@@ -296,18 +296,24 @@ def character_digest(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def read_character_file(path: str | os.PathLike, out_dir: str | os.PathLike, *, deformed: bool = False,
-                        timeout: float = 1800.0) -> Path:
-    """Run the Blender-side reader on `path`, writing into `out_dir` (created). Returns `out_dir`. Errors become
-    CharacterImportError with the reader's own message (no armature, no skinned mesh, texture missing...)."""
-    from rh_common.blender import BlenderError, BlenderUnavailable, run_blender_script
-
+def _character_path(path: str | os.PathLike) -> Path:
+    """`path` as a Path, if it names an existing file of a type the reader takes; CharacterImportError otherwise."""
     path = Path(path)
     if not path.is_file():
         raise CharacterImportError(f"{path}: no such character file")
     if path.suffix.lower() not in CHARACTER_SUFFIXES:
         raise CharacterImportError(f"{path}: unsupported character file type {path.suffix!r}; expected one of "
                                    f"{', '.join(CHARACTER_SUFFIXES)}")
+    return path
+
+
+def read_character_file(path: str | os.PathLike, out_dir: str | os.PathLike, *, deformed: bool = False,
+                        timeout: float = 1800.0) -> Path:
+    """Run the Blender-side reader on `path`, writing into `out_dir` (created). Returns `out_dir`. Errors become
+    CharacterImportError with the reader's own message (no armature, no skinned mesh, texture missing...)."""
+    from rh_common.blender import BlenderError, BlenderUnavailable, run_blender_script
+
+    path = _character_path(path)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     args = [str(path.resolve()), str(out_dir)] + (["--deformed"] if deformed else [])
@@ -465,12 +471,7 @@ def load_character_file(path: str | os.PathLike, *, scale: float | None = None) 
     """Read a rigged .glb/.gltf/.fbx character (Blender runs once per file content; the reading is cached on disk
     under $RH_CHARACTER_CACHE or ~/.cache/relighting-humans/characters, keyed by sha256) and build it. `scale`:
     None detects metres vs centimetres from the height, a number multiplies the imported metres."""
-    path = Path(path)
-    if not path.is_file():
-        raise CharacterImportError(f"{path}: no such character file")
-    if path.suffix.lower() not in CHARACTER_SUFFIXES:
-        raise CharacterImportError(f"{path}: unsupported character file type {path.suffix!r}; expected one of "
-                                   f"{', '.join(CHARACTER_SUFFIXES)}")
+    path = _character_path(path)
     digest = character_digest(path)
     return _load_cached(str(path.resolve()), digest, None if scale is None else float(scale))
 
