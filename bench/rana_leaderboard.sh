@@ -2,17 +2,22 @@
 # The small RANA leaderboard (leaderboards/small/), from scratch: data, pretraining, personalization, predictions,
 # rh-eval, rh-leaderboard. Every step resumes when rerun with the same settings.
 #
-#   bash bench/rana_leaderboard.sh                      # WORK=/tmp/rana_lb, OUT=leaderboards/small
+#   bash bench/rana_leaderboard.sh                          # WORK=/tmp/rana_lb, OUT=leaderboards/small, a quick run
 #   WORK=/data/lb STEPS=2000 FREEZE=200 bash bench/rana_leaderboard.sh   # the full cpu-preset schedule
 #
 # The repository keeps only leaderboard.md and screenshot.png per protocol; index.html stays in $WORK/board_<p>.
 # SKIP_DATA=1 reuses existing datasets as they are (rh-generate refuses to resume a folder made by another version
 # of the generator). Benchmark: 2 subjects x protocols a and b, 20 train + 20 test frames at 128 px, draft render preset.
-# Methods (rows): RANA (cpu preset, STEPS personalization steps, no pretraining), RANA without the albedo
-# regulariser (Table 1 ablation), RANA with pretraining (PRE_SUBJECTS pretraining characters x PRE_FRAMES AOV-only
-# frames; TextureNet TEX_STEPS and G_N/G_A PRE_STEPS steps), SMPL+D (coarse stage of the RANA runs), and the Lambertian-SH
-# oracle bound (listed apart, never ranked). Pretraining and the two protocols run in parallel, one torch
-# thread each.
+# Rows, as in the paper's Table 1 (the full method and its ablations, same schedule):
+#   RANA                         cpu preset, STEPS personalization steps, pretrained (PRE_SUBJECTS characters x
+#                                PRE_FRAMES AOV-only frames; TextureNet TEX_STEPS and G_N/G_A PRE_STEPS steps)
+#   RANA w/o pretraining         the same from scratch (residual heads on the exposure-SH coarse albedo)
+#   RANA w/o albedo regulariser  pretrained, lambda_albedo_reg = 0
+#   SMPL+D                       the coarse stage, once with TextureNet's albedo (the paper's) and once with the
+#                                exposure-SH albedo of the runs without pretraining
+#   oracle bound                 listed apart, never ranked
+# PRETRAIN=0 leaves out pretraining and every row that needs it. The no-pretraining runs go beside the pretraining
+# (one torch thread each); the pretrained runs of both protocols follow it in parallel.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -44,75 +49,83 @@ else
     --preset draft --no-progress
 fi
 
-# Pretraining runs beside the protocols' first two variants; the pretrained variant waits for it.
 pretraining() {
   stamp "pretraining"
   if rana-pretrain --dataset "$PRE_DATA" --out "$PRE" --preset cpu --threads "$THREADS" --geometry.steps 60 \
-      --texture.steps "$TEX_STEPS" --pretrain.steps "$PRE_STEPS" --pretrain.checkpoint_every 100 --no-progress; then
+      --texture.steps "$TEX_STEPS" --pretrain.steps "$PRE_STEPS" --pretrain.max_subjects "$PRE_SUBJECTS" \
+      --pretrain.checkpoint_every 100 --no-progress; then
     touch "$WORK/pretraining.ok"
   else
     touch "$WORK/pretraining.failed"
   fi
   stamp "pretraining finished"
 }
-wait_pretraining() {
-  while [ ! -e "$WORK/pretraining.ok" ] && [ ! -e "$WORK/pretraining.failed" ]; do sleep 10; done
-  [ -e "$WORK/pretraining.ok" ]
-}
 rm -f "$WORK/pretraining.ok" "$WORK/pretraining.failed"
 
 COMMON=(--preset cpu --threads "$THREADS" --personalize.steps "$STEPS" --personalize.freeze_albedo_steps "$FREEZE"
         --personalize.checkpoint_every 50 --no-progress)
 
-protocol() {
-  local p=$1 R="$WORK/runs_$1" P="$WORK/preds_$1" E="$WORK/results_$1"
-  mkdir -p "$E"
-  stamp "protocol $p: personalization"
-  rana train --dataset "$DATA" --protocol $p --runs "$R/rana" "${COMMON[@]}"
-  # The ablation's coarse stage has the same settings as the full run's: share it instead of recomputing it.
-  for s in $(ls -d "$R/rana"/subject_* | xargs -n1 basename); do
-    mkdir -p "$R/no_albedo_reg/$s"
-    [ -e "$R/no_albedo_reg/$s/coarse.pt" ] || cp "$R/rana/$s/coarse.pt" "$R/no_albedo_reg/$s/coarse.pt"
+# Personalization of one variant on one protocol: runs in $WORK/runs_<p>/<variant>, predictions in $WORK/preds_<p>.
+variant() {
+  local p=$1 v=$2 name=$3; shift 3
+  stamp "protocol $p: $v"
+  rana train --dataset "$DATA" --protocol $p --runs "$WORK/runs_$p/$v" "${COMMON[@]}" "$@"
+  rana predict --dataset "$DATA" --protocol $p --runs "$WORK/runs_$p/$v" --out "$WORK/preds_$p/$v" --no-progress \
+    --name "$name"
+}
+# The ablation's coarse stage has the same settings as its source run's: share it instead of recomputing it.
+share_coarse() {
+  local from=$1 to=$2
+  for s in $(ls -d "$from"/subject_* | xargs -n1 basename); do
+    mkdir -p "$to/$s"
+    [ -e "$to/$s/coarse.pt" ] || cp "$from/$s/coarse.pt" "$to/$s/coarse.pt"
   done
-  rana train --dataset "$DATA" --protocol $p --runs "$R/no_albedo_reg" "${COMMON[@]}" --loss.lambda_albedo_reg 0
-  local methods="rana no_albedo_reg smpld oracle"
-  if [ "$PRETRAIN" = 1 ] && wait_pretraining; then
-    rana train --dataset "$DATA" --protocol $p --runs "$R/pretrained" "${COMMON[@]}" --pretrained "$PRE/pretrained.pt"
-    rana predict --dataset "$DATA" --protocol $p --runs "$R/pretrained" --out "$P/pretrained" --no-progress \
-      --name "RANA + pretraining ($PRE_SUBJECTS chars)"
-    methods="$methods pretrained"
-  fi
-  stamp "protocol $p: predictions"
-  rana predict --dataset "$DATA" --protocol $p --runs "$R/rana" --out "$P/rana" --no-progress \
-    --name "RANA (cpu, $STEPS steps, no pretraining)"
-  rana predict --dataset "$DATA" --protocol $p --runs "$R/no_albedo_reg" --out "$P/no_albedo_reg" --no-progress \
-    --name "RANA w/o albedo regulariser"
-  rana smpld --dataset "$DATA" --protocol $p --runs "$R/rana" --out "$P/smpld" --no-progress
-  rana-oracle --dataset "$DATA" --protocol $p --out "$P/oracle"
+}
+scratch() {  # everything that needs no pretraining, protocols one after the other
+  for p in a b; do
+    variant $p no_pretraining "RANA w/o pretraining (cpu, $STEPS steps)"
+    rana smpld --dataset "$DATA" --protocol $p --runs "$WORK/runs_$p/no_pretraining" --out "$WORK/preds_$p/smpld_exposure_sh" \
+      --no-progress --name "SMPL+D (exposure-SH albedo)"
+    rana-oracle --dataset "$DATA" --protocol $p --out "$WORK/preds_$p/oracle"
+  done
+}
+pretrained() {  # the full method and its albedo-regulariser ablation on one protocol
+  local p=$1
+  variant $p rana "RANA (cpu, $STEPS steps, $PRE_SUBJECTS pretraining chars)" --pretrained "$PRE/pretrained.pt"
+  share_coarse "$WORK/runs_$p/rana" "$WORK/runs_$p/no_albedo_reg"
+  variant $p no_albedo_reg "RANA w/o albedo regulariser" --pretrained "$PRE/pretrained.pt" --loss.lambda_albedo_reg 0
+  rana smpld --dataset "$DATA" --protocol $p --runs "$WORK/runs_$p/rana" --out "$WORK/preds_$p/smpld" --no-progress \
+    --name "SMPL+D (TextureNet albedo)"
+}
+board() {
+  local p=$1 E="$WORK/results_$p"
+  mkdir -p "$E" "$OUT/protocol_$p"
   stamp "protocol $p: evaluation"
-  for m in $methods; do
-    rh-eval "$P/$m" --dataset "$DATA" --protocol $p --out "$E/$m.json"
+  for m in $(ls "$WORK/preds_$p"); do
+    rh-eval "$WORK/preds_$p/$m" --dataset "$DATA" --protocol $p --out "$E/$m.json" --no-progress
   done
   rh-leaderboard "$E"/*.json --out "$WORK/board_$p"
-  mkdir -p "$OUT/protocol_$p"
   cp "$WORK/board_$p/leaderboard.md" "$OUT/protocol_$p/leaderboard.md"
-  stamp "protocol $p: done"
 }
 
-pp=
+rc=0
 if [ "$PRETRAIN" = 1 ]; then
   pretraining > "$WORK/pretraining.log" 2>&1 &
   pp=$!
+  scratch > "$WORK/scratch.log" 2>&1 || rc=1
+  wait $pp || rc=1
+  if [ -e "$WORK/pretraining.ok" ]; then
+    pretrained a > "$WORK/pretrained_a.log" 2>&1 &
+    pa=$!
+    pretrained b > "$WORK/pretrained_b.log" 2>&1 || rc=1
+    wait $pa || rc=1
+  else
+    echo "pretraining failed (see $WORK/pretraining.log): no pretrained rows"; rc=1
+  fi
+else
+  scratch > "$WORK/scratch.log" 2>&1 || rc=1
 fi
-protocol a > "$WORK/protocol_a.log" 2>&1 &
-pa=$!
-protocol b > "$WORK/protocol_b.log" 2>&1 &
-pb=$!
-rc=0
-[ -z "$pp" ] || wait $pp || rc=1
-wait $pa || rc=1
-wait $pb || rc=1
-tail -n 3 "$WORK/protocol_a.log" "$WORK/protocol_b.log"
+for p in a b; do board $p >> "$WORK/board.log" 2>&1 || rc=1; done
 # A screenshot of each board's index.html (when chromium is installed).
 if command -v chromium > /dev/null; then
   for p in a b; do

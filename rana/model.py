@@ -171,7 +171,7 @@ class RanaModel(nn.Module):
             L["face"] = _face_l1(pred, gt, batch["face_centre"], max(8, round(cfg.face_crop_px * res / 512)))
         L["mask"] = F.binary_cross_entropy_with_logits(outputs["mask_logit"], batch["mask"])
         if cfg.lambda_vgg > 0 and vgg is not None:
-            L["vgg"] = vgg(pred, gt)
+            L["vgg"] = vgg(pred, gt, VGGPerceptual.from_batch(batch))
         if cfg.lambda_gan > 0 and disc is not None:
             L["gan"] = hinge_g_loss(disc(pred))
         k = scaled_odd(cfg.blur_kernel, res)

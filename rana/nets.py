@@ -149,8 +149,21 @@ class VGGPerceptual(nn.Module):
                 out.append(h)
         return out
 
-    def forward(self, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    def forward(self, pred: torch.Tensor, target: torch.Tensor | None = None,
+                target_features: list[torch.Tensor] | None = None) -> torch.Tensor:
+        """`target_features`: the target's `features`, when computed once beforehand (fixed training frames)."""
         fp = self.features(pred)
-        with torch.no_grad():
-            ft = self.features(target)
-        return sum(F.l1_loss(a, b) for a, b in zip(fp, ft)) / len(fp)
+        if target_features is None:
+            with torch.no_grad():
+                target_features = self.features(target)
+        return sum(F.l1_loss(a, b) for a, b in zip(fp, target_features)) / len(fp)
+
+    @torch.no_grad()
+    def target_buffers(self, image01: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Features of one fixed (3, H, W) target as batch-buffer entries `vgg_target_<i>` (see `from_batch`)."""
+        return {f"vgg_target_{i}": f[0] for i, f in enumerate(self.features(image01[None]))}
+
+    @staticmethod
+    def from_batch(batch: dict) -> list[torch.Tensor] | None:
+        keys = [f"vgg_target_{i}" for i in range(len(VGGPerceptual.TAPS))]
+        return [batch[k] for k in keys] if all(k in batch for k in keys) else None

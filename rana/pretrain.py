@@ -9,7 +9,8 @@ character_pool "pretrain"). Stages, each cached in the output folder so an inter
    ``albedo x max(0, S(normal; random SH light))`` made from the AOVs (seeded by `pretrain.light_seed`), from which
    the shaded median texture is extracted exactly as for a real subject; the target albedo texture is the same
    extraction applied to the ground-truth albedo frames (so it lives in anny's UV layout and includes garments).
-2. TextureNet (`texturenet.pt`): L1 + VGG + PatchGAN with MixUp, coarse dropout, noise and brightness jitter.
+2. TextureNet (`texturenet.pt`; checkpoints and loss log in `texturenet/`, resumable): L1 + VGG + PatchGAN with
+   MixUp, coarse dropout, noise and brightness jitter.
 3. G_N, G_A with one latent Z per character (`checkpoints/step-%09d.pt`, resumable): L_normal + lambda_a L_albedo
    + lambda_m BCE, each of L1 + VGG + GAN, against the ground-truth normal, albedo and mask frames.
 
@@ -26,13 +27,14 @@ import numpy as np
 import torch
 
 from rh_common import sh
+from rh_common.colourspace import luminance
 from rh_common.imageio import atomic_path
 
 from .body import body_topology
 from .config import RanaConfig, add_config_flags, apply_config_flags, get_preset, PRESETS
 from .data import load_split, subjects_of
 from .geometry import fit_offsets
-from .model import RanaModel, coarse_buffers, stack_batch
+from .model import AMBIENT_L0, RanaModel, coarse_buffers, stack_batch
 from .nets import PatchDiscriminator, VGGPerceptual, hinge_d_loss
 from .runs import RunDir
 from .synthetic import random_sh
@@ -54,7 +56,10 @@ def prepare_character(dataset: Path, subject: str, protocol: str, cfg: RanaConfi
     topo = body_topology()
     D = fit_offsets(frames, topo, cfg.geometry, seed=cfg.seed, progress=progress)
     rng = np.random.default_rng([cfg.pretrain.light_seed, int(subject.split("_")[-1]) if subject[-1].isdigit() else 0])
-    light = torch.as_tensor(random_sh(rng), dtype=torch.float32)  # one light per 'video', as for a real subject
+    light = random_sh(rng)  # one light per 'video', as for a real subject
+    # Scaled to the dataset's exposure convention (docs/ARCHITECTURE.md, "Exposure"): the light's mean luminance
+    # over the sphere is 1, i.e. lum(L_0) = 2 sqrt(pi), so TextureNet learns the brightness real frames have.
+    light = torch.as_tensor(light * (AMBIENT_L0 / float(luminance(light[0]))), dtype=torch.float32)
     for fr in frames:
         # Lambertian, shadow-free frames from the AOVs: the shading TextureNet must learn to remove.
         shade = sh.shading(light, fr.normal).clamp_min(0)  # clamped: radiance is never negative
@@ -65,21 +70,39 @@ def prepare_character(dataset: Path, subject: str, protocol: str, cfg: RanaConfi
             "target_valid": target_valid}
 
 
-def train_texturenet(chars: list[dict], cfg: RanaConfig, progress: bool = True, log=None) -> TextureNet:
+def train_texturenet(chars: list[dict], cfg: RanaConfig, run: RunDir | None = None,
+                     progress: bool = True) -> TextureNet:
+    """TextureNet on (shaded texture, albedo texture) pairs. With a `run` folder: checkpoints every
+    `pretrain.checkpoint_every` steps, resume from the newest, losses in its `losses.jsonl`. Each step draws its
+    batch and augmentation from a generator seeded by (seed, step), so a resumed run equals an uninterrupted one."""
     from tqdm import tqdm
 
     tc = cfg.texture
     torch.manual_seed(cfg.seed)
-    rng = np.random.default_rng([cfg.seed, 7])
     net = TextureNet(tc)
     disc = PatchDiscriminator(3, cfg.model.disc_base, cfg.model.disc_layers) if tc.lambda_gan > 0 else None
     vgg = VGGPerceptual() if tc.lambda_vgg > 0 else None
     opt = torch.optim.Adam(net.parameters(), lr=tc.lr)
     opt_d = torch.optim.Adam(disc.parameters(), lr=tc.lr, betas=(0.5, 0.999)) if disc else None
+    start = 0
+    latest = run.latest() if run is not None else None
+    if latest is not None:
+        st = run.load(latest[1])
+        net.load_state_dict(st["net"])
+        opt.load_state_dict(st["opt"])
+        if disc is not None:
+            disc.load_state_dict(st["disc"])
+            opt_d.load_state_dict(st["opt_d"])
+        start = latest[0]
+        run.truncate_log(start)
     X = torch.stack([texturenet_input(c["shaded"], c["valid"]) for c in chars])
     Y = torch.stack([c["target"] for c in chars])
     M = torch.stack([c["target_valid"] for c in chars])
-    for step in tqdm(range(tc.steps), desc="TextureNet", unit="step", disable=not progress, dynamic_ncols=True):
+    t0 = time.perf_counter()
+    bar = tqdm(range(start, tc.steps), initial=start, total=tc.steps, desc="TextureNet", unit="step",
+               disable=not progress, dynamic_ncols=True)
+    for step in bar:
+        rng = np.random.default_rng([cfg.seed, 7, step])
         for g in opt.param_groups:
             g["lr"] = cosine_lr(step, 0, tc.steps, tc.lr, tc.lr_min)
         idx = rng.choice(len(chars), size=min(tc.batch_size, len(chars)), replace=len(chars) < tc.batch_size)
@@ -105,8 +128,17 @@ def train_texturenet(chars: list[dict], cfg: RanaConfig, progress: bool = True, 
             d.backward()
             opt_d.step()
             rec["disc"] = float(d.detach())
-        if log is not None:
-            log({"stage": "texturenet", "step": step, **rec})
+        if run is not None:
+            if step % cfg.pretrain.log_every == 0 or step == tc.steps - 1:
+                run.log({"step": step, "seconds": time.perf_counter() - t0, **rec})
+            done = step + 1
+            if done % cfg.pretrain.checkpoint_every == 0 or done == tc.steps:
+                state = {"net": net.state_dict(), "opt": opt.state_dict()}
+                if disc is not None:
+                    state.update(disc=disc.state_dict(), opt_d=opt_d.state_dict())
+                run.save(done, state, keep=2)
+        bar.set_postfix(loss=f"{rec['total']:.4f}", refresh=False)
+    bar.close()
     return net.eval()
 
 
@@ -120,6 +152,7 @@ def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfi
     run = RunDir(out)
     if force:
         run.clear()
+        RunDir(out / "texturenet").clear()
     run.init_config(cfg, {"dataset": str(dataset.resolve()), "protocol": protocol, "kind": "pretrain"}, force=force)
     subjects = subjects_of(dataset, protocol, "train")
     if cfg.pretrain.max_subjects > 0:
@@ -142,7 +175,7 @@ def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfi
     if tex_path.is_file() and not force:
         texnet.load_state_dict(torch.load(tex_path, weights_only=False))
     else:
-        texnet = train_texturenet(chars, cfg, progress, log=lambda r: None)
+        texnet = train_texturenet(chars, cfg, RunDir(out / "texturenet"), progress)
         _save(tex_path, texnet.state_dict())
     albedo_tex = [texnet.apply(c["shaded"], c["valid"]) for c in chars]
     # Stage 3: G_N and G_A with per-character Z.

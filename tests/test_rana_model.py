@@ -157,3 +157,29 @@ def test_blur_preserves_constants_and_srgb_matches_colourspace():
 def test_cosine_schedule_endpoints():
     assert cosine_lr(10, 10, 110, 1e-4, 1e-5) == pytest.approx(1e-4)
     assert cosine_lr(110, 10, 110, 1e-4, 1e-5) == pytest.approx(1e-5)
+
+
+def test_cached_vgg_targets_give_the_same_loss_and_gradients():
+    """The training frames' VGG features are computed once (rana.train._cache_vgg_targets); the loss and the
+    gradients must equal those of computing them every step."""
+    from rana.train import _cache_vgg_targets
+
+    cfg = _tiny_cfg(lambda_gan=0.0)
+    st = build_training_state(cfg, use_vgg=True)
+    batch = _fake_batch(cfg, B=2)
+    items = [{"image": batch["image"][i]} for i in range(2)]  # per-frame buffers, as personalize keeps them
+    _cache_vgg_targets(st, items)
+    cached = {**batch, **{k: torch.stack([it[k] for it in items]) for k in items[0] if k.startswith("vgg_target_")}}
+    assert len([k for k in cached if k.startswith("vgg_target_")]) == 4
+
+    def loss_and_grad(b):
+        st.model.zero_grad(set_to_none=True)
+        L = st.model.get_loss_dict(st.model.get_outputs(b), b, cfg.loss, st.vgg, None)
+        L["total"].backward()
+        return float(L["vgg"]), st.model.Z.grad.clone()
+
+    v0, g0 = loss_and_grad(batch)
+    v1, g1 = loss_and_grad(cached)
+    assert v0 > 0
+    assert v1 == pytest.approx(v0, rel=1e-6)
+    torch.testing.assert_close(g1, g0, rtol=1e-5, atol=1e-8)

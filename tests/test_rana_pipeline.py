@@ -151,3 +151,28 @@ def test_pretrain_then_personalize_with_it(tmp_path):
         assert torch.equal(st["G_N." + k], v), k
     coarse = torch.load(tmp_path / "runs" / "subject_000" / "coarse.pt", weights_only=False)
     assert coarse["albedo_source"] == "texturenet"
+
+
+def test_texturenet_resume_equals_an_uninterrupted_run(tmp_path):
+    """Kill TextureNet training after its first checkpoint, resume: the weights equal an uninterrupted run's."""
+    import shutil
+
+    from rana.pretrain import prepare_character, train_texturenet
+
+    torch.set_num_threads(1)
+    cfg = get_preset("tiny")
+    cfg = dataclasses.replace(cfg, model=dataclasses.replace(cfg.model, resolution=32),
+                              pretrain=dataclasses.replace(cfg.pretrain, checkpoint_every=2, log_every=1))
+    pre_ds = make_dataset(tmp_path / "pre", subjects=2, train_frames=3, test_frames=1, resolution=32, seed=8,
+                          texture_size=32, pool="pretrain", aov_only_train=True)
+    chars = [prepare_character(pre_ds, s, "a", cfg) for s in ("subject_000", "subject_001")]
+    full = train_texturenet(chars, cfg, RunDir(tmp_path / "full"), progress=False)
+    steps = [s for s, _ in RunDir(tmp_path / "full").checkpoints()]
+    assert steps == [2, 4]
+    shutil.copytree(tmp_path / "full", tmp_path / "cut")
+    (tmp_path / "cut" / "checkpoints" / "step-000000004.pt").unlink()  # the run died between step 2 and step 4
+    resumed = train_texturenet(chars, cfg, RunDir(tmp_path / "cut"), progress=False)
+    for (k, a), b in zip(full.state_dict().items(), resumed.state_dict().values()):
+        assert torch.equal(a, b), k
+    log = [r["step"] for r in RunDir(tmp_path / "cut").read_log()]
+    assert log == sorted(set(log)) == list(range(4))  # no duplicated stretch after the resume
