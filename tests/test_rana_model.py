@@ -176,7 +176,7 @@ def test_cached_vgg_targets_give_the_same_loss_and_gradients():
         st.model.zero_grad(set_to_none=True)
         L = st.model.get_loss_dict(st.model.get_outputs(b), b, cfg.loss, st.vgg, None)
         L["total"].backward()
-        return float(L["vgg"]), st.model.Z.grad.clone()
+        return float(L["vgg"].detach()), st.model.Z.grad.clone()
 
     v0, g0 = loss_and_grad(batch)
     v1, g1 = loss_and_grad(cached)
