@@ -7,7 +7,8 @@ and iteration count. Prints a table (and writes it as JSON with --out).
 
 For each (resolution, steps): the coarse stage (timed once per resolution; cached), personalization from scratch
 (or from --pretrained), prediction for every test frame, then LPIPS (alex) and PSNR from `rh_eval.metrics` on the
-display-space images (exposure from the GT frame), over the whole frame and inside the GT mask. Also reports the
+display-space images (exposure from the GT frame) in rh-eval's default region, plus PSNR over the whole frame and
+inside the GT mask. Also reports the
 SMPL+D baseline at each resolution (no personalization: its time is the coarse stage alone).
 """
 from __future__ import annotations
@@ -30,22 +31,30 @@ from rh_common.imageio import read_exr, read_png  # noqa: E402
 
 
 def _scores(pred_root: Path, dataset: Path, protocol: str, subject: str) -> dict:
+    """LPIPS (alex) and PSNR in rh-eval's default region (the person's dilated box, both images composited over
+    the same background by the ground-truth coverage: the leaderboard's numbers for one subject), plus PSNR over
+    the whole frame and inside the ground-truth mask."""
+    from rh_eval.conventions import Convention, apply_region, compute_region
     from rh_eval.metrics import lpips, psnr
 
-    lp, ps, psm = [], [], []
+    conv = Convention()
+    lp, ps, ps_full, psm = [], [], [], []
     for jp in sorted((dataset / subject / f"protocol_{protocol}" / "test").glob("frame_*.json")):
         meta = json.loads(jp.read_text())
         stem = jp.stem
         gt = to_display(read_exr(jp.parent / f"{stem}_image.exr")[..., :3], meta["exposure"])
         pr = to_display(read_exr(pred_root / subject / f"protocol_{protocol}" / "test" / f"{stem}_image.exr"),
                         meta["exposure"])
-        m = read_png(jp.parent / f"{stem}_mask.png")
-        m = (m if m.ndim == 2 else m[..., 0]) >= 128
-        lp.append(float(lpips(pr, gt, data_range=1.0)))
-        ps.append(float(psnr(pr, gt, data_range=1.0)))
-        psm.append(float(psnr(pr, gt, data_range=1.0, mask=m)))
-    return {"lpips": float(np.mean(lp)), "psnr": float(np.mean(ps)), "psnr_mask": float(np.mean(psm)),
-            "frames": len(lp)}
+        m8 = read_png(jp.parent / f"{stem}_mask.png")
+        m8 = m8 if m8.ndim == 2 else m8[..., 0]
+        reg = compute_region(m8, conv)
+        p, g = apply_region(pr, reg, conv), apply_region(gt, reg, conv)
+        lp.append(float(lpips(p, g, data_range=1.0)))
+        ps.append(float(psnr(p, g, data_range=1.0)))
+        ps_full.append(float(psnr(pr, gt, data_range=1.0)))
+        psm.append(float(psnr(pr, gt, data_range=1.0, mask=m8 >= 128)))
+    return {"lpips": float(np.mean(lp)), "psnr": float(np.mean(ps)), "psnr_full": float(np.mean(ps_full)),
+            "psnr_mask": float(np.mean(psm)), "frames": len(lp)}
 
 
 def main(argv=None) -> int:
@@ -89,38 +98,49 @@ def main(argv=None) -> int:
             if (runs / "coarse.pt").is_file():  # share the coarse stage between step counts
                 run_dir.mkdir(parents=True, exist_ok=True)
                 (run_dir / "coarse.pt").write_bytes((runs / "coarse.pt").read_bytes())
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             run = personalize(dataset, args.subject, args.protocol, run_dir, cfg, pretrained=args.pretrained,
                               progress=False)
-            t_train = time.perf_counter() - t0
+            t_train, c_train = time.perf_counter() - t0, time.process_time() - c0
             coarse_rec = [r for r in run.read_log() if r["step"] == -1]
             if not (runs / "coarse.pt").is_file():
                 (runs / "coarse.pt").write_bytes((run_dir / "coarse.pt").read_bytes())
                 t_coarse = coarse_rec[0]["seconds"] if coarse_rec else float("nan")
+                # the coarse stage's share of the CPU time, in proportion to its share of the wall time
+                c_coarse = c_train * t_coarse / t_train
                 pred_s = tmp / f"pred_smpld_{res}"
                 predict_smpld(dataset, args.protocol, runs / f"s{steps}", pred_s, subjects=[args.subject],
                               progress=False)
                 rows.append({"method": "SMPL+D", "resolution": res, "steps": 0, "train_s": t_coarse,
+                             "train_cpu_s": c_coarse,
                              **_scores(pred_s, dataset, args.protocol, args.subject)})
                 print(rows[-1])
-                t_train_only = t_train - t_coarse
+                t_train_only, c_train_only = t_train - t_coarse, c_train - c_coarse
             else:
-                t_train_only = t_train
+                t_train_only, c_train_only = t_train, c_train
             t0 = time.perf_counter()
             pred = tmp / f"pred_{res}_{steps}"
             predict_rana(dataset, args.protocol, runs / f"s{steps}", pred, subjects=[args.subject], progress=False)
             t_pred = time.perf_counter() - t0
             rows.append({"method": "RANA", "resolution": res, "steps": steps, "train_s": t_train_only,
-                         "s_per_step": t_train_only / steps, "predict_s": t_pred,
+                         "train_cpu_s": c_train_only, "s_per_step": t_train_only / steps,
+                         "cpu_s_per_step": c_train_only / steps, "predict_s": t_pred,
                          **_scores(pred, dataset, args.protocol, args.subject)})
             print(rows[-1])
             prev_steps = steps
     print()
-    print(f"{'method':8s} {'res':>4s} {'steps':>6s} {'train s':>8s} {'s/step':>7s} {'LPIPS':>7s} {'PSNR':>6s} "
-          f"{'PSNR(mask)':>10s}")
+    print(f"{'method':8s} {'res':>4s} {'steps':>6s} {'train s':>8s} {'CPU s':>8s} {'CPU s/step':>10s} {'LPIPS':>7s} "
+          f"{'PSNR':>6s} {'PSNR(full)':>10s} {'PSNR(mask)':>10s}")
     for r in rows:
-        print(f"{r['method']:8s} {r['resolution']:4d} {r['steps']:6d} {r['train_s']:8.1f} "
-              f"{r.get('s_per_step', float('nan')):7.3f} {r['lpips']:7.4f} {r['psnr']:6.2f} {r['psnr_mask']:10.2f}")
+        print(f"{r['method']:8s} {r['resolution']:4d} {r['steps']:6d} {r['train_s']:8.1f} {r['train_cpu_s']:8.1f} "
+              f"{r.get('cpu_s_per_step', float('nan')):10.3f} {r['lpips']:7.4f} {r['psnr']:6.2f} "
+              f"{r['psnr_full']:10.2f} {r['psnr_mask']:10.2f}")
+    print("LPIPS, PSNR: rh-eval's default region (the leaderboard's convention), mean over the subject's test frames; "
+          "PSNR(full): whole frame; PSNR(mask): inside the ground-truth mask. train s: wall seconds of "
+          "personalization (SMPL+D: its coarse stage); CPU s: the process's CPU seconds for the same (with one torch "
+          "thread, what an otherwise idle core takes, whatever else runs); "
+          f"{torch.get_num_threads()} torch threads; load average at the end "
+          f"{' '.join(Path('/proc/loadavg').read_text().split()[:3])}.")
     if args.out:
         args.out.write_text(json.dumps(rows, indent=2))
     return 0
