@@ -30,6 +30,7 @@ THREADS=${THREADS:-1}
 PRE_SUBJECTS=${PRE_SUBJECTS:-6}    # pretraining characters (the paper: 400)
 PRE_FRAMES=${PRE_FRAMES:-20}       # AOV-only frames per pretraining character (the paper: 150)
 PRE_STEPS=${PRE_STEPS:-400}        # G_N/G_A pretraining steps
+ALBEDO_REG_ABLATION=${ALBEDO_REG_ABLATION:-a b}   # protocols that get the "w/o albedo regulariser" row
 TEX_STEPS=${TEX_STEPS:-300}        # TextureNet steps
 DATA=${DATA:-$WORK/data}
 PRE_DATA=${PRE_DATA:-$WORK/pretrain_data}
@@ -92,8 +93,10 @@ scratch() {  # everything that needs no pretraining, protocols one after the oth
 pretrained() {  # the full method and its albedo-regulariser ablation on one protocol
   local p=$1
   variant $p rana "RANA (cpu, $STEPS steps, $PRE_SUBJECTS pretraining chars)" --pretrained "$PRE/pretrained.pt"
-  share_coarse "$WORK/runs_$p/rana" "$WORK/runs_$p/no_albedo_reg"
-  variant $p no_albedo_reg "RANA w/o albedo regulariser" --pretrained "$PRE/pretrained.pt" --loss.lambda_albedo_reg 0
+  if [[ " $ALBEDO_REG_ABLATION " == *" $p "* ]]; then
+    share_coarse "$WORK/runs_$p/rana" "$WORK/runs_$p/no_albedo_reg"
+    variant $p no_albedo_reg "RANA w/o albedo regulariser" --pretrained "$PRE/pretrained.pt" --loss.lambda_albedo_reg 0
+  fi
   rana smpld --dataset "$DATA" --protocol $p --runs "$WORK/runs_$p/rana" --out "$WORK/preds_$p/smpld" --no-progress \
     --name "SMPL+D (TextureNet albedo)"
 }
