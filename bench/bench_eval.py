@@ -155,8 +155,9 @@ def main(argv=None) -> int:
     p.add_argument("--repeat", type=int, default=3,
                    help="interleaved rounds (bare, cold, warm) per row; ratios are the median of the per-round "
                         "ratios, pairs/s the best round (default 3)")
-    p.add_argument("--only", choices=("lpips", "all"), default="all",
-                   help="lpips: only the LPIPS rows (quick); all: every metric and the whole set (default)")
+    p.add_argument("--only", choices=("lpips", "whole", "all"), default="all",
+                   help="lpips: only the LPIPS rows (quick); whole: only the whole-set rows; all: every metric and "
+                        "the whole set (default)")
     p.add_argument("--profile", action="store_true", help="also print a cProfile of one cold LPIPS run")
     p.add_argument("--compare-overlap", action="store_true",
                    help="also time the LPIPS pipeline with the workers in turns with the networks and overlapping "
@@ -176,8 +177,8 @@ def main(argv=None) -> int:
         n = 2 * per
         lp, dn = get_lpips_net("alex"), get_dists_net()
         rows = []
-        nets = (("lpips (alex)", lp, "lpips"),) if args.only == "lpips" else \
-            (("lpips (alex)", lp, "lpips"), ("dists (vgg16)", dn, "dists"))
+        nets = {"lpips": (("lpips (alex)", lp, "lpips"),), "whole": (),
+                "all": (("lpips (alex)", lp, "lpips"), ("dists (vgg16)", dn, "dists"))}[args.only]
         for name, net, metric in nets:
             r = interleaved(ds, pred_img, [metric], conv, bs, rep, bare_fns=(bare_pass(net, n, size, bs),))
             rows.append(r.row(name, n))
@@ -185,6 +186,7 @@ def main(argv=None) -> int:
             for metric in ("ssim", "psnr", "flip", "normal"):
                 r = interleaved(ds, pred_img if metric != "normal" else pred_all, [metric], conv, bs, rep)
                 rows.append(r.row(metric, n))
+        if args.only in ("all", "whole"):
             # whole set: every frame has an image and an albedo pair through both networks (2 pairs per frame)
             bare_nets = (bare_pass(lp, 2 * n, size, bs), bare_pass(dn, 2 * n, size, bs))
             r = interleaved(ds, pred_all, ["lpips", "dists", "ssim", "psnr", "flip", "normal"], conv, bs, rep,
