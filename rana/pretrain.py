@@ -84,17 +84,7 @@ def train_texturenet(chars: list[dict], cfg: RanaConfig, run: RunDir | None = No
     vgg = VGGPerceptual() if tc.lambda_vgg > 0 else None
     opt = torch.optim.Adam(net.parameters(), lr=tc.lr)
     opt_d = torch.optim.Adam(disc.parameters(), lr=tc.lr, betas=(0.5, 0.999)) if disc else None
-    start = 0
-    latest = run.latest() if run is not None else None
-    if latest is not None:
-        st = run.load(latest[1])
-        net.load_state_dict(st["net"])
-        opt.load_state_dict(st["opt"])
-        if disc is not None:
-            disc.load_state_dict(st["disc"])
-            opt_d.load_state_dict(st["opt_d"])
-        start = latest[0]
-        run.truncate_log(start)
+    start = run.resume({"net": net, "opt": opt, "disc": disc, "opt_d": opt_d}) if run is not None else 0
     X = torch.stack([texturenet_input(c["shaded"], c["valid"]) for c in chars])
     Y = torch.stack([c["target"] for c in chars])
     M = torch.stack([c["target_valid"] for c in chars])
@@ -198,18 +188,8 @@ def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfi
                             {"params": [model.Z], "lr": pc.lr_latent}])
     opt_d = torch.optim.Adam(list(disc_n.parameters()) + list(disc_a.parameters()), lr=pc.lr, betas=(0.5, 0.999)) \
         if disc_n else None
-    start = 0
-    latest = run.latest()
-    if latest is not None and not force:
-        st = run.load(latest[1])
-        model.load_state_dict(st["model"])
-        opt.load_state_dict(st["opt"])
-        if disc_n is not None:
-            disc_n.load_state_dict(st["disc_n"])
-            disc_a.load_state_dict(st["disc_a"])
-            opt_d.load_state_dict(st["opt_d"])
-        start = latest[0]
-        run.truncate_log(start)
+    start = 0 if force else run.resume({"model": model, "opt": opt, "disc_n": disc_n, "disc_a": disc_a,
+                                        "opt_d": opt_d})
     t0 = time.perf_counter()
     bar = tqdm(range(start, pc.steps), initial=start, total=pc.steps, desc="pretrain G_N, G_A", unit="step",
                disable=not progress, dynamic_ncols=True)

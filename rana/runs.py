@@ -108,6 +108,19 @@ class RunDir:
             path = latest[1]
         return torch.load(path, map_location="cpu", weights_only=False)
 
+    def resume(self, parts: dict) -> int:
+        """Load the newest checkpoint into `parts` (name -> module or optimizer; None entries are skipped), cut
+        the loss log back to its step and return that step; 0 when there is no checkpoint."""
+        latest = self.latest()
+        if latest is None:
+            return 0
+        st = self.load(latest[1])
+        for name, obj in parts.items():
+            if obj is not None:
+                obj.load_state_dict(st[name])
+        self.truncate_log(latest[0])
+        return latest[0]
+
     # ------------------------------------------------------------------------------ loss log
     def truncate_log(self, step: int) -> None:
         """Drop log lines at or after `step` (they belong to work lost since that checkpoint)."""
