@@ -18,6 +18,8 @@
 #   oracle bound                 listed apart, never ranked
 # PRETRAIN=0 leaves out pretraining and every row that needs it. The no-pretraining runs go beside the pretraining
 # (one torch thread each); the pretrained runs of both protocols follow it in parallel.
+# PHASES (default "all") runs a part only, for a board made in pieces: "scratch" (the rows without pretraining),
+# "pretrain" (pretraining, then the pretrained rows), "board" (rh-eval, rh-leaderboard, screenshots), or a list.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -111,11 +113,20 @@ board() {
   cp "$WORK/board_$p/leaderboard.md" "$OUT/protocol_$p/leaderboard.md"
 }
 
+PHASES=${PHASES:-all}
+[ "$PHASES" = all ] && PHASES="scratch pretrain board"
+has() { [[ " $PHASES " == *" $1 "* ]]; }
+for ph in $PHASES; do
+  case $ph in scratch|pretrain|board) ;; *) echo "PHASES: unknown phase '$ph' (scratch, pretrain, board, all)"; exit 2;; esac
+done
+
 rc=0
-if [ "$PRETRAIN" = 1 ]; then
+if ! has pretrain; then
+  if has scratch; then scratch > "$WORK/scratch.log" 2>&1 || rc=1; fi
+elif [ "$PRETRAIN" = 1 ]; then
   pretraining > "$WORK/pretraining.log" 2>&1 &
   pp=$!
-  scratch > "$WORK/scratch.log" 2>&1 || rc=1
+  if has scratch; then scratch > "$WORK/scratch.log" 2>&1 || rc=1; fi
   wait $pp || rc=1
   if [ -e "$WORK/pretraining.ok" ]; then
     pretrained a > "$WORK/pretrained_a.log" 2>&1 &
@@ -125,12 +136,14 @@ if [ "$PRETRAIN" = 1 ]; then
   else
     echo "pretraining failed (see $WORK/pretraining.log): no pretrained rows"; rc=1
   fi
-else
+elif has scratch; then
   scratch > "$WORK/scratch.log" 2>&1 || rc=1
 fi
-for p in a b; do board $p >> "$WORK/board.log" 2>&1 || rc=1; done
+if has board; then
+  for p in a b; do board $p >> "$WORK/board.log" 2>&1 || rc=1; done
+fi
 # A screenshot of each board's index.html (when chromium is installed).
-if command -v chromium > /dev/null; then
+if has board && command -v chromium > /dev/null; then
   for p in a b; do
     [ -e "$WORK/board_$p/index.html" ] || continue
     chromium --headless --no-sandbox --disable-gpu --no-first-run --disable-background-networking \
