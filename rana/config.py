@@ -85,6 +85,12 @@ class TextureConfig:
     """Weight of the PatchGAN term (paper: 10)."""
     mixup_beta: float = 0.4
     """MixUp Beta(a, a) parameter of the input augmentation (paper: 0.4); 0 disables MixUp."""
+    texturenet_input: str = "exposure-sh"
+    """What TextureNet starts from. 'shaded' (the paper) = the shaded median texture; the network must learn to
+    remove the light. 'exposure-sh' = the texture de-lit by `exposure_sh_delight` (see `delight_mode`), with a
+    residual output initialised to zero: the network only corrects that estimate, so a TextureNet trained on few
+    characters cannot make the albedo worse than the estimate it starts from. Ours; measured in docs/RANA.md
+    (a 150-step 'shaded' TextureNet cost 5.7 dB of albedo PSNR against the de-lit texture alone)."""
     use_texturenet: bool = True
     """Apply a pretrained TextureNet when one is given; without one the coarse albedo is the de-lit median
     texture (`delight`)."""
@@ -206,8 +212,13 @@ class PretrainConfig:
     """Weight of the VGG terms (paper: 5)."""
     lambda_gan: float = 0.1
     """Weight of the GAN terms (paper: 0.1)."""
+    light_source: str = "dataset"
+    """The light that shades a pretraining character's AOV-only frames for TextureNet's inputs (one per character,
+    as one training video has one light): 'dataset' = the generator's HDRI light of the character's first frame
+    (its order-2 SH, at that frame's exposure), so the lights come from the same pool as the benchmark's;
+    'random-sh' = an ambient term plus a soft coloured lobe drawn with `light_seed` (the older choice)."""
     light_seed: int = 0
-    """Seed of the random SH lights used to shade AOV-only frames for TextureNet's inputs."""
+    """Seed of the 'random-sh' lights."""
     checkpoint_every: int = 2000
     """Checkpoint period (steps)."""
     log_every: int = 10
@@ -255,7 +266,7 @@ def _r(cfg: RanaConfig, **sections: dict) -> RanaConfig:
 # The paper's sizes and iteration counts (appendix). Geometry steps and TextureNet steps are not given there.
 _PAPER = _r(RanaConfig(), preset="paper",
             geometry=dict(resolution=256, steps=1000, frames_per_step=8),
-            texture=dict(size=512, unet_base=64, unet_depth=5, steps=100000),
+            texture=dict(size=512, unet_base=64, unet_depth=5, steps=100000, texturenet_input="shaded"),
             model=dict(resolution=512, latent_size=256, unet_base=64, unet_depth=5, disc_base=64),
             personalize=dict(steps=15000, freeze_albedo_steps=1000, checkpoint_every=1000),
             pretrain=dict(steps=1_000_000, batch_size=16))
@@ -317,6 +328,10 @@ def config_from_json(d: dict) -> RanaConfig:
             if cls is ModelConfig and "residual_coarse" not in v:
                 # Written before the residual heads existed: its weights are direct outputs.
                 v = {**v, "residual_coarse": False}
+            if cls is TextureConfig and "texturenet_input" not in v:
+                v = {**v, "texturenet_input": "shaded"}  # written before the de-lit input existed
+            if cls is PretrainConfig and "light_source" not in v:
+                v = {**v, "light_source": "random-sh"}  # written before the dataset's lights were used
             kw[k] = cls(**v)
         else:
             kw[k] = v

@@ -101,6 +101,12 @@ def srgb_encode_t(x: torch.Tensor) -> torch.Tensor:
     return torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp_min(1e-8) ** (1 / 2.4) - 0.055)
 
 
+def srgb_decode_t(x: torch.Tensor) -> torch.Tensor:
+    """Inverse of `srgb_encode_t` on clip(x, 0, 1), differentiable."""
+    x = x.clamp(0.0, 1.0)
+    return torch.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+
+
 def scaled_odd(k_at_512: int, resolution: int) -> int:
     """A kernel size given at 512 px, scaled to `resolution` and kept odd (>= 3)."""
     k = max(3, int(round(k_at_512 * resolution / 512)))

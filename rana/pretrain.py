@@ -6,9 +6,11 @@ disjoint from the benchmark's test subjects — `rh-generate --protocol rana_pre
 character_pool "pretrain"). Stages, each cached in the output folder so an interrupted run resumes:
 
 1. per character (`cache/<subject>.pt`): SMPL+D offsets fitted to the masks; Lambertian frames
-   ``albedo x max(0, S(normal; random SH light))`` made from the AOVs (seeded by `pretrain.light_seed`), from which
-   the shaded median texture is extracted exactly as for a real subject; the target albedo texture is the same
-   extraction applied to the ground-truth albedo frames (so it lives in anny's UV layout and includes garments).
+   ``albedo x max(0, S(normal; light))`` made from the AOVs, one light per character (`pretrain.light_source`:
+   the dataset's HDRI light of its first frame, or a seeded random SH light), from which TextureNet's input is
+   extracted exactly as for a real subject (the shaded median texture, or that texture de-lit, per
+   `texture.texturenet_input`); the target albedo texture is the same extraction applied to the ground-truth albedo
+   frames (so it lives in anny's UV layout and includes garments).
 2. TextureNet (`texturenet.pt`; checkpoints and loss log in `texturenet/`, resumable): L1 + VGG + PatchGAN with
    MixUp, coarse dropout, noise and brightness jitter.
 3. G_N, G_A with one latent Z per character (`checkpoints/step-%09d.pt`, resumable): L_normal + lambda_a L_albedo
@@ -38,7 +40,7 @@ from .model import AMBIENT_L0, RanaModel, coarse_buffers, stack_batch
 from .nets import PatchDiscriminator, VGGPerceptual, hinge_d_loss
 from .runs import RunDir
 from .synthetic import random_sh
-from .texture import extract_texture
+from .texture import exposure_sh_delight, extract_texture, texel_observations
 from .texturenet import TextureNet, augment, texturenet_input, texturenet_loss
 from .train import cosine_lr
 
@@ -55,19 +57,42 @@ def prepare_character(dataset: Path, subject: str, protocol: str, cfg: RanaConfi
                         max_frames=cfg.pretrain.max_frames)
     topo = body_topology()
     D = fit_offsets(frames, topo, cfg.geometry, seed=cfg.seed, progress=progress)
-    rng = np.random.default_rng([cfg.pretrain.light_seed, int(subject.split("_")[-1]) if subject[-1].isdigit() else 0])
-    light = random_sh(rng)  # one light per 'video', as for a real subject
-    # Scaled to the dataset's exposure convention (docs/ARCHITECTURE.md, "Exposure"): the light's mean luminance
-    # over the sphere is 1, i.e. lum(L_0) = 2 sqrt(pi), so TextureNet learns the brightness real frames have.
-    light = torch.as_tensor(light * (AMBIENT_L0 / float(luminance(light[0]))), dtype=torch.float32)
+    light = character_light(frames, subject, cfg)
     for fr in frames:
-        # Lambertian, shadow-free frames from the AOVs: the shading TextureNet must learn to remove.
-        shade = sh.shading(light, fr.normal).clamp_min(0)  # clamped: radiance is never negative
+        # Lambertian, shadow-free frames from the AOVs: the shading TextureNet must learn to remove. The light is
+        # in world axes; the frame's normals in its OpenGL camera axes (n_cam = R n_world, so n_world = n_cam R).
+        shade = sh.shading(light, fr.normal @ fr.world_to_opengl).clamp_min(0)  # radiance is never negative
         fr.image = fr.albedo * shade * fr.mask[..., None]
-    shaded, valid = extract_texture(frames, topo, D, cfg.texture, layer="image")
-    target, target_valid = extract_texture(frames, topo, D, cfg.texture, layer="albedo")
-    return {"subject": subject, "offsets": D, "shaded": shaded, "valid": valid, "target": target,
-            "target_valid": target_valid}
+    tc = cfg.texture
+    obs = texel_observations(frames, topo, D, tc, layer="image")
+    if tc.texturenet_input == "exposure-sh":
+        net_input, valid, _ = exposure_sh_delight(obs, tc, ridge=tc.delight_ridge)
+    else:
+        net_input, valid = extract_texture(frames, topo, D, tc, obs=obs)
+    target, target_valid = extract_texture(frames, topo, D, tc, layer="albedo")
+    return {"subject": subject, "offsets": D, "net_input": net_input, "valid": valid, "target": target,
+            "target_valid": target_valid, "texturenet_input": tc.texturenet_input,
+            "light_source": cfg.pretrain.light_source, "light": light}
+
+
+def character_light(frames: list, subject: str, cfg: RanaConfig) -> torch.Tensor:
+    """(9, 3) world-axes SH radiance that shades one pretraining character, in the frames' exposure units (the
+    light's mean luminance over the sphere is 1; docs/ARCHITECTURE.md, "Exposure"), so TextureNet learns the
+    brightness real frames have."""
+    src = cfg.pretrain.light_source
+    if src == "dataset":
+        fr = frames[0]
+        sh_world = fr.meta.get("light", {}).get("sh_world")
+        if sh_world is None:
+            raise ValueError(f"{fr.path}: no light.sh_world in the frame's metadata; regenerate the pretraining "
+                             f"data with this rh-generate, or pass --pretrain.light_source random-sh")
+        return torch.as_tensor(np.asarray(sh_world, dtype=np.float64) * fr.exposure, dtype=torch.float32)
+    if src == "random-sh":
+        rng = np.random.default_rng([cfg.pretrain.light_seed,
+                                     int(subject.split("_")[-1]) if subject[-1].isdigit() else 0])
+        light = random_sh(rng)
+        return torch.as_tensor(light * (AMBIENT_L0 / float(luminance(light[0]))), dtype=torch.float32)
+    raise ValueError(f"pretrain.light_source: expected 'dataset' or 'random-sh', got {src!r}")
 
 
 def train_texturenet(chars: list[dict], cfg: RanaConfig, run: RunDir | None = None,
@@ -85,7 +110,7 @@ def train_texturenet(chars: list[dict], cfg: RanaConfig, run: RunDir | None = No
     opt = torch.optim.Adam(net.parameters(), lr=tc.lr)
     opt_d = torch.optim.Adam(disc.parameters(), lr=tc.lr, betas=(0.5, 0.999)) if disc else None
     start = run.resume({"net": net, "opt": opt, "disc": disc, "opt_d": opt_d}) if run is not None else 0
-    X = torch.stack([texturenet_input(c["shaded"], c["valid"]) for c in chars])
+    X = torch.stack([texturenet_input(c["net_input"], c["valid"]) for c in chars])
     Y = torch.stack([c["target"] for c in chars])
     M = torch.stack([c["target_valid"] for c in chars])
     t0 = time.perf_counter()
@@ -154,8 +179,12 @@ def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfi
     for s in tqdm(subjects, desc="characters", unit="char", disable=not progress, dynamic_ncols=True):
         p = out / "cache" / f"{s}.pt"
         if p.is_file() and not force:
-            chars.append(torch.load(p, weights_only=False))
-            continue
+            c = torch.load(p, weights_only=False)
+            # A cache made with another input mode or light (or by an older version) is redone, not reused.
+            if (c.get("texturenet_input"), c.get("light_source")) == (cfg.texture.texturenet_input,
+                                                                       cfg.pretrain.light_source):
+                chars.append(c)
+                continue
         c = prepare_character(dataset, s, protocol, cfg)
         _save(p, c)
         chars.append(c)
@@ -167,7 +196,7 @@ def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfi
     else:
         texnet = train_texturenet(chars, cfg, RunDir(out / "texturenet"), progress)
         _save(tex_path, texnet.state_dict())
-    albedo_tex = [texnet.apply(c["shaded"], c["valid"]) for c in chars]
+    albedo_tex = [texnet.apply(c["net_input"], c["valid"]) for c in chars]
     # Stage 3: G_N and G_A with per-character Z.
     topo = body_topology()
     bufs = []
@@ -229,7 +258,8 @@ def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfi
     bar.close()
     result = out / "pretrained.pt"
     _save(result, {"G_N": model.G_N.state_dict(), "G_A": model.G_A.state_dict(),
-                   "texturenet": texnet.state_dict(), "config": cfg.__repr__(), "subjects": subjects})
+                   "texturenet": texnet.state_dict(), "texturenet_input": texnet.input_mode,
+                   "config": cfg.__repr__(), "subjects": subjects})
     return result
 
 

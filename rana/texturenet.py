@@ -2,7 +2,8 @@
 were observed) to the albedo texture, trained with L1 + VGG + PatchGAN on pairs from pretraining characters.
 
 The validity channel is our addition to the paper's input (texture + UV): the network is told which texels are
-hole-filled guesses rather than observations.
+hole-filled guesses rather than observations. So is the 'exposure-sh' input mode (`TextureConfig.texturenet_input`):
+the texture is de-lit before TextureNet sees it, and the network outputs a correction to it.
 """
 from __future__ import annotations
 
@@ -12,25 +13,47 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from .config import TextureConfig
-from .nets import PatchDiscriminator, UNet, VGGPerceptual, hinge_d_loss, hinge_g_loss, srgb_encode_t
+from .nets import PatchDiscriminator, UNet, VGGPerceptual, hinge_d_loss, hinge_g_loss, srgb_decode_t, srgb_encode_t
 from .texture import fill_holes, uv_coordinate_image
 
 __all__ = ["TextureNet", "texturenet_input", "augment", "texturenet_loss"]
 
 
+INPUT_MODES = ("shaded", "exposure-sh")
+
+
 class TextureNet(nn.Module):
-    def __init__(self, cfg: TextureConfig):
+    """(B, 6, S, S) `texturenet_input` → (B, 3, S, S) linear albedo.
+
+    `input_mode` 'shaded': the paper's network, albedo = sigmoid(U-Net). 'exposure-sh': the input texture is
+    already de-lit, and albedo = decode(clip(input + U-Net)) in display space, with the U-Net's last layer
+    initialised to zero, so an untrained network returns its input."""
+
+    def __init__(self, cfg: TextureConfig, input_mode: str | None = None):
         super().__init__()
+        self.input_mode = cfg.texturenet_input if input_mode is None else input_mode
+        if self.input_mode not in INPUT_MODES:
+            raise ValueError(f"texture.texturenet_input: expected one of {INPUT_MODES}, got {self.input_mode!r}")
         self.net = UNet(6, 3, cfg.unet_base, cfg.unet_depth)
+        if self.residual:
+            nn.init.zeros_(self.net.head.weight)
+            nn.init.zeros_(self.net.head.bias)
+
+    @property
+    def residual(self) -> bool:
+        return self.input_mode == "exposure-sh"
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if self.residual:
+            return srgb_decode_t(x[:, :3] + self.net(x))
         return torch.sigmoid(self.net(x))
 
     @torch.no_grad()
-    def apply(self, shaded: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
-        """(3, S, S) shaded median texture (exposure-scaled radiance), (S, S) validity → (3, S, S) albedo."""
+    def apply(self, texture: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
+        """(3, S, S) median texture (exposure-scaled radiance; de-lit in 'exposure-sh' mode), (S, S) validity →
+        (3, S, S) albedo."""
         self.eval()
-        return self(texturenet_input(shaded, valid)[None])[0]
+        return self(texturenet_input(texture, valid)[None])[0]
 
 
 def texturenet_input(shaded: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:

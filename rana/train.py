@@ -36,7 +36,7 @@ class Coarse:
     shaded_texture: torch.Tensor  # (3, S, S) median of the most camera-facing observations (exposure-scaled)
     valid: torch.Tensor  # (S, S) observed texels
     albedo_texture: torch.Tensor  # (3, S, S) coarse albedo T_A (linear)
-    albedo_source: str  # "texturenet", "exposure-sh", "grey-world" or "shaded"
+    albedo_source: str  # "texturenet", "texturenet(exposure-sh)", "exposure-sh", "grey-world" or "shaded"
     iou_before: float
     iou_after: float
     light_world: torch.Tensor | None = None  # (9, 3) training light estimated by 'exposure-sh' (exposure units)
@@ -60,7 +60,11 @@ def coarse_stage(frames: list[FrameData], cfg: RanaConfig, *, texturenet=None, p
     shaded, valid = extract_texture(frames, topo, D, tc, obs=obs)
     light = None
     if texturenet is not None and tc.use_texturenet:
-        albedo, source = texturenet.apply(shaded, valid), "texturenet"
+        if texturenet.input_mode == "exposure-sh":
+            tex, tvalid, light = exposure_sh_delight(obs, tc, ridge=tc.delight_ridge)
+            albedo, source = texturenet.apply(tex, tvalid), "texturenet(exposure-sh)"
+        else:
+            albedo, source = texturenet.apply(shaded, valid), "texturenet"
     elif not tc.delight:
         albedo, source = fill_holes(shaded, valid).clamp(0, 1), "shaded"
     elif tc.delight_mode == "exposure-sh":
@@ -173,7 +177,7 @@ def training_step(st: TrainingState, batch: dict, cfg: RanaConfig, step: int) ->
 def initial_light(coarse: Coarse, frames: list[FrameData]) -> torch.Tensor | None:
     """E's start: the coarse stage's estimated training light (world axes, exposure units) in the first training
     frame's OpenGL camera axes, so that at step 0 the avatar reproduces the coarse albedo x shading the coarse
-    albedo was de-lit with. None when the coarse stage estimated no light (TextureNet, grey-world)."""
+    albedo was de-lit with. None when the coarse stage estimated no light (shaded-input TextureNet, grey-world)."""
     if coarse.light_world is None or not frames:
         return None
     from rh_common import sh
@@ -226,7 +230,8 @@ def ensure_coarse(dataset: str | Path, subject: str, protocol: str, run_dir: str
     if pre is not None and pre.get("texturenet") is not None:
         from .texturenet import TextureNet
 
-        texnet = TextureNet(cfg.texture)
+        # The input mode it was trained with; checkpoints older than the mode took the shaded texture.
+        texnet = TextureNet(cfg.texture, input_mode=pre.get("texturenet_input", "shaded"))
         texnet.load_state_dict(pre["texturenet"])
     t0 = time.perf_counter()
     coarse = coarse_stage(frames, cfg, texturenet=texnet, progress=progress)

@@ -114,6 +114,54 @@ def test_configs_written_before_residual_heads_read_as_direct_outputs():
     assert config_from_json(d).model.residual_coarse is False
 
 
+def test_configs_written_before_the_delit_texturenet_input_read_as_the_paper_s():
+    from rana.config import config_from_json, config_to_json
+
+    d = config_to_json(get_preset("cpu"))
+    assert config_from_json(d).texture.texturenet_input == "exposure-sh"
+    assert config_from_json(d).pretrain.light_source == "dataset"
+    del d["texture"]["texturenet_input"], d["pretrain"]["light_source"]
+    assert config_from_json(d).texture.texturenet_input == "shaded"
+    assert config_from_json(d).pretrain.light_source == "random-sh"
+    assert get_preset("paper").texture.texturenet_input == "shaded"
+
+
+def test_untrained_delit_texturenet_returns_its_input_and_the_shaded_one_does_not():
+    from rana.texture import fill_holes
+    from rana.texturenet import TextureNet
+
+    cfg = get_preset("tiny").texture
+    torch.manual_seed(0)
+    tex = torch.rand(3, 32, 32) * 0.9
+    valid = torch.rand(32, 32) > 0.3
+    out = TextureNet(cfg, input_mode="exposure-sh").apply(tex, valid)
+    assert torch.allclose(out, fill_holes(tex, valid), atol=1e-5)  # sRGB encode then decode: identity
+    assert not torch.allclose(TextureNet(cfg, input_mode="shaded").apply(tex, valid), out, atol=1e-2)
+    with pytest.raises(ValueError, match="texturenet_input"):
+        TextureNet(cfg, input_mode="median")
+
+
+def test_srgb_decode_inverts_encode():
+    from rana.nets import srgb_decode_t
+
+    v = torch.linspace(0, 1, 1001)
+    assert torch.allclose(srgb_decode_t(srgb_encode_t(v)), v, atol=1e-6)
+
+
+def test_pretraining_shades_world_lights_with_camera_normals_as_a_rotated_light_would():
+    """prepare_character shades camera-axes normals n_cam with a world-axes light as S(L_world; n_cam R); that must
+    equal the shading of n_cam under the light rotated into camera axes, S(rotate(L_world, R); n_cam)."""
+    from scipy.spatial.transform import Rotation
+
+    R = torch.as_tensor(Rotation.from_euler("xyz", [20, -75, 10], degrees=True).as_matrix(), dtype=torch.float32)
+    rng = np.random.default_rng(3)
+    L = torch.as_tensor(rng.normal(size=(9, 3)), dtype=torch.float32)
+    n = torch.nn.functional.normalize(torch.randn(500, 3), dim=-1)
+    a = sh.shading(L, n @ R)
+    b = sh.shading(torch.as_tensor(sh.rotate(L, R), dtype=torch.float32), n)
+    assert torch.allclose(a, b, atol=1e-4)
+
+
 def test_light_init_sets_e():
     cfg = _tiny_cfg()
     light = torch.randn(9, 3)

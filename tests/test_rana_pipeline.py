@@ -150,7 +150,9 @@ def test_pretrain_then_personalize_with_it(tmp_path):
     for k, v in pre["G_N"].items():
         assert torch.equal(st["G_N." + k], v), k
     coarse = torch.load(tmp_path / "runs" / "subject_000" / "coarse.pt", weights_only=False)
-    assert coarse["albedo_source"] == "texturenet"
+    assert coarse["albedo_source"] == "texturenet(exposure-sh)"  # the tiny preset's input mode
+    assert pre["texturenet_input"] == "exposure-sh"
+    assert coarse["light_world"] is not None  # the de-lighting's light, E's start
 
 
 def test_texturenet_resume_equals_an_uninterrupted_run(tmp_path):
