@@ -275,7 +275,9 @@ _PAPER = _r(RanaConfig(), preset="paper",
 # bench/bench_rana.py for the measured time per step.
 _CPU = _r(RanaConfig(), preset="cpu",
           geometry=dict(resolution=128, steps=200, frames_per_step=2),
-          texture=dict(size=256, unet_base=16, unet_depth=4, steps=1500, batch_size=4),
+          # No GAN term for TextureNet: on 14 characters, 60 steps, it cost 0.37 dB of held-out albedo PSNR where
+          # L1 + VGG alone gained 0.19 dB (bench/texturenet_check.py; docs/RANA.md).
+          texture=dict(size=256, unet_base=16, unet_depth=4, steps=1500, batch_size=4, lambda_gan=0.0),
           model=dict(resolution=128, latent_size=128, unet_base=16, unet_depth=4, disc_base=32),
           personalize=dict(steps=2000, freeze_albedo_steps=200, checkpoint_every=250),
           pretrain=dict(steps=3000, batch_size=4, checkpoint_every=500))

@@ -44,7 +44,7 @@ from .texture import exposure_sh_delight, extract_texture, texel_observations
 from .texturenet import TextureNet, augment, texturenet_input, texturenet_loss
 from .train import cosine_lr
 
-__all__ = ["prepare_character", "train_texturenet", "pretrain", "main"]
+__all__ = ["prepare_character", "load_or_prepare_character", "train_texturenet", "pretrain", "main"]
 
 
 def _save(path: Path, obj) -> None:
@@ -73,6 +73,21 @@ def prepare_character(dataset: Path, subject: str, protocol: str, cfg: RanaConfi
     return {"subject": subject, "offsets": D, "net_input": net_input, "valid": valid, "target": target,
             "target_valid": target_valid, "texturenet_input": tc.texturenet_input,
             "light_source": cfg.pretrain.light_source, "light": light}
+
+
+def load_or_prepare_character(dataset: Path, subject: str, protocol: str, cfg: RanaConfig, cache: Path,
+                              force: bool = False) -> dict:
+    """`prepare_character`, cached as `cache/<subject>.pt`."""
+    p = Path(cache) / f"{subject}.pt"
+    if p.is_file() and not force:
+        c = torch.load(p, weights_only=False)
+        # A cache made with another input mode or light (or by an older version) is redone, not reused.
+        if (c.get("texturenet_input"), c.get("light_source")) == (cfg.texture.texturenet_input,
+                                                                   cfg.pretrain.light_source):
+            return c
+    c = prepare_character(Path(dataset), subject, protocol, cfg)
+    _save(p, c)
+    return c
 
 
 def character_light(frames: list, subject: str, cfg: RanaConfig) -> torch.Tensor:
@@ -175,19 +190,8 @@ def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfi
     if not subjects:
         raise FileNotFoundError(f"{dataset}: no subject_*/protocol_{protocol}/train folders")
     # Stage 1: per-character coarse data.
-    chars = []
-    for s in tqdm(subjects, desc="characters", unit="char", disable=not progress, dynamic_ncols=True):
-        p = out / "cache" / f"{s}.pt"
-        if p.is_file() and not force:
-            c = torch.load(p, weights_only=False)
-            # A cache made with another input mode or light (or by an older version) is redone, not reused.
-            if (c.get("texturenet_input"), c.get("light_source")) == (cfg.texture.texturenet_input,
-                                                                       cfg.pretrain.light_source):
-                chars.append(c)
-                continue
-        c = prepare_character(dataset, s, protocol, cfg)
-        _save(p, c)
-        chars.append(c)
+    chars = [load_or_prepare_character(dataset, s, protocol, cfg, out / "cache", force=force)
+             for s in tqdm(subjects, desc="characters", unit="char", disable=not progress, dynamic_ncols=True)]
     # Stage 2: TextureNet.
     tex_path = out / "texturenet.pt"
     texnet = TextureNet(cfg.texture)
