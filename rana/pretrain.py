@@ -40,8 +40,8 @@ from .model import AMBIENT_L0, RanaModel, coarse_buffers, stack_batch
 from .nets import PatchDiscriminator, VGGPerceptual, hinge_d_loss
 from .runs import RunDir
 from .synthetic import random_sh
-from .texture import exposure_sh_delight, extract_texture, texel_observations
-from .texturenet import TextureNet, augment, texturenet_input, texturenet_loss
+from .texture import extract_texture, texel_observations
+from .texturenet import TextureNet, augment, input_texture, texturenet_input, texturenet_loss
 from .train import cosine_lr
 
 __all__ = ["prepare_character", "load_or_prepare_character", "train_texturenet", "pretrain", "main"]
@@ -65,10 +65,7 @@ def prepare_character(dataset: Path, subject: str, protocol: str, cfg: RanaConfi
         fr.image = fr.albedo * shade * fr.mask[..., None]
     tc = cfg.texture
     obs = texel_observations(frames, topo, D, tc, layer="image")
-    if tc.texturenet_input == "exposure-sh":
-        net_input, valid, _ = exposure_sh_delight(obs, tc, ridge=tc.delight_ridge)
-    else:
-        net_input, valid = extract_texture(frames, topo, D, tc, obs=obs)
+    net_input, valid, _ = input_texture(tc.texturenet_input, obs, tc)
     target, target_valid = extract_texture(frames, topo, D, tc, layer="albedo")
     return {"subject": subject, "offsets": D, "net_input": net_input, "valid": valid, "target": target,
             "target_valid": target_valid, "texturenet_input": tc.texturenet_input,

@@ -14,9 +14,9 @@ import torch.nn.functional as F
 
 from .config import TextureConfig
 from .nets import PatchDiscriminator, UNet, VGGPerceptual, hinge_d_loss, hinge_g_loss, srgb_decode_t, srgb_encode_t
-from .texture import fill_holes, uv_coordinate_image
+from .texture import TexelObservations, exposure_sh_delight, extract_texture, fill_holes, uv_coordinate_image
 
-__all__ = ["TextureNet", "texturenet_input", "augment", "texturenet_loss"]
+__all__ = ["TextureNet", "input_texture", "texturenet_input", "augment", "texturenet_loss"]
 
 
 INPUT_MODES = ("shaded", "exposure-sh")
@@ -54,6 +54,17 @@ class TextureNet(nn.Module):
         (3, S, S) albedo."""
         self.eval()
         return self(texturenet_input(texture, valid)[None])[0]
+
+
+def input_texture(mode: str, obs: TexelObservations, cfg: TextureConfig):
+    """The texture TextureNet starts from, for a subject's back-projected observations: (3, S, S) texture,
+    (S, S) validity, and the de-lighting's (9, 3) light ('exposure-sh') or None ('shaded')."""
+    if mode == "exposure-sh":
+        return exposure_sh_delight(obs, cfg, ridge=cfg.delight_ridge)
+    if mode == "shaded":
+        tex, valid = extract_texture([], None, None, cfg, obs=obs)
+        return tex, valid, None
+    raise ValueError(f"texture.texturenet_input: expected one of {INPUT_MODES}, got {mode!r}")
 
 
 def texturenet_input(shaded: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:

@@ -60,11 +60,11 @@ def coarse_stage(frames: list[FrameData], cfg: RanaConfig, *, texturenet=None, p
     shaded, valid = extract_texture(frames, topo, D, tc, obs=obs)
     light = None
     if texturenet is not None and tc.use_texturenet:
-        if texturenet.input_mode == "exposure-sh":
-            tex, tvalid, light = exposure_sh_delight(obs, tc, ridge=tc.delight_ridge)
-            albedo, source = texturenet.apply(tex, tvalid), "texturenet(exposure-sh)"
-        else:
-            albedo, source = texturenet.apply(shaded, valid), "texturenet"
+        from .texturenet import input_texture
+
+        tex, tvalid, light = input_texture(texturenet.input_mode, obs, tc)
+        albedo = texturenet.apply(tex, tvalid)
+        source = "texturenet" if texturenet.input_mode == "shaded" else f"texturenet({texturenet.input_mode})"
     elif not tc.delight:
         albedo, source = fill_holes(shaded, valid).clamp(0, 1), "shaded"
     elif tc.delight_mode == "exposure-sh":
