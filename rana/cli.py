@@ -89,6 +89,11 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--name", default=None,
                        help="method name in method.json (what rh-leaderboard shows; default 'RANA' / 'SMPL+D')")
         q.add_argument("--no-progress", action="store_true")
+        if name == "predict":
+            q.add_argument("--mask-composite", default="threshold", choices=["threshold", "probability"],
+                           help="how the person meets the background: the person wherever AlbedoNet's mask is "
+                                "> 0.5 (default), or a blend weighted by that mask, which is a probability rather "
+                                "than a coverage (docs/RANA.md, 'Compositing RANA's image')")
         if name == "smpld":
             q.add_argument("--preset", default="cpu", choices=sorted(PRESETS),
                            help="config for subjects whose coarse stage is missing (it is run first)")
@@ -146,7 +151,8 @@ def main(argv: list[str] | None = None) -> int:
 
             subs = None if args.subject == "all" else _subjects(args.subject, args.dataset, args.protocol, "test")
             n = predict_rana(args.dataset, args.protocol, args.runs, args.out, subjects=subs,
-                             background=args.background, progress=not args.no_progress, name=args.name)
+                             background=args.background, progress=not args.no_progress, name=args.name,
+                             mask_composite=args.mask_composite)
             print(f"rana predict: {n} frames written to {args.out}")
         elif args.cmd == "smpld":
             from .predict import predict_smpld

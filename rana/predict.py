@@ -11,6 +11,13 @@ knowledge the target light gives; `'black'` writes zeros instead.
 * RANA: albedo and normal from the networks, mask from AlbedoNet, image = albedo x max(0, S(normal)).
 * SMPL+D (paper Sec. 4.4): the coarse albedo texture and coarse normals rasterised in the target pose, SH-shaded
   the same way, mask = the mesh's coverage.
+
+How the person meets the background (`mask_composite`): SMPL+D's mask is a rasteriser's coverage, so its edge
+pixels are coverage-weighted blends, as a camera's are. AlbedoNet's mask is a probability (trained with BCE), not
+a coverage: blending by it mixes the SH background into the person wherever the network is unsure (11% of the
+ground-truth person's pixels have p < 0.9 on the small leaderboard), and that background is a poor stand-in for
+the real one. So RANA's image is the person where p > 0.5 and the background elsewhere (`'threshold'`, the same
+decision as its albedo and normal layers); `'probability'` blends by p (docs/RANA.md, "Compositing RANA's image").
 """
 from __future__ import annotations
 
@@ -32,17 +39,24 @@ from .train import Coarse, load_coarse
 __all__ = ["predict_rana", "predict_smpld", "render_rana_frame", "render_smpld_frame", "finish_layers"]
 
 
+MASK_COMPOSITES = ("threshold", "probability", "coverage")
+
+
 def finish_layers(image: torch.Tensor, albedo: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor, h0: int,
-                  w0: int, background: torch.Tensor) -> dict:
+                  w0: int, background: torch.Tensor, mask_composite: str) -> dict:
     """Working-resolution (H, W, C) layers → frame-resolution numpy arrays in the dataset's conventions: albedo and
-    normal zero outside the person (coverage > 0.5), normals unit length, image composited over `background`."""
+    normal zero outside the person (mask > 0.5), normals unit length, image over `background` either where
+    mask > 0.5 (`'threshold'`) or blended by the mask (`'probability'`, `'coverage'`; module docstring)."""
+    if mask_composite not in MASK_COMPOSITES:
+        raise ValueError(f"mask_composite {mask_composite!r}: expected one of {', '.join(MASK_COMPOSITES)}")
     img = resize_image(image, h0, w0)
     alb = resize_image(albedo, h0, w0)
     nrm = F.normalize(resize_image(normal, h0, w0), dim=-1, eps=1e-8)
     m = resize_image(mask[..., None], h0, w0).clamp(0, 1)
     bg = resize_image(background, h0, w0)
     inside = (m > 0.5).float()
-    return {"image": (m * img + (1 - m) * bg).clamp_min(0).numpy(),
+    alpha = inside if mask_composite == "threshold" else m
+    return {"image": (alpha * img + (1 - alpha) * bg).clamp_min(0).numpy(),
             "albedo": (alb.clamp(0, 1) * inside).numpy(),
             "normal": (nrm * inside).numpy()}
 
@@ -60,14 +74,15 @@ def _background(kind: str, sh_cam: torch.Tensor, fr) -> torch.Tensor:
 
 
 @torch.no_grad()
-def render_rana_frame(model: RanaModel, coarse: Coarse, tf: TestFrame, cfg: RanaConfig, background: str = "sh"
-                      ) -> dict:
+def render_rana_frame(model: RanaModel, coarse: Coarse, tf: TestFrame, cfg: RanaConfig, background: str = "sh",
+                      mask_composite: str = "threshold") -> dict:
     fr, sh_cam = _frame_inputs(tf, cfg)
     buf = coarse_buffers(fr, body_topology(), coarse.offsets, coarse.albedo_texture)
     out = model.get_outputs(stack_batch([buf]), light=sh_cam[None])
     hw = lambda t: t[0].permute(1, 2, 0)  # noqa: E731
     return finish_layers(hw(out["image"]), hw(out["albedo"]), hw(out["normal"]), out["mask"][0, 0],
-                         int(tf.meta["height"]), int(tf.meta["width"]), _background(background, sh_cam, fr))
+                         int(tf.meta["height"]), int(tf.meta["width"]), _background(background, sh_cam, fr),
+                         mask_composite)
 
 
 @torch.no_grad()
@@ -86,7 +101,7 @@ def render_smpld_frame(coarse: Coarse, tf: TestFrame, cfg: RanaConfig, backgroun
     fr.H, fr.W = fr.H // ss, fr.W // ss
     fr.K[:2] /= ss
     return finish_layers(down(img) / cov, down(buf["coarse_albedo"][None]) / cov, down(n), m,
-                         int(tf.meta["height"]), int(tf.meta["width"]), _background(background, sh_cam, fr))
+                         int(tf.meta["height"]), int(tf.meta["width"]), _background(background, sh_cam, fr), "coverage")
 
 
 def _run_for(runs_root: Path, subject: str) -> RunDir:
@@ -106,13 +121,13 @@ def _subject_frames(dataset: Path, protocol: str, subjects: list[str] | None) ->
 
 def predict_rana(dataset: str | Path, protocol: str, runs_root: str | Path, out: str | Path, *,
                  subjects: list[str] | None = None, background: str = "sh", progress: bool = True,
-                 name: str | None = None) -> int:
+                 name: str | None = None, mask_composite: str = "threshold") -> int:
     from tqdm import tqdm
 
     runs_root, dataset = Path(runs_root), Path(dataset)
     by = _subject_frames(dataset, protocol, subjects)
     writer = PredictionWriter(out, {"name": name or "RANA", "kind": "method", "runs": str(runs_root.resolve()),
-                                    "background": background,
+                                    "background": background, "mask_composite": mask_composite,
                                     "description": "RANA (Iqbal et al. 2023) on anny, rana/ in this repository"})
     n = 0
     for subject, tfs in by.items():
@@ -123,7 +138,7 @@ def predict_rana(dataset: str | Path, protocol: str, runs_root: str | Path, out:
         model.load_state_dict(run.load()["model"])
         model.eval()
         for tf in tqdm(tfs, desc=f"predict {subject}", unit="frame", disable=not progress, leave=False):
-            writer.write(tf, **render_rana_frame(model, coarse, tf, cfg, background))
+            writer.write(tf, **render_rana_frame(model, coarse, tf, cfg, background, mask_composite))
             n += 1
     return n
 

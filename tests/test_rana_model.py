@@ -231,3 +231,30 @@ def test_cached_vgg_targets_give_the_same_loss_and_gradients():
     assert v0 > 0
     assert v1 == pytest.approx(v0, rel=1e-6)
     torch.testing.assert_close(g1, g0, rtol=1e-5, atol=1e-8)
+
+
+def test_finish_layers_threshold_keeps_the_person_whole_and_blends_only_coverage():
+    from rana.predict import finish_layers
+
+    H = W = 4
+    person = torch.full((H, W, 3), 0.8)
+    bg = torch.full((H, W, 3), 0.1)
+    albedo = torch.full((H, W, 3), 0.5)
+    normal = torch.zeros(H, W, 3)
+    normal[..., 2] = 1.0
+    mask = torch.zeros(H, W)
+    mask[:, :2] = 0.7  # the person, with a network that is only 70% sure
+    mask[:, 3] = 0.3
+    thr = finish_layers(person, albedo, normal, mask, H, W, bg, "threshold")
+    prob = finish_layers(person, albedo, normal, mask, H, W, bg, "probability")
+    cov = finish_layers(person, albedo, normal, mask, H, W, bg, "coverage")
+    np.testing.assert_allclose(thr["image"][:, :2], 0.8, atol=1e-6)  # the person's own colour, no background in it
+    np.testing.assert_allclose(thr["image"][:, 2:], 0.1, atol=1e-6)  # p <= 0.5: background only
+    np.testing.assert_allclose(prob["image"][:, :2], 0.7 * 0.8 + 0.3 * 0.1, atol=1e-6)
+    np.testing.assert_allclose(prob["image"][:, 3], 0.3 * 0.8 + 0.7 * 0.1, atol=1e-6)
+    np.testing.assert_array_equal(cov["image"], prob["image"])
+    for out in (thr, prob):  # albedo and normal make the same decision whatever the image does
+        np.testing.assert_array_equal(out["albedo"][:, 2:], 0.0)
+        np.testing.assert_allclose(out["albedo"][:, :2], 0.5, atol=1e-6)
+    with pytest.raises(ValueError, match="mask_composite"):
+        finish_layers(person, albedo, normal, mask, H, W, bg, "soft")
