@@ -67,28 +67,30 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="cmd", required=True)
 
     t = sub.add_parser("train", help="coarse stage + personalization of one subject (or all)")
-    t.add_argument("--dataset", required=True, type=Path)
+    t.add_argument("--dataset", required=True, type=Path, help="dataset folder written by rh-generate")
     t.add_argument("--protocol", default="a", help="protocol letter (a or b)")
     t.add_argument("--subject", default="all", help="subject_NNN, a comma-separated list, or 'all'")
     t.add_argument("--runs", required=True, type=Path, help="folder of run folders, one per subject")
-    t.add_argument("--preset", default="cpu", choices=sorted(PRESETS))
+    t.add_argument("--preset", default="cpu", choices=sorted(PRESETS),
+                   help="starting config (docs/RANA.md, 'Presets'); the --<section>.<field> flags override it")
     t.add_argument("--pretrained", type=Path, default=None, help="pretrained.pt from rana-pretrain")
     t.add_argument("--force", action="store_true", help="restart the subject's run instead of resuming")
-    t.add_argument("--no-progress", action="store_true")
+    t.add_argument("--no-progress", action="store_true", help="no progress bars (for logs)")
     add_config_flags(t)
 
     for name, helptext in (("predict", "RANA predictions for rh-eval"), ("smpld", "SMPL+D baseline predictions")):
         q = sub.add_parser(name, help=helptext)
-        q.add_argument("--dataset", required=True, type=Path)
-        q.add_argument("--protocol", default="a")
-        q.add_argument("--runs", required=True, type=Path)
+        q.add_argument("--dataset", required=True, type=Path, help="dataset folder written by rh-generate")
+        q.add_argument("--protocol", default="a", help="protocol letter (a or b)")
+        q.add_argument("--runs", required=True, type=Path,
+                       help="folder of run folders, one per subject (what `rana train --runs` wrote)")
         q.add_argument("--out", required=True, type=Path, help="predictions folder")
         q.add_argument("--subject", default="all", help="subject_NNN, comma-separated list, or 'all'")
         q.add_argument("--background", default="sh", choices=["sh", "black"],
                        help="outside the person: the target light's SH environment (default) or black")
         q.add_argument("--name", default=None,
                        help="method name in method.json (what rh-leaderboard shows; default 'RANA' / 'SMPL+D')")
-        q.add_argument("--no-progress", action="store_true")
+        q.add_argument("--no-progress", action="store_true", help="no progress bars (for logs)")
         if name == "predict":
             q.add_argument("--mask-composite", default="threshold", choices=["threshold", "probability"],
                            help="how the person meets the background: the person wherever AlbedoNet's mask is "
@@ -101,20 +103,20 @@ def build_parser() -> argparse.ArgumentParser:
             q.add_argument("--pretrained", type=Path, default=None, help="pretrained.pt (for TextureNet)")
 
     pr = sub.add_parser("pretrain", help="same as rana-pretrain", add_help=False)
-    pr.add_argument("rest", nargs=argparse.REMAINDER)
+    pr.add_argument("rest", nargs=argparse.REMAINDER, help="arguments for rana-pretrain (see rana-pretrain --help)")
 
     pl = sub.add_parser("plot", help="plot a run's losses.jsonl to PNG")
-    pl.add_argument("run", type=Path)
+    pl.add_argument("run", type=Path, help="a subject's run folder (holding losses.jsonl)")
     pl.add_argument("--out", type=Path, default=None, help="PNG path (default <run>/losses.png)")
     pl.add_argument("--keys", default=None, help="comma-separated loss names (default all)")
 
     sy = sub.add_parser("synth", help="write a tiny synthetic dataset (our rasteriser, Lambertian SH)")
-    sy.add_argument("--out", required=True, type=Path)
-    sy.add_argument("--subjects", type=int, default=1)
-    sy.add_argument("--train-frames", type=int, default=12)
-    sy.add_argument("--test-frames", type=int, default=4)
-    sy.add_argument("--resolution", type=int, default=128)
-    sy.add_argument("--seed", type=int, default=0)
+    sy.add_argument("--out", required=True, type=Path, help="dataset folder to write")
+    sy.add_argument("--subjects", type=int, default=1, help="number of subjects")
+    sy.add_argument("--train-frames", type=int, default=12, help="train frames per subject")
+    sy.add_argument("--test-frames", type=int, default=4, help="test frames per subject")
+    sy.add_argument("--resolution", type=int, default=128, help="image size in pixels (square)")
+    sy.add_argument("--seed", type=int, default=0, help="seed of shapes, poses and lights")
     sy.add_argument("--aov-only-train", action="store_true", help="pretraining-style train split")
     return p
 
