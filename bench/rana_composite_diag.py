@@ -5,7 +5,9 @@
 For the trained runs under `--runs`, on every test frame: the distribution of AlbedoNet's mask probability p over
 the ground-truth person (GT coverage >= 128), then LPIPS and PSNR of the image written both ways
 (`rana predict --mask-composite threshold | probability`), in rh-eval's default region (the leaderboard's
-numbers) and inside the GT mask. Nothing is retrained; predictions go to a temporary folder.
+numbers) and inside the GT mask; and the same for SMPL+D from the runs' coarse stage, blended by its rasterised
+coverage (what `rana smpld` writes) and thresholded at 0.5. Nothing is retrained; predictions go to a temporary
+folder.
 """
 from __future__ import annotations
 
@@ -59,7 +61,7 @@ def main(argv=None) -> int:
     ap.add_argument("--subject", default="all", help="subject_NNN, a comma-separated list, or 'all'")
     args = ap.parse_args(argv)
 
-    from rana.predict import predict_rana
+    from rana.predict import predict_rana, predict_smpld
 
     torch.set_num_threads(1)
     subjects = (sorted(p.name for p in args.runs.glob("subject_*") if (p / "coarse.pt").is_file())
@@ -69,15 +71,17 @@ def main(argv=None) -> int:
     print(f"AlbedoNet's mask p over the GT person ({len(subjects)} subjects, {p.size} pixels): "
           f"5/25/50% quantiles {q[0]:.3f} / {q[1]:.3f} / {q[2]:.3f}; p < 0.9: {(p < 0.9).mean():.1%}; "
           f"p <= 0.5: {(p <= 0.5).mean():.1%}")
-    print(f"{'composite':<12} {'LPIPS':>7} {'PSNR':>7} {'PSNR(mask)':>11}   (mean over subjects' test frames)")
+    print(f"{'method':<7} {'composite':<12} {'LPIPS':>7} {'PSNR':>7} {'PSNR(mask)':>11}   (mean over test frames)")
+    runs = (("RANA", predict_rana, ("threshold", "probability")), ("SMPL+D", predict_smpld, ("coverage", "threshold")))
     with tempfile.TemporaryDirectory() as tmp:
-        for mode in ("threshold", "probability"):
-            out = Path(tmp) / mode
-            predict_rana(args.dataset, args.protocol, args.runs, out, subjects=subjects, progress=False,
-                         mask_composite=mode)
-            rows = [_scores(out, args.dataset, args.protocol, s) for s in subjects]
-            mean = {k: float(np.mean([r[k] for r in rows])) for k in ("lpips", "psnr", "psnr_mask")}
-            print(f"{mode:<12} {mean['lpips']:7.4f} {mean['psnr']:7.2f} {mean['psnr_mask']:11.2f}")
+        for method, predict, modes in runs:
+            for mode in modes:
+                out = Path(tmp) / f"{method}_{mode}"
+                predict(args.dataset, args.protocol, args.runs, out, subjects=subjects, progress=False,
+                        mask_composite=mode)
+                rows = [_scores(out, args.dataset, args.protocol, s) for s in subjects]
+                mean = {k: float(np.mean([r[k] for r in rows])) for k in ("lpips", "psnr", "psnr_mask")}
+                print(f"{method:<7} {mode:<12} {mean['lpips']:7.4f} {mean['psnr']:7.2f} {mean['psnr_mask']:11.2f}")
     print("LPIPS (alex), PSNR: rh-eval's default region; PSNR(mask): inside the GT mask; display space.")
     return 0
 

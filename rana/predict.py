@@ -86,8 +86,9 @@ def render_rana_frame(model: RanaModel, coarse: Coarse, tf: TestFrame, cfg: Rana
 
 
 @torch.no_grad()
-def render_smpld_frame(coarse: Coarse, tf: TestFrame, cfg: RanaConfig, background: str = "sh", ss: int = 2) -> dict:
-    """The SMPL+D baseline, rasterised at ss x ss samples per pixel for an anti-aliased mask."""
+def render_smpld_frame(coarse: Coarse, tf: TestFrame, cfg: RanaConfig, background: str = "sh", ss: int = 2,
+                       mask_composite: str = "coverage") -> dict:
+    """The SMPL+D baseline, rasterised at ss x ss samples per pixel for an anti-aliased mask (its coverage)."""
     fr, sh_cam = _frame_inputs(tf, cfg)
     fr.H, fr.W = fr.H * ss, fr.W * ss
     fr.K = fr.K.clone()
@@ -101,7 +102,8 @@ def render_smpld_frame(coarse: Coarse, tf: TestFrame, cfg: RanaConfig, backgroun
     fr.H, fr.W = fr.H // ss, fr.W // ss
     fr.K[:2] /= ss
     return finish_layers(down(img) / cov, down(buf["coarse_albedo"][None]) / cov, down(n), m,
-                         int(tf.meta["height"]), int(tf.meta["width"]), _background(background, sh_cam, fr), "coverage")
+                         int(tf.meta["height"]), int(tf.meta["width"]), _background(background, sh_cam, fr),
+                         mask_composite)
 
 
 def _run_for(runs_root: Path, subject: str) -> RunDir:
@@ -145,7 +147,7 @@ def predict_rana(dataset: str | Path, protocol: str, runs_root: str | Path, out:
 
 def predict_smpld(dataset: str | Path, protocol: str, runs_root: str | Path, out: str | Path, *,
                   subjects: list[str] | None = None, background: str = "sh", progress: bool = True,
-                  name: str | None = None) -> int:
+                  name: str | None = None, mask_composite: str = "coverage") -> int:
     """SMPL+D for every subject that has a coarse stage (`<runs>/<subject>/coarse.pt`)."""
     from tqdm import tqdm
 
@@ -160,6 +162,6 @@ def predict_smpld(dataset: str | Path, protocol: str, runs_root: str | Path, out
         cfg, _ = run.read_config()
         coarse = load_coarse(run.path / "coarse.pt")
         for tf in tqdm(tfs, desc=f"smpl+d {subject}", unit="frame", disable=not progress, leave=False):
-            writer.write(tf, **render_smpld_frame(coarse, tf, cfg, background))
+            writer.write(tf, **render_smpld_frame(coarse, tf, cfg, background, mask_composite=mask_composite))
             n += 1
     return n
