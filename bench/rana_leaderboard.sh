@@ -147,7 +147,7 @@ if has board && command -v chromium > /dev/null; then
   for p in a b; do
     [ -e "$WORK/board_$p/index.html" ] || continue
     chromium --headless --no-sandbox --disable-gpu --no-first-run --disable-background-networking \
-      --disable-component-update --disable-sync --user-data-dir="$WORK/chromium" --window-size=1200,900 \
+      --disable-component-update --disable-sync --user-data-dir="$WORK/chromium" --window-size=1200,1150 \
       --screenshot="$OUT/protocol_$p/screenshot.png" "file://$(cd "$WORK/board_$p" && pwd)/index.html" \
       > /dev/null 2>&1 || echo "screenshot of protocol $p failed"
   done
