@@ -30,16 +30,10 @@ def mask_probabilities(dataset: Path, protocol: str, runs: Path, subject: str) -
     """AlbedoNet's p at every GT-person pixel of the subject's test frames (working resolution = frame size)."""
     from rana.body import body_topology
     from rana.data import resize_image
-    from rana.model import RanaModel, coarse_buffers, stack_batch
-    from rana.predict import _frame_inputs, _run_for, _subject_frames
-    from rana.train import load_coarse
+    from rana.model import coarse_buffers, stack_batch
+    from rana.predict import _frame_inputs, _run_for, _subject_frames, load_trained
 
-    run = _run_for(runs, subject)
-    cfg, _ = run.read_config()
-    coarse = load_coarse(run.path / "coarse.pt")
-    model = RanaModel(cfg.model)
-    model.load_state_dict(run.load()["model"])
-    model.eval()
+    cfg, coarse, model = load_trained(_run_for(runs, subject))
     ps = []
     with torch.no_grad():
         for tf in _subject_frames(dataset, protocol, [subject])[subject]:

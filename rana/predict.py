@@ -36,7 +36,7 @@ from .runs import RunDir
 from .synthetic import sh_background
 from .train import Coarse, load_coarse
 
-__all__ = ["predict_rana", "predict_smpld", "render_rana_frame", "render_smpld_frame", "finish_layers"]
+__all__ = ["predict_rana", "predict_smpld", "render_rana_frame", "render_smpld_frame", "finish_layers", "load_trained"]
 
 
 MASK_COMPOSITES = ("threshold", "probability", "coverage")
@@ -113,6 +113,16 @@ def _run_for(runs_root: Path, subject: str) -> RunDir:
     return run
 
 
+def load_trained(run: RunDir) -> tuple[RanaConfig, Coarse, RanaModel]:
+    """A personalized subject's config, coarse stage and model (newest checkpoint, eval mode)."""
+    cfg, _ = run.read_config()
+    coarse = load_coarse(run.path / "coarse.pt")
+    model = RanaModel(cfg.model)
+    model.load_state_dict(run.load()["model"])
+    model.eval()
+    return cfg, coarse, model
+
+
 def _subject_frames(dataset: Path, protocol: str, subjects: list[str] | None) -> dict[str, list[TestFrame]]:
     by: dict[str, list[TestFrame]] = {}
     for tf in iter_test_frames(dataset, protocol):
@@ -133,12 +143,7 @@ def predict_rana(dataset: str | Path, protocol: str, runs_root: str | Path, out:
                                     "description": "RANA (Iqbal et al. 2023) on anny, rana/ in this repository"})
     n = 0
     for subject, tfs in by.items():
-        run = _run_for(runs_root, subject)
-        cfg, _ = run.read_config()
-        coarse = load_coarse(run.path / "coarse.pt")
-        model = RanaModel(cfg.model)
-        model.load_state_dict(run.load()["model"])
-        model.eval()
+        cfg, coarse, model = load_trained(_run_for(runs_root, subject))
         for tf in tqdm(tfs, desc=f"predict {subject}", unit="frame", disable=not progress, leave=False):
             writer.write(tf, **render_rana_frame(model, coarse, tf, cfg, background, mask_composite))
             n += 1
