@@ -189,7 +189,7 @@ class ImportedCharacter:
         return [p for c in self.clips for p in c.poses]
 
     def to_json(self) -> dict:
-        """What a dataset records about the character (subject_XXX/character.json): no machine paths."""
+        """What a dataset records about the character (subject_NNN/character.json): no machine paths."""
         return {
             "model": "imported", "file": self.source, "sha256": self.sha256, "name": self.name,
             "scale": self.scale, "placement": self.placement.tolist(),
