@@ -26,17 +26,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 
-def _psnr(sq_err: np.ndarray, where: np.ndarray) -> float:
-    if not where.any():
-        return float("nan")
-    mse = float(sq_err[where].mean())
-    return float("inf") if mse == 0 else float(-10 * np.log10(mse))
-
-
 def split(pred_roots: list[Path], dataset: Path, protocol: str, layer: str = "normal") -> list[dict]:
     from rh_eval.conventions import Convention, albedo_to_space
     from rh_eval.dataset_io import (load_dataset, read_gt_albedo, read_gt_mask, read_gt_normal, read_pred_albedo,
                                     read_pred_normal, scan_predictions)
+    from rh_eval.metrics import psnr
     from rh_eval.metrics.normal import angular_error_map
 
     if layer not in ("normal", "albedo"):
@@ -63,8 +57,8 @@ def split(pred_roots: list[Path], dataset: Path, protocol: str, layer: str = "no
         else:
             g = albedo_to_space(read_gt_albedo(gt), conv)
             values = [read_pred_albedo(getattr(bf[gt.key], layer), gt) for bf in by_frame]
-            errors = [((albedo_to_space(v, conv) - g) ** 2).mean(-1) for v in values]
-            score = _psnr
+            errors = [albedo_to_space(v, conv) for v in values]
+            score = lambda a, where: psnr(a, g, data_range=1.0, mask=where)  # noqa: E731
         has = [inside & np.any(v != 0, axis=-1) for v in values]
         common = np.logical_and.reduce(has)
         for i, (err, h) in enumerate(zip(errors, has)):

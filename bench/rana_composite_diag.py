@@ -28,18 +28,14 @@ from rh_common.imageio import read_png  # noqa: E402
 
 def mask_probabilities(dataset: Path, protocol: str, runs: Path, subject: str) -> np.ndarray:
     """AlbedoNet's p at every GT-person pixel of the subject's test frames (working resolution = frame size)."""
-    from rana.body import body_topology
     from rana.data import resize_image
-    from rana.model import coarse_buffers, stack_batch
-    from rana.predict import _frame_inputs, _run_for, _subject_frames, load_trained
+    from rana.predict import _run_for, _subject_frames, load_trained, rana_outputs
 
     cfg, coarse, model = load_trained(_run_for(runs, subject))
     ps = []
     with torch.no_grad():
         for tf in _subject_frames(dataset, protocol, [subject])[subject]:
-            fr, sh_cam = _frame_inputs(tf, cfg)
-            out = model.get_outputs(stack_batch([coarse_buffers(fr, body_topology(), coarse.offsets,
-                                                                coarse.albedo_texture)]), light=sh_cam[None])
+            out = rana_outputs(model, coarse, tf, cfg)[0]
             p = resize_image(out["mask"][0, 0][..., None], int(tf.meta["height"]), int(tf.meta["width"]))[..., 0]
             gt = read_png(tf.layer_path("mask", "png"))
             gt = (gt if gt.ndim == 2 else gt[..., 0]) >= 128

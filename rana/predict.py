@@ -74,11 +74,18 @@ def _background(kind: str, sh_cam: torch.Tensor, fr) -> torch.Tensor:
 
 
 @torch.no_grad()
-def render_rana_frame(model: RanaModel, coarse: Coarse, tf: TestFrame, cfg: RanaConfig, background: str = "sh",
-                      mask_composite: str = "threshold") -> dict:
+def rana_outputs(model: RanaModel, coarse: Coarse, tf: TestFrame, cfg: RanaConfig):
+    """The model's outputs (batch of 1, working resolution) for a test frame's pose and light, with the frame
+    buffers and the light they used."""
     fr, sh_cam = _frame_inputs(tf, cfg)
     buf = coarse_buffers(fr, body_topology(), coarse.offsets, coarse.albedo_texture)
-    out = model.get_outputs(stack_batch([buf]), light=sh_cam[None])
+    return model.get_outputs(stack_batch([buf]), light=sh_cam[None]), fr, sh_cam
+
+
+@torch.no_grad()
+def render_rana_frame(model: RanaModel, coarse: Coarse, tf: TestFrame, cfg: RanaConfig, background: str = "sh",
+                      mask_composite: str = "threshold") -> dict:
+    out, fr, sh_cam = rana_outputs(model, coarse, tf, cfg)
     hw = lambda t: t[0].permute(1, 2, 0)  # noqa: E731
     return finish_layers(hw(out["image"]), hw(out["albedo"]), hw(out["normal"]), out["mask"][0, 0],
                          int(tf.meta["height"]), int(tf.meta["width"]), _background(background, sh_cam, fr),
