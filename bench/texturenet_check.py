@@ -18,7 +18,8 @@ from pathlib import Path
 
 import torch
 
-from rana.config import PRESETS, add_config_flags, apply_config_flags, get_preset
+from rana.config import PRESETS, get_preset
+from rana.config_flags import add_config_flags, apply_config_flags
 from rana.data import subjects_of
 from rana.nets import srgb_encode_t
 from rana.pretrain import load_or_prepare_character, train_texturenet

@@ -18,7 +18,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from .config import PRESETS, add_config_flags, apply_config_flags, get_preset
+from .config import PRESETS, get_preset
+from .config_flags import add_config_flags, apply_config_flags
 
 __all__ = ["main", "build_parser", "plot_losses"]
 

@@ -1,18 +1,20 @@
-"""RANA's configuration: one frozen dataclass per component, named presets, and command-line flags made from them.
+"""RANA's configuration: one frozen, validated dataclass per component, and named presets.
 
-Every field carries a docstring; `add_config_flags` turns each into a `--section.field` flag whose help text is
-that docstring (nerfstudio's habit, without tyro). Two levels at most: `RanaConfig.<section>.<field>`.
+In: field values (a preset, command-line flags, a stored config). Out: a `RanaConfig` whose fields were checked on
+construction: each field's type, each `Literal` mode among its values, counts and weights within their bounds. A
+bad value raises `ValueError` naming `section.field`, the value and what is allowed, before any work starts rather
+than steps later where the value is first used.
+
+Every field carries a docstring, the help text of its `--section.field` flag (`rana.config_flags`). Two levels at
+most: `RanaConfig.<section>.<field>`. Stored configs (JSON with a schema version): `rana.config_json`.
 """
 from __future__ import annotations
 
-import ast
-import argparse
 import dataclasses
 import functools
-import inspect
-import json
+import typing
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 __all__ = [
     "GeometryConfig",
@@ -22,14 +24,47 @@ __all__ = [
     "PersonalizeConfig",
     "PretrainConfig",
     "RanaConfig",
+    "SECTIONS",
+    "TextureNetInput",
+    "DelightMode",
+    "LightSource",
     "PRESETS",
     "get_preset",
-    "config_to_json",
-    "config_from_json",
-    "add_config_flags",
-    "apply_config_flags",
-    "field_docs",
+    "field_types",
 ]
+
+# The mode fields' values, defined once: the dataclasses, the flags' choices and TextureNet read them here.
+TextureNetInput = Literal["shaded", "exposure-sh"]
+DelightMode = Literal["exposure-sh", "grey-world"]
+LightSource = Literal["dataset", "random-sh"]
+
+
+@functools.lru_cache(maxsize=None)
+def field_types(cls: type) -> dict[str, Any]:
+    """A config dataclass's field types, resolved (the annotations are strings here) once per class."""
+    return typing.get_type_hints(cls)
+
+
+def _check(obj, *, positive: tuple[str, ...] = (), nonneg: tuple[str, ...] = (), unit: tuple[str, ...] = ()) -> None:
+    """Validate a config dataclass on construction: every field's type (a `Literal` field: one of its values), then
+    the bounds. An int given for a float field becomes a float, so a config read back from JSON equals the one
+    written."""
+    sec = _SECTION_OF.get(type(obj))
+    where = (lambda n: f"{sec}.{n}") if sec else (lambda n: n)  # noqa: E731
+    for f in dataclasses.fields(obj):
+        v, t = getattr(obj, f.name), field_types(type(obj))[f.name]
+        if typing.get_origin(t) is Literal:
+            if not isinstance(v, str) or v not in typing.get_args(t):
+                raise ValueError(f"{where(f.name)}: {v!r} is not one of {', '.join(map(repr, typing.get_args(t)))}")
+        elif t is float and isinstance(v, int) and not isinstance(v, bool):
+            object.__setattr__(obj, f.name, float(v))  # frozen: the one sanctioned write, during construction
+        elif not isinstance(v, t) or (isinstance(v, bool) and t is not bool):
+            raise ValueError(f"{where(f.name)}: expected {t.__name__}, got {v!r}")
+    for names, ok, rule in ((positive, lambda v: v > 0, "> 0"), (nonneg, lambda v: v >= 0, ">= 0"),
+                            (unit, lambda v: 0 <= v <= 1, "in [0, 1]")):
+        for n in names:
+            if not ok(getattr(obj, n)):  # NaN fails every rule
+                raise ValueError(f"{where(n)}: must be {rule}, got {getattr(obj, n)!r}")
 
 
 @dataclass(frozen=True)
@@ -54,6 +89,10 @@ class GeometryConfig:
     place)."""
     max_frames: int = 0
     """Use at most this many training frames (evenly spaced); 0 = all."""
+
+    def __post_init__(self) -> None:
+        _check(self, positive=("resolution", "steps", "frames_per_step", "lr", "sigma_px"),
+               nonneg=("laplacian_weight", "offset_weight", "max_frames"))
 
 
 @dataclass(frozen=True)
@@ -85,7 +124,7 @@ class TextureConfig:
     """Weight of the PatchGAN term (paper: 10)."""
     mixup_beta: float = 0.4
     """MixUp Beta(a, a) parameter of the input augmentation (paper: 0.4); 0 disables MixUp."""
-    texturenet_input: str = "exposure-sh"
+    texturenet_input: TextureNetInput = "exposure-sh"
     """What TextureNet starts from. 'shaded' (the paper) = the shaded median texture; the network must learn to
     remove the light. 'exposure-sh' = the texture de-lit by `exposure_sh_delight` (see `delight_mode`), with a
     residual output initialised to zero: the network only corrects that estimate, so a TextureNet trained on few
@@ -97,7 +136,7 @@ class TextureConfig:
     delight: bool = True
     """Without TextureNet: remove the training light from the median texture (see `delight_mode`); false keeps the
     shaded median texture as the albedo."""
-    delight_mode: str = "exposure-sh"
+    delight_mode: DelightMode = "exposure-sh"
     """Without TextureNet: 'exposure-sh' = the training light's order-2 SH and per-texel albedo fitted jointly to
     every observation with the coarse normals (albedo x S(n) = observed), the scale fixed by the exposure
     convention (the light's mean luminance is 1 in the frames' units, DC term taken white); 'grey-world' = scale
@@ -106,6 +145,11 @@ class TextureConfig:
     """'exposure-sh': ridge on the light's bands 1-2, relative to the mean diagonal of the normal equations."""
     assumed_mean_albedo: float = 0.5
     """'grey-world' only: the mean albedo it assumes (sets the albedo/light scale ambiguity)."""
+
+    def __post_init__(self) -> None:
+        _check(self, positive=("size", "unet_base", "steps", "batch_size", "lr", "assumed_mean_albedo"),
+               nonneg=("unet_depth", "lr_min", "lambda_vgg", "lambda_gan", "mixup_beta", "delight_ridge"),
+               unit=("facing_quantile", "min_facing"))
 
 
 @dataclass(frozen=True)
@@ -133,6 +177,10 @@ class ModelConfig:
     disc_layers: int = 3
     """PatchGAN discriminator: strided layers (3 = the 70x70 PatchGAN of pix2pix)."""
 
+    def __post_init__(self) -> None:
+        _check(self, positive=("resolution", "latent_size", "latent_channels", "unet_base", "disc_base",
+                               "disc_layers"), nonneg=("pe_frequencies", "unet_depth"))
+
 
 @dataclass(frozen=True)
 class LossConfig:
@@ -156,6 +204,10 @@ class LossConfig:
     """Face crop side at 512 px (paper: 100); scaled with the resolution."""
     blur_kernel: int = 51
     """Gaussian kernel of the albedo regulariser at 512 px (paper: 51); scaled with the resolution, kept odd."""
+
+    def __post_init__(self) -> None:
+        _check(self, positive=("face_crop_px", "blur_kernel"),
+               nonneg=tuple(f.name for f in dataclasses.fields(self) if f.name.startswith("lambda_")))
 
 
 @dataclass(frozen=True)
@@ -189,6 +241,11 @@ class PersonalizeConfig:
     max_frames: int = 0
     """Use at most this many training frames (evenly spaced); 0 = all."""
 
+    def __post_init__(self) -> None:
+        _check(self, positive=("steps", "batch_size", "lr_net", "lr_latent", "lr_light", "lr_disc",
+                               "checkpoint_every", "log_every"),
+               nonneg=("freeze_albedo_steps", "lr_min", "keep_checkpoints", "max_frames"))
+
 
 @dataclass(frozen=True)
 class PretrainConfig:
@@ -212,7 +269,7 @@ class PretrainConfig:
     """Weight of the VGG terms (paper: 5)."""
     lambda_gan: float = 0.1
     """Weight of the GAN terms (paper: 0.1)."""
-    light_source: str = "dataset"
+    light_source: LightSource = "dataset"
     """The light that shades a pretraining character's AOV-only frames for TextureNet's inputs (one per character,
     as one training video has one light): 'dataset' = the generator's HDRI light of the character's first frame
     (its order-2 SH, at that frame's exposure), so the lights come from the same pool as the benchmark's;
@@ -227,6 +284,12 @@ class PretrainConfig:
     """Use at most this many pretraining characters; 0 = all."""
     max_frames: int = 0
     """Use at most this many frames per character; 0 = all."""
+
+    def __post_init__(self) -> None:
+        # light_seed and the top-level seed seed numpy generators, which refuse negative seeds.
+        _check(self, positive=("steps", "batch_size", "lr", "lr_latent", "checkpoint_every", "log_every"),
+               nonneg=("lr_min", "lambda_albedo", "lambda_mask", "lambda_vgg", "lambda_gan", "light_seed",
+                       "max_subjects", "max_frames"))
 
 
 @dataclass(frozen=True)
@@ -251,6 +314,15 @@ class RanaConfig:
     """Personalization schedule."""
     pretrain: PretrainConfig = field(default_factory=PretrainConfig)
     """Pretraining schedule."""
+
+    def __post_init__(self) -> None:
+        _check(self, nonneg=("seed", "threads"))
+
+
+# The sections of a RanaConfig by name; `_check` names a bad field `section.field` through the inverse.
+SECTIONS: dict[str, type] = {"geometry": GeometryConfig, "texture": TextureConfig, "model": ModelConfig,
+                             "loss": LossConfig, "personalize": PersonalizeConfig, "pretrain": PretrainConfig}
+_SECTION_OF = {cls: name for name, cls in SECTIONS.items()}
 
 
 def _r(cfg: RanaConfig, **sections: dict) -> RanaConfig:
@@ -302,99 +374,3 @@ def get_preset(name: str) -> RanaConfig:
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}; known: {sorted(PRESETS)}")
     return PRESETS[name]
-
-
-# ------------------------------------------------------------------------------------------------ (de)serialising
-def config_to_json(cfg: RanaConfig) -> dict:
-    return dataclasses.asdict(cfg)
-
-
-_SECTIONS = {f.name: f.type for f in dataclasses.fields(RanaConfig)}
-_SECTION_CLASSES = {"geometry": GeometryConfig, "texture": TextureConfig, "model": ModelConfig, "loss": LossConfig,
-                    "personalize": PersonalizeConfig, "pretrain": PretrainConfig}
-
-
-def config_from_json(d: dict) -> RanaConfig:
-    """Rebuild a config; unknown keys are errors (a checkpoint from another version must not load silently)."""
-    kw: dict[str, Any] = {}
-    top = {f.name for f in dataclasses.fields(RanaConfig)}
-    for k, v in d.items():
-        if k not in top:
-            raise ValueError(f"config: unknown key {k!r}")
-        if k in _SECTION_CLASSES:
-            cls = _SECTION_CLASSES[k]
-            names = {f.name for f in dataclasses.fields(cls)}
-            bad = set(v) - names
-            if bad:
-                raise ValueError(f"config.{k}: unknown key(s) {sorted(bad)}")
-            if cls is ModelConfig and "residual_coarse" not in v:
-                # Written before the residual heads existed: its weights are direct outputs.
-                v = {**v, "residual_coarse": False}
-            if cls is TextureConfig and "texturenet_input" not in v:
-                v = {**v, "texturenet_input": "shaded"}  # written before the de-lit input existed
-            if cls is PretrainConfig and "light_source" not in v:
-                v = {**v, "light_source": "random-sh"}  # written before the dataset's lights were used
-            kw[k] = cls(**v)
-        else:
-            kw[k] = v
-    return RanaConfig(**kw)
-
-
-# ------------------------------------------------------------------------------------------------ CLI flags
-@functools.lru_cache(maxsize=None)
-def field_docs(cls: type) -> dict[str, str]:
-    """The attribute docstrings of a dataclass (the string literal right after each field), by field name."""
-    src = inspect.getsource(cls)
-    tree = ast.parse(src)
-    body = tree.body[0].body  # type: ignore[attr-defined]
-    docs: dict[str, str] = {}
-    for a, b in zip(body, body[1:]):
-        if isinstance(a, ast.AnnAssign) and isinstance(a.target, ast.Name) and isinstance(b, ast.Expr) \
-                and isinstance(b.value, ast.Constant) and isinstance(b.value.value, str):
-            docs[a.target.id] = " ".join(b.value.value.split())
-    return docs
-
-
-def _parse_bool(s: str) -> bool:
-    low = s.lower()
-    if low in ("1", "true", "yes", "on"):
-        return True
-    if low in ("0", "false", "no", "off"):
-        return False
-    raise argparse.ArgumentTypeError(f"expected a boolean (true/false), got {s!r}")
-
-
-def add_config_flags(parser: argparse.ArgumentParser, sections: tuple[str, ...] | None = None) -> None:
-    """Add `--section.field` flags (default None = keep the preset's value) with the field docstrings as help."""
-    top_docs = field_docs(RanaConfig)
-    g = parser.add_argument_group("top-level knobs")
-    for name in ("seed", "threads"):
-        g.add_argument(f"--{name}", type=int, default=None, help=top_docs[name].replace("%", "%%"))
-    for sec, cls in _SECTION_CLASSES.items():
-        if sections is not None and sec not in sections:
-            continue
-        g = parser.add_argument_group(f"{sec} knobs", (top_docs.get(sec) or "").replace("%", "%%"))
-        docs = field_docs(cls)
-        for f in dataclasses.fields(cls):
-            typ = {"int": int, "float": float, "bool": _parse_bool, "str": str}[str(f.type)]
-            g.add_argument(f"--{sec}.{f.name}", dest=f"cfg__{sec}__{f.name}", type=typ, default=None,
-                           metavar=str(f.type).upper(),
-                           help=f"{docs.get(f.name, '')} (preset value if omitted)".replace("%", "%%"))
-
-
-def apply_config_flags(cfg: RanaConfig, args: argparse.Namespace) -> RanaConfig:
-    """The preset `cfg` with every flag that was given applied."""
-    for name in ("seed", "threads"):
-        v = getattr(args, name, None)
-        if v is not None:
-            cfg = dataclasses.replace(cfg, **{name: v})
-    for key, v in vars(args).items():
-        if not key.startswith("cfg__") or v is None:
-            continue
-        _, sec, name = key.split("__")
-        cfg = dataclasses.replace(cfg, **{sec: dataclasses.replace(getattr(cfg, sec), **{name: v})})
-    return cfg
-
-
-def dumps(cfg: RanaConfig) -> str:
-    return json.dumps(config_to_json(cfg), indent=2, sort_keys=True)

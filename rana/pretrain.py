@@ -16,7 +16,8 @@ character_pool "pretrain"). Stages, each cached in the output folder so an inter
 3. G_N, G_A with one latent Z per character (`checkpoints/step-%09d.pt`, resumable): L_normal + lambda_a L_albedo
    + lambda_m BCE, each of L1 + VGG + GAN, against the ground-truth normal, albedo and mask frames.
 
-Output: `<out>/pretrained.pt` = {"G_N", "G_A", "texturenet", "config"}, what `rana train --pretrained` loads.
+Output: `<out>/pretrained.pt` (`rana.runs.Pretrained`: G_N, G_A, TextureNet, the config as JSON), what
+`rana train --pretrained` loads.
 """
 from __future__ import annotations
 
@@ -33,12 +34,13 @@ from rh_common.colourspace import luminance
 from rh_common.imageio import atomic_path
 
 from .body import body_topology
-from .config import RanaConfig, add_config_flags, apply_config_flags, get_preset, PRESETS
+from .config import RanaConfig, get_preset, PRESETS
+from .config_flags import add_config_flags, apply_config_flags
 from .data import load_split, subjects_of
 from .geometry import fit_offsets
 from .model import AMBIENT_L0, RanaModel, coarse_buffers, stack_batch
 from .nets import PatchDiscriminator, VGGPerceptual, hinge_d_loss
-from .runs import RunDir
+from .runs import Pretrained, RunDir, load_tensors
 from .synthetic import random_sh
 from .texture import extract_texture, texel_observations
 from .texturenet import TextureNet, augment, input_texture, texturenet_input, texturenet_loss
@@ -77,7 +79,10 @@ def load_or_prepare_character(dataset: Path, subject: str, protocol: str, cfg: R
     """`prepare_character`, cached as `cache/<subject>.pt`."""
     p = Path(cache) / f"{subject}.pt"
     if p.is_file() and not force:
-        c = torch.load(p, weights_only=False)
+        try:
+            c = load_tensors(p, "it is redone")
+        except ValueError:
+            c = {}  # not a cache this version can read
         # A cache made with another input mode or light (or by an older version) is redone, not reused.
         if (c.get("texturenet_input"), c.get("light_source")) == (cfg.texture.texturenet_input,
                                                                    cfg.pretrain.light_source):
@@ -99,12 +104,11 @@ def character_light(frames: list, subject: str, cfg: RanaConfig) -> torch.Tensor
             raise ValueError(f"{fr.path}: no light.sh_world in the frame's metadata; regenerate the pretraining "
                              f"data with this rh-generate, or pass --pretrain.light_source random-sh")
         return torch.as_tensor(np.asarray(sh_world, dtype=np.float64) * fr.exposure, dtype=torch.float32)
-    if src == "random-sh":
-        rng = np.random.default_rng([cfg.pretrain.light_seed,
-                                     int(subject.split("_")[-1]) if subject[-1].isdigit() else 0])
-        light = random_sh(rng)
-        return torch.as_tensor(light * (AMBIENT_L0 / float(luminance(light[0]))), dtype=torch.float32)
-    raise ValueError(f"pretrain.light_source: expected 'dataset' or 'random-sh', got {src!r}")
+    # 'random-sh', the one other source PretrainConfig admits.
+    rng = np.random.default_rng([cfg.pretrain.light_seed,
+                                 int(subject.split("_")[-1]) if subject[-1].isdigit() else 0])
+    light = random_sh(rng)
+    return torch.as_tensor(light * (AMBIENT_L0 / float(luminance(light[0]))), dtype=torch.float32)
 
 
 def train_texturenet(chars: list[dict], cfg: RanaConfig, run: RunDir | None = None,
@@ -193,7 +197,7 @@ def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfi
     tex_path = out / "texturenet.pt"
     texnet = TextureNet(cfg.texture)
     if tex_path.is_file() and not force:
-        texnet.load_state_dict(torch.load(tex_path, weights_only=False))
+        texnet.load_state_dict(load_tensors(tex_path, "delete it, or pass --force, to train TextureNet again"))
     else:
         texnet = train_texturenet(chars, cfg, RunDir(out / "texturenet"), progress)
         _save(tex_path, texnet.state_dict())
@@ -257,11 +261,8 @@ def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfi
                 state.update(disc_n=disc_n.state_dict(), disc_a=disc_a.state_dict(), opt_d=opt_d.state_dict())
             run.save(done, state, keep=3)
     bar.close()
-    result = out / "pretrained.pt"
-    _save(result, {"G_N": model.G_N.state_dict(), "G_A": model.G_A.state_dict(),
-                   "texturenet": texnet.state_dict(), "texturenet_input": texnet.input_mode,
-                   "config": cfg.__repr__(), "subjects": subjects})
-    return result
+    return Pretrained(model.G_N.state_dict(), model.G_A.state_dict(), cfg, texnet.state_dict(),
+                      subjects).save(out / "pretrained.pt")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -281,8 +282,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    cfg = apply_config_flags(get_preset(args.preset), args)
     try:
+        cfg = apply_config_flags(get_preset(args.preset), args)
         path = pretrain(args.dataset, args.protocol, args.out, cfg, progress=not args.no_progress, force=args.force)
     except (FileNotFoundError, ValueError) as exc:
         print(f"rana-pretrain: error: {exc}", file=sys.stderr)

@@ -7,19 +7,21 @@ the texture is de-lit before TextureNet sees it, and the network outputs a corre
 """
 from __future__ import annotations
 
+import typing
+
 import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
-from .config import TextureConfig
+from .config import TextureConfig, TextureNetInput
 from .nets import PatchDiscriminator, UNet, VGGPerceptual, hinge_d_loss, hinge_g_loss, srgb_decode_t, srgb_encode_t
 from .texture import TexelObservations, exposure_sh_delight, extract_texture, fill_holes, uv_coordinate_image
 
 __all__ = ["TextureNet", "input_texture", "texturenet_input", "augment", "texturenet_loss"]
 
 
-INPUT_MODES = ("shaded", "exposure-sh")
+INPUT_MODES = typing.get_args(TextureNetInput)  # defined once, in the config
 
 
 class TextureNet(nn.Module):

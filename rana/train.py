@@ -21,11 +21,11 @@ from .data import FrameData, load_split
 from .geometry import fit_offsets, silhouette_iou
 from .model import RanaModel, coarse_buffers, stack_batch
 from .nets import PatchDiscriminator, VGGPerceptual, hinge_d_loss
-from .runs import RunDir
+from .runs import Pretrained, RunDir, load_tensors
 from .texture import exposure_sh_delight, extract_texture, fill_holes, grey_world_delight, texel_observations
 
-__all__ = ["Coarse", "coarse_stage", "load_coarse", "personalize", "cosine_lr", "build_training_state",
-           "training_step", "ensure_coarse"]
+__all__ = ["Coarse", "coarse_stage", "load_coarse", "save_coarse", "personalize", "cosine_lr",
+           "build_training_state", "training_step", "ensure_coarse"]
 
 
 @dataclass
@@ -46,7 +46,15 @@ class Coarse:
 
 
 def load_coarse(path: Path) -> Coarse:
-    return Coarse(**torch.load(path, map_location="cpu", weights_only=False))
+    return Coarse(**load_tensors(path, "delete it and run `rana train` again to recompute the coarse stage"))
+
+
+def save_coarse(coarse: Coarse, path: Path) -> None:
+    """Atomically: a run killed while writing it recomputes the coarse stage instead of reading half a file."""
+    from rh_common.imageio import atomic_path
+
+    with atomic_path(path) as tmp:
+        torch.save(coarse.to_dict(), tmp)
 
 
 def coarse_stage(frames: list[FrameData], cfg: RanaConfig, *, texturenet=None, progress: bool = False,
@@ -70,11 +78,9 @@ def coarse_stage(frames: list[FrameData], cfg: RanaConfig, *, texturenet=None, p
     elif tc.delight_mode == "exposure-sh":
         tex, tvalid, light = exposure_sh_delight(obs, tc, ridge=tc.delight_ridge)
         albedo, source = fill_holes(tex, tvalid).clamp(0, 1), "exposure-sh"
-    elif tc.delight_mode == "grey-world":
+    else:  # 'grey-world', the one other mode TextureConfig admits
         albedo = grey_world_delight(fill_holes(shaded, valid), valid, tc.assumed_mean_albedo)
         source = "grey-world"
-    else:
-        raise ValueError(f"texture.delight_mode: expected 'exposure-sh' or 'grey-world', got {tc.delight_mode!r}")
     return Coarse(D, shaded, valid, albedo.contiguous(), source, iou0, iou1, light)
 
 
@@ -110,7 +116,7 @@ class TrainingState:
             self.opt_disc.load_state_dict(d["opt_disc"])
 
 
-def build_training_state(cfg: RanaConfig, pretrained: dict | None = None, use_vgg: bool = True,
+def build_training_state(cfg: RanaConfig, pretrained: Pretrained | None = None, use_vgg: bool = True,
                          light_init: torch.Tensor | None = None) -> TrainingState:
     """`light_init` (9, 3): E's starting value in OpenGL camera axes (default: uniform white, shading 1)."""
     torch.manual_seed(cfg.seed)
@@ -119,14 +125,14 @@ def build_training_state(cfg: RanaConfig, pretrained: dict | None = None, use_vg
         with torch.no_grad():
             model.E.copy_(light_init.to(model.E.dtype).expand_as(model.E))
     if pretrained is not None:
-        pre_residual = "residual_coarse=True" in str(pretrained.get("config", ""))
+        pre_residual = pretrained.config.model.residual_coarse
         if pre_residual != cfg.model.residual_coarse:
             raise ValueError(f"pretrained G_N/G_A were trained with model.residual_coarse={pre_residual} but this run "
                              f"uses {cfg.model.residual_coarse}: pretrain again, or pass --model.residual_coarse "
                              f"{str(pre_residual).lower()}")
         # Only the networks transfer; Z and E of a new subject start from scratch.
-        model.G_N.load_state_dict(pretrained["G_N"])
-        model.G_A.load_state_dict(pretrained["G_A"])
+        model.G_N.load_state_dict(pretrained.G_N)
+        model.G_A.load_state_dict(pretrained.G_A)
     pc = cfg.personalize
     model.G_N.requires_grad_(pc.finetune_normal)
     disc = PatchDiscriminator(3, cfg.model.disc_base, cfg.model.disc_layers) if cfg.loss.lambda_gan > 0 else None
@@ -220,25 +226,22 @@ def ensure_coarse(dataset: str | Path, subject: str, protocol: str, run_dir: str
         run.clear()
     run.init_config(cfg, {"dataset": str(Path(dataset).resolve()), "subject": subject, "protocol": protocol,
                           "pretrained": str(pretrained) if pretrained else None}, force=force)
-    pre = torch.load(pretrained, map_location="cpu", weights_only=False) if pretrained else None
+    pre = Pretrained.load(pretrained) if pretrained else None
     frames = load_split(dataset, subject, protocol, "train", cfg.model.resolution, ("image", "mask"),
                         max_frames=cfg.personalize.max_frames, progress=progress)
     coarse_path = run.path / "coarse.pt"
     if coarse_path.is_file():
         return run, load_coarse(coarse_path), frames, pre
     texnet = None
-    if pre is not None and pre.get("texturenet") is not None:
+    if pre is not None and pre.texturenet is not None:
         from .texturenet import TextureNet
 
-        # The input mode it was trained with; checkpoints older than the mode took the shaded texture.
-        texnet = TextureNet(cfg.texture, input_mode=pre.get("texturenet_input", "shaded"))
-        texnet.load_state_dict(pre["texturenet"])
+        # The input mode it was trained with (its pretraining config), not this run's.
+        texnet = TextureNet(cfg.texture, input_mode=pre.texturenet_input)
+        texnet.load_state_dict(pre.texturenet)
     t0 = time.perf_counter()
     coarse = coarse_stage(frames, cfg, texturenet=texnet, progress=progress)
-    from rh_common.imageio import atomic_path
-
-    with atomic_path(coarse_path) as tmp:
-        torch.save(coarse.to_dict(), tmp)
+    save_coarse(coarse, coarse_path)
     run.log({"step": -1, "phase": 0, "seconds": time.perf_counter() - t0, "iou_before": coarse.iou_before,
              "iou_after": coarse.iou_after, "albedo_source": coarse.albedo_source})
     return run, coarse, frames, pre
