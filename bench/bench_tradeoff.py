@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 
 SCENES = ("interior-apose", "sunrise-random")
-SCENE_CLASS = {"interior-apose": "apose-envmap", "sunrise-random": "posed-envmap"}  # scenes/presets.json
+SCENE_CLASS = {"interior-apose": "apose-envmap", "sunrise-random": "posed-envmap"}  # rh_dataset/scenes/presets.json
 RELMSE_EPS = 0.01
 DEPTH_TOLERANCE_DB = 50.0  # truncation error <= 1/10 of the 40 dB noise budget (in MSE)
 

@@ -48,8 +48,8 @@ else
   for p in a b; do
     rh-generate --protocol $p --out "$DATA" --subjects 2 --frames 20 --resolution 128 --preset draft --no-progress
   done
-  rh-generate --protocol scenes/rana_pretrain.json --out "$PRE_DATA" --subjects "$PRE_SUBJECTS" --frames "$PRE_FRAMES" --resolution 128 \
-    --preset draft --no-progress
+  rh-generate --protocol rana_pretrain --out "$PRE_DATA" --subjects "$PRE_SUBJECTS" --frames "$PRE_FRAMES" \
+    --resolution 128 --preset draft --no-progress
 fi
 
 pretraining() {

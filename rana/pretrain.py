@@ -2,8 +2,8 @@
 3.4 and appendix).
 
 Input: a dataset whose train split carries AOV-only frames (albedo, normal, mask; no path tracing) of characters
-disjoint from the benchmark's test subjects — `rh-generate --protocol rana_pretrain` (scenes/rana_pretrain.json,
-character_pool "pretrain"). Stages, each cached in the output folder so an interrupted run resumes:
+disjoint from the benchmark's test subjects — `rh-generate --protocol rana_pretrain` (its JSON in
+rh_dataset/scenes/, character_pool "pretrain"). Stages, each cached in the output folder so an interrupted run resumes:
 
 1. per character (`cache/<subject>.pt`): SMPL+D offsets fitted to the masks; Lambertian frames
    ``albedo x max(0, S(normal; light))`` made from the AOVs, one light per character (`pretrain.light_source`:

@@ -143,7 +143,7 @@ def make_dataset(out: str | Path, *, subjects: int = 1, train_frames: int = 8, t
                  resolution: int = 64, protocol: str = "a", seed: int = 0, texture_size: int = 128,
                  shell_m: float = 0.012, pool: str = "benchmark", aov_only_train: bool = False) -> Path:
     """Write a small dataset; returns its root. `aov_only_train` makes pretraining-style train frames
-    (albedo, normal, mask; no image), like the generator does for scenes/rana_pretrain.json."""
+    (albedo, normal, mask; no image), like the generator does for rh_dataset/scenes/rana_pretrain.json."""
     from rh_dataset.characters.body import load_anny
 
     out = Path(out)

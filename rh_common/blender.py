@@ -1,7 +1,12 @@
 """Run a script inside Blender's Python (`bpy`), which lives in its own virtual environment.
 
 Why a subprocess: `bpy==5.0.1` (the newest for Python 3.11) pins numpy 1.26, and this environment needs numpy >= 2
-(colour-science 0.4.7). `setup.sh` installs bpy into `<repo>/.blender-venv`; `RH_BLENDER_PYTHON` points elsewhere.
+(colour-science 0.4.7).
+
+Which interpreter (`blender_python`): the `RH_BLENDER_PYTHON` environment variable, the path of a Python 3.11 that
+can `import bpy` (bpy==5.0.1), comes first. Without it, a source checkout uses `<repo>/.blender-venv/bin/python`,
+which `bash setup.sh` creates. An installed wheel has no repository to look in, so there the variable is the only
+way; when neither is found, `BlenderUnavailable` says so in one line, with the fix.
 
 The contract with a Blender-side script: arguments on its command line, results as files it writes (`.npz` arrays
 without pickles, JSON, PNG/EXR images), nothing else. Only plain numpy arrays cross, so the two numpy versions never
@@ -19,8 +24,8 @@ from pathlib import Path
 __all__ = ["BlenderError", "BlenderUnavailable", "BlenderRun", "blender_python", "run_blender_script"]
 
 ENV_VAR = "RH_BLENDER_PYTHON"
-_REPO = Path(__file__).resolve().parents[1]
-_DEFAULT = _REPO / ".blender-venv" / "bin" / "python"
+_FIX = (f"set {ENV_VAR} to a Python 3.11 interpreter that has bpy==5.0.1 (`python3.11 -m venv DIR && "
+        f"DIR/bin/pip install bpy==5.0.1`), or run `bash setup.sh` in a source checkout (it creates .blender-venv)")
 
 
 class BlenderError(RuntimeError):
@@ -38,16 +43,28 @@ class BlenderRun:
     seconds: float
 
 
+def _source_checkout() -> Path | None:
+    """The repository root when this package runs from a source checkout (editable install or PYTHONPATH), else None.
+
+    A checkout is recognised by the files that only it has next to the packages (setup.sh, pyproject.toml); an
+    installed wheel sits in site-packages, where neither is."""
+    root = Path(__file__).resolve().parents[1]
+    return root if (root / "setup.sh").is_file() and (root / "pyproject.toml").is_file() else None
+
+
 def blender_python() -> Path:
-    """The interpreter that has `bpy`: $RH_BLENDER_PYTHON, else `<repo>/.blender-venv/bin/python`."""
+    """The interpreter that has `bpy`: $RH_BLENDER_PYTHON, else `<repo>/.blender-venv/bin/python` in a source
+    checkout; BlenderUnavailable (one line: what was looked for, and the fix) when there is none."""
     env = os.environ.get(ENV_VAR)
-    path = Path(env) if env else _DEFAULT
+    if env:
+        path, where = Path(env), f"{ENV_VAR}={env}"
+    elif (repo := _source_checkout()) is not None:
+        path = repo / ".blender-venv" / "bin" / "python"
+        where = f"{path} ({ENV_VAR} is not set)"
+    else:
+        raise BlenderUnavailable(f"no Blender Python: {ENV_VAR} is not set and this is no source checkout; {_FIX}")
     if not path.is_file() or not os.access(path, os.X_OK):
-        where = f"${ENV_VAR}={env}" if env else str(path)
-        raise BlenderUnavailable(
-            f"no Blender Python at {where}. Run `bash setup.sh` in the repository (it creates .blender-venv with "
-            f"bpy==5.0.1), or point {ENV_VAR} at a Python 3.11 interpreter that can `import bpy`."
-        )
+        raise BlenderUnavailable(f"no Blender Python at {where}: not an executable file; {_FIX}")
     return path
 
 
@@ -89,5 +106,8 @@ if __name__ == "__main__":  # `python -m rh_common.blender`: say which Blender w
     with tempfile.TemporaryDirectory() as d:
         probe = Path(d) / "probe.py"
         probe.write_text("import bpy, numpy; print(bpy.app.version_string, numpy.__version__)\n")
-        run = run_blender_script(probe, timeout=120)
+        try:
+            run = run_blender_script(probe, timeout=120)
+        except BlenderError as exc:
+            sys.exit(f"python -m rh_common.blender: {exc}")
     print(f"{blender_python()}: Blender {run.stdout.split()[0]}, numpy {run.stdout.split()[1]}", file=sys.stdout)

@@ -32,7 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--protocol", default="a",
                    help="'a' (train: A-pose turntable under one light; test: random poses and lights), 'b' (train: "
                         "random poses under one light; test: the same poses under other lights), a scene name in "
-                        "scenes/ (e.g. 'demo'), or the path of a scene JSON file")
+                        "rh_dataset/scenes/ (e.g. 'demo'), or the path of a scene JSON file")
     p.add_argument("--out", required=True, type=Path,
                    help="dataset folder; several protocols may share one folder")
     p.add_argument("--subjects", type=int, default=None,
@@ -42,13 +42,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", type=_resolution, default=None,
                    help="image size N or WxH (default: the protocol's, 512x512)")
     p.add_argument("--preset", default="standard",
-                   help="render preset from scenes/presets.json: draft, standard or reference")
+                   help="render preset from rh_dataset/scenes/presets.json: draft, standard or reference")
     p.add_argument("--spp", type=int, default=None, help="samples per pixel of the beauty pass (overrides the preset)")
     p.add_argument("--aov-spp", type=int, default=None,
                    help="samples per pixel of the albedo/normal/mask/depth pass (overrides the preset)")
     p.add_argument("--max-depth", type=int, default=None,
                    help="longest light path; 2 = direct light only (overrides the preset; by default the draft and "
-                        "standard presets take each split's scene_class depth from scenes/presets.json)")
+                        "standard presets take each split's scene_class depth from rh_dataset/scenes/presets.json)")
     p.add_argument("--denoise", action="store_true",
                    help="denoise the beauty image with Intel Open Image Denoise guided by the albedo and normal AOVs; "
                         "biased (docs/TRADEOFFS.md), recorded in every frame's JSON, off for benchmark ground truth")

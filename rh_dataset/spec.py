@@ -1,4 +1,4 @@
-"""Declarative scene and protocol descriptions (`scenes/*.json`), validated on load.
+"""Declarative scene and protocol descriptions (`rh_dataset/scenes/*.json`), validated on load.
 
 A description says what a protocol needs and nothing else: which splits, how many frames, which poses and lights,
 which layers. Unknown keys are errors (a typo must not silently fall back to a default).
@@ -29,7 +29,9 @@ __all__ = [
     "available_protocols",
 ]
 
-SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
+# Package data (pyproject.toml's package-data), so a wheel carries it: a folder next to the package, as the repo
+# once had, is not installed and `rh-generate --protocol a` found no protocols outside a source checkout.
+SCENES_DIR = Path(__file__).resolve().parent / "scenes"
 
 POSE_SOURCES = ("turntable", "random", "train", "motion")
 LIGHT_SOURCES = ("fixed", "random")
@@ -106,7 +108,7 @@ class SplitSpec:
     motion: MotionSpec | None = None
     """The captured motion when poses is 'motion' (None otherwise)."""
     scene_class: str | None = None
-    """What kind of scene the split path-traces (`scene_classes` in scenes/presets.json): it picks the beauty pass's
+    """What kind of scene the split path-traces (`scene_classes` in presets.json): it picks the beauty pass's
     path depth. Required when the split has an `image` layer, absent otherwise (nothing is path-traced)."""
     max_depth: int | None = None
     """The scene class's path depth, resolved on load (so a changed class table changes the spec's digest and a
@@ -327,7 +329,7 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
         classes = load_scene_classes()
         if cls is not None and cls not in classes:
             raise SpecError(f"{where}: split {name}: unknown scene_class {cls!r}; known: {sorted(classes)} "
-                            f"(scenes/presets.json)")
+                            f"(rh_dataset/scenes/presets.json)")
         splits.append(SplitSpec(name=name, frames=s["frames"], poses=s["poses"], light=s["light"],
                                 layers=tuple(s["layers"]), motion=motion, scene_class=cls,
                                 max_depth=classes[cls].max_depth if cls is not None else None))
@@ -347,7 +349,8 @@ def available_protocols() -> dict[str, Path]:
 
 
 def load_protocol(name_or_path: str) -> ProtocolSpec:
-    """Load `scenes/<name>.json` ('a' and 'b' are short for protocol_a/protocol_b) or a path to a JSON file."""
+    """Load `rh_dataset/scenes/<name>.json` ('a' and 'b' are short for protocol_a/protocol_b) or a path to a JSON
+    file of the user's own."""
     known = available_protocols()
     aliases = {"a": "protocol_a", "b": "protocol_b"}
     key = aliases.get(name_or_path, name_or_path)
@@ -379,7 +382,7 @@ def load_presets() -> dict[str, Preset]:
 
 
 def load_scene_classes() -> dict[str, SceneClass]:
-    """The scene classes of scenes/presets.json, each with the path depth its measurement chose."""
+    """The scene classes of rh_dataset/scenes/presets.json, each with the path depth its measurement chose."""
     path = SCENES_DIR / "presets.json"
     data = json.loads(path.read_text())
     out = {}

@@ -1,6 +1,6 @@
 """`rh-demo`: the whole chain on the small embedded default, as the README's first command runs it.
 
-scenes/demo.json (protocol a, one subject, 12 turntable + 6 test frames, 128x128, draft preset) → rh-generate →
+rh_dataset/scenes/demo.json (protocol a, one subject, 12 turntable + 6 test frames, 128x128, draft) → rh-generate →
 rh-verify → a baseline's predictions → rh-eval → rh-leaderboard. Each step is the same entry point a user calls.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="rh-demo", description=__doc__.strip().splitlines()[0],
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--out", type=Path, default=Path("demo_out"), help="folder for the dataset, predictions, results")
-    p.add_argument("--preset", default="draft", help="render preset (scenes/presets.json)")
+    p.add_argument("--preset", default="draft", help="render preset (rh_dataset/scenes/presets.json)")
     p.add_argument("--seed", type=int, default=0, help="dataset seed")
     args = p.parse_args(argv)
 

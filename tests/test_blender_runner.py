@@ -41,3 +41,27 @@ def test_missing_interpreter_names_the_fix(monkeypatch, tmp_path):
     monkeypatch.setenv("RH_BLENDER_PYTHON", str(tmp_path / "nope" / "python"))
     with pytest.raises(BlenderUnavailable, match="setup.sh"):
         blender_python()
+
+
+def test_the_setting_wins_and_errors_are_one_line(monkeypatch, tmp_path):
+    import rh_common.blender as rb
+
+    fake = tmp_path / "python"
+    fake.write_text("#!/bin/sh\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("RH_BLENDER_PYTHON", str(fake))
+    assert blender_python() == fake  # the setting comes before any checkout's .blender-venv
+
+    # An installed wheel: no checkout to look in, so the setting is the only way, and the error says how.
+    monkeypatch.delenv("RH_BLENDER_PYTHON")
+    monkeypatch.setattr(rb, "_source_checkout", lambda: None)
+    with pytest.raises(BlenderUnavailable) as exc:
+        blender_python()
+    msg = str(exc.value)
+    assert "\n" not in msg and "RH_BLENDER_PYTHON" in msg and "bpy==5.0.1" in msg and "setup.sh" in msg
+
+    # A checkout without .blender-venv: names the path it looked at and the same fix.
+    monkeypatch.setattr(rb, "_source_checkout", lambda: tmp_path)
+    with pytest.raises(BlenderUnavailable, match=r"\.blender-venv/bin/python.*RH_BLENDER_PYTHON") as exc:
+        blender_python()
+    assert "\n" not in str(exc.value)

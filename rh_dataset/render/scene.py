@@ -33,7 +33,7 @@ class MeshLike(Protocol):
 
 @dataclass(frozen=True)
 class RenderSettings:
-    """How hard the renderer works. Presets live in scenes/presets.json."""
+    """How hard the renderer works. Presets live in rh_dataset/scenes/presets.json."""
 
     spp: int = 64
     """Samples per pixel of the path-traced beauty pass."""
