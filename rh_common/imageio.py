@@ -41,7 +41,9 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path next to `path`; on success fsync it and rename it to `path`.
 
     The temporary name ends in `.tmp` so that a leftover from a killed process is recognisable and never taken for
-    a finished file.
+    a finished file. The finished file gets the mode a plain `open()` would give it (0666 less the umask):
+    `mkstemp` creates its file 0600 and a rename keeps the mode, which would leave a dataset unreadable to the
+    rest of a group on a shared filesystem.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -51,11 +53,27 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     try:
         yield tmp_path
         with open(tmp_path, "rb+") as f:
+            os.fchmod(f.fileno(), 0o666 & ~_umask())
             os.fsync(f.fileno())
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it where Linux allows (`os.umask` can only set it, and setting
+    it twice to read it is a race with other threads creating files)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except OSError:
+        pass
+    old = os.umask(0o022)
+    os.umask(old)
+    return old
 
 
 def _channel_names(n: int) -> tuple[str, ...]:

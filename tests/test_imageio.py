@@ -1,0 +1,28 @@
+"""rh_common.imageio: files written atomically get the mode a plain open() gives (0666 less the umask), not
+mkstemp's 0600, so a dataset on a shared filesystem is readable by the group the umask allows."""
+import os
+import stat
+
+import numpy as np
+import pytest
+
+from rh_common.imageio import atomic_path, write_exr, write_json, write_png
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o002, 0o077])
+def test_atomic_files_follow_the_umask(tmp_path, umask):
+    old = os.umask(umask)
+    try:
+        write_exr(tmp_path / "a.exr", np.zeros((2, 2, 3), np.float32))
+        write_png(tmp_path / "a.png", np.zeros((2, 2, 3), np.uint8))
+        write_json(tmp_path / "a.json", {"k": 1})
+        with atomic_path(tmp_path / "a.bin") as tmp:
+            tmp.write_bytes(b"x")
+        reference = tmp_path / "plain.bin"
+        reference.write_bytes(b"x")  # what open() gives under this umask
+    finally:
+        os.umask(old)
+    want = stat.S_IMODE(reference.stat().st_mode)
+    assert want == 0o666 & ~umask
+    for name in ("a.exr", "a.png", "a.json", "a.bin"):
+        assert stat.S_IMODE((tmp_path / name).stat().st_mode) == want, name
