@@ -5,6 +5,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from rh_common.cli_help import HelpFormatter
+
 __all__ = ["main", "build_parser", "options_from_args"]
 
 
@@ -27,7 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "environment light, with ground-truth albedo, normal, mask and depth, the pose, camera and "
                     "light (HDRI id and SH coefficients) of every frame. Reruns resume: finished frames whose "
                     "checksums match are skipped.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("--protocol", default="a",
                    help="'a' (train: A-pose turntable under one light; test: random poses and lights), 'b' (train: "

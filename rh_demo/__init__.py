@@ -10,12 +10,14 @@ import sys
 import time
 from pathlib import Path
 
+from rh_common.cli_help import HelpFormatter
+
 __all__ = ["main"]
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="rh-demo", description=__doc__.strip().splitlines()[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                                formatter_class=HelpFormatter)
     p.add_argument("--out", type=Path, default=Path("demo_out"), help="folder for the dataset, predictions, results")
     p.add_argument("--preset", default="draft", help="render preset (rh_dataset/scenes/presets.json)")
     p.add_argument("--seed", type=int, default=0, help="dataset seed")

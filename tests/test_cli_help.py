@@ -23,3 +23,16 @@ def test_every_flag_has_help(module):
     parser = importlib.import_module(module).build_parser()
     assert len(parser._actions) > 1
     assert list(_undocumented(parser, module)) == []
+
+
+@pytest.mark.parametrize("module", PARSERS)
+def test_each_default_is_said_once(module):
+    """A flag's help says its default at most once, and never the meaningless "(default: None)"."""
+    parser = importlib.import_module(module).build_parser()
+    parsers = [parser] + [sub for a in parser._actions if isinstance(a, argparse._SubParsersAction)
+                          for sub in a.choices.values()]
+    for p in parsers:
+        for action in p._actions:
+            text = p._get_formatter()._expand_help(action) if action.help else ""
+            assert text.count("(default") <= 1, (module, action.option_strings, text)
+            assert "(default: None)" not in text, (module, action.option_strings, text)

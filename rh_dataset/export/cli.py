@@ -7,6 +7,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+from rh_common.cli_help import HelpFormatter
 from rh_common.imageio import read_json, write_json
 
 from .common import ExportError, check_dataset, iter_frames
@@ -83,7 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Write a finished Relighting Humans dataset (one protocol) in another layout: the published "
                     "Relighting Humans folders, ZJU-MoCap (NeuralBody family), or one USD stage per frame. "
                     "docs/INTEROP.md lists what each holds and how it differs from the original.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--dataset", required=True, type=Path, help="dataset folder made by rh-generate")
     p.add_argument("--protocol", default="a", help="protocol to export: a or b")
     p.add_argument("--format", required=True, choices=FORMATS, help="output layout")
