@@ -14,7 +14,6 @@ unreadable file.
 """
 from __future__ import annotations
 
-import re
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path

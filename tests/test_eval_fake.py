@@ -72,32 +72,36 @@ def make_predictions(ds: Path, out: Path, *, name: str = "oracle", kind: str | N
     out = Path(out)
     from rh_common.imageio import read_exr
     for folder, stem, meta in gt_frames(ds):
-        dst = out / folder.relative_to(ds)
-        dst.mkdir(parents=True, exist_ok=True)
+        rec = layout.FrameRecord.from_json(meta)
+
+        def out_file(layer: str, ext: str) -> Path:
+            return layout.prediction_file(out, rec.subject, rec.protocol, rec.index, layer, ext)
+
+        out_file("image", "exr").parent.mkdir(parents=True, exist_ok=True)
         for layer in layers:
             src = folder / layout.layer_file_name(meta["index"], layer, "exr")
             if fmt == "exr" and noise == 0.0 and albedo_scale == 1.0:
-                shutil.copyfile(src, dst / src.name)
+                shutil.copyfile(src, out_file(layer, "exr"))
                 continue
             arr = read_exr(src)
             if layer == "image":
                 arr = np.clip(arr * (1 + noise * rng.normal(size=arr.shape)), 0, None).astype(np.float32)
                 if fmt == "png":
-                    write_png(dst / layout.layer_file_name(meta["index"], "image", "png"), quantize8(to_display(arr, meta["exposure"])))
+                    write_png(out_file("image", "png"), quantize8(to_display(arr, meta["exposure"])))
                 else:
-                    write_exr(dst / layout.layer_file_name(meta["index"], "image", "exr"), arr)
+                    write_exr(out_file("image", "exr"), arr)
             elif layer == "albedo":
                 arr = np.clip(arr * albedo_scale + noise * rng.normal(size=arr.shape), 0, 1).astype(np.float32)
                 if fmt == "png":
-                    write_png(dst / layout.layer_file_name(meta["index"], "albedo", "png"), quantize8(srgb_encode(arr)))
+                    write_png(out_file("albedo", "png"), quantize8(srgb_encode(arr)))
                 else:
-                    write_exr(dst / layout.layer_file_name(meta["index"], "albedo", "exr"), arr)
+                    write_exr(out_file("albedo", "exr"), arr)
             else:
                 n = arr + noise * rng.normal(size=arr.shape) * np.any(arr != 0, axis=-1, keepdims=True)
                 if fmt == "png":
-                    write_png(dst / layout.layer_file_name(meta["index"], "normal", "png"), quantize8((np.clip(n, -1, 1) + 1) / 2))
+                    write_png(out_file("normal", "png"), quantize8((np.clip(n, -1, 1) + 1) / 2))
                 else:
-                    write_exr(dst / layout.layer_file_name(meta["index"], "normal", "exr"), n.astype(np.float32))
+                    write_exr(out_file("normal", "exr"), n.astype(np.float32))
     meta = {"name": name}
     if kind:
         meta["kind"] = kind
