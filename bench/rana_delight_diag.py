@@ -20,7 +20,6 @@ mean SH basis of its visible texels, one uniform albedo) at two ridges.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
@@ -57,8 +56,7 @@ def main(argv=None) -> int:
     test = load_split(args.dataset, args.subject, args.protocol, "test", res, ("albedo", "mask"))
     obs = texel_observations(train, topo, co.offsets, cfg.texture)
     gt_tex, gt_valid = extract_texture(test, topo, co.offsets, cfg.texture, layer="albedo")
-    meta = json.loads(sorted((args.dataset / args.subject / f"protocol_{args.protocol}" / "train")
-                             .glob("frame_*.json"))[0].read_text())
+    meta = train[0].meta  # the first train frame's record (load_split reads them in frame order)
     L_true = torch.tensor(np.array(meta["light"]["sh_world"]) * meta["exposure"], dtype=torch.float32)
     L_est = co.light_world.float() if co.light_world is not None else exposure_sh_delight(obs, cfg.texture)[2]
     Y = sh.basis(obs.normal) * (torch.tensor(np.array(sh.A_HAT), dtype=torch.float32) / math.pi)

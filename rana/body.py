@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from rh_common.layout import read_body_pose
+
 __all__ = [
     "BodyTopology",
     "PosedBody",
@@ -60,28 +62,10 @@ def _descends_from(m, i: int, ancestor: int) -> bool:
 
 
 def pose_tensor_from_json(pose_json: dict, model) -> tuple[torch.Tensor, np.ndarray]:
-    """(1, J, 4, 4) local-ref bone deltas and the 4x4 root transform of a frame's `body.pose`.
-
-    Uses `rh_dataset.poses.BodyPose` when that module provides it (the one reader of its own format); otherwise
-    reads the documented JSON directly: `bones` {label: 4x4} (identity bones omitted), optional `root_transform`.
-    """
-    try:
-        from rh_dataset.poses import BodyPose  # type: ignore[attr-defined]
-
-        bp = BodyPose.from_json(pose_json)
-        tensor = bp.as_anny_tensor(model)
-        root = np.asarray(getattr(bp, "root_transform", np.eye(4)), dtype=np.float64)
-        return tensor.to(torch.float64), root
-    except ImportError:
-        pass
-    labels = list(model.bone_labels)
-    pose = torch.eye(4, dtype=torch.float64).repeat(1, len(labels), 1, 1)
-    for lab, mat in pose_json.get("bones", {}).items():
-        if lab not in labels:
-            raise ValueError(f"pose: unknown bone {lab!r} (not in anny's rig)")
-        pose[0, labels.index(lab)] = torch.as_tensor(np.asarray(mat, dtype=np.float64))
-    root = np.asarray(pose_json.get("root_transform", np.eye(4)), dtype=np.float64)
-    return pose, root
+    """(1, J, 4, 4) float64 local-ref bone deltas in the model's bone order and the 4x4 root transform of a frame's
+    `body.pose`, read by `rh_common.layout.read_body_pose` (the one reader of that format)."""
+    pose = read_body_pose(pose_json)
+    return torch.as_tensor(pose.deltas(model.bone_labels))[None], np.array(pose.root_transform)
 
 
 @dataclass

@@ -14,7 +14,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from rh_common.imageio import read_exr, read_json, read_png
+from rh_common import layout
+from rh_common.imageio import read_exr, read_png
 
 from .body import PosedBody, pose_body
 
@@ -74,8 +75,8 @@ def resize_image(img: torch.Tensor, H: int, W: int) -> torch.Tensor:
 
 
 def list_frames(dataset: str | Path, subject: str, protocol: str, split: str) -> list[Path]:
-    d = Path(dataset) / subject / f"protocol_{protocol}" / split
-    paths = sorted(d.glob("frame_*.json"))
+    d = layout.split_dir(dataset, subject, protocol, split)
+    paths = sorted(p for p in d.glob("frame_*.json") if layout.frame_index_of(p.name) is not None)
     if not paths:
         raise FileNotFoundError(f"{d}: no frames (expected frame_*.json)")
     return paths
@@ -83,18 +84,18 @@ def list_frames(dataset: str | Path, subject: str, protocol: str, split: str) ->
 
 def subjects_of(dataset: str | Path, protocol: str, split: str = "train") -> list[str]:
     root = Path(dataset)
-    return sorted(p.name for p in root.glob("subject_*") if (p / f"protocol_{protocol}" / split).is_dir())
+    return sorted(p.name for p in root.glob("subject_*") if layout.split_dir(root, p.name, protocol, split).is_dir())
 
 
 def _layer(meta: dict, split_dir: Path, index: int, name: str, ext: str) -> Path:
-    return split_dir / f"frame_{index:06d}_{name}.{ext}"
+    return split_dir / layout.layer_file_name(index, name, ext)
 
 
 def load_frame(path: str | Path, resolution: int, layers: tuple[str, ...] = ("image", "mask"),
                body: bool = True) -> FrameData:
     path = Path(path)
-    meta = read_json(path)
-    idx = int(meta["index"]) if "index" in meta else int(path.stem.split("_")[1])
+    record = layout.read_frame_record(path)  # checks the record; FrameData keeps its JSON form for the callers
+    meta, idx = record.to_json(), record.index
     h0, w0 = int(meta["height"]), int(meta["width"])
     H, W = working_size(h0, w0, resolution)
     K = np.asarray(meta["camera"]["K"], dtype=np.float64).copy()

@@ -62,7 +62,7 @@ def finish_layers(image: torch.Tensor, albedo: torch.Tensor, normal: torch.Tenso
 
 
 def _frame_inputs(tf: TestFrame, cfg: RanaConfig):
-    fr = load_frame(tf.split_dir / f"frame_{tf.index:06d}.json", cfg.model.resolution, layers=())
+    fr = load_frame(tf.json_path, cfg.model.resolution, layers=())
     sh_cam = torch.as_tensor(np.asarray(tf.meta["light"]["sh_camera"], dtype=np.float32))
     return fr, sh_cam
 

@@ -1,5 +1,9 @@
 """Tiny synthetic datasets in the ARCHITECTURE.md layout, rendered with our own rasteriser (no Mitsuba).
 
+In: a folder and a few sizes (subjects, frames, resolution, seed). Out: a dataset written through
+`rh_common.layout` (the same frame records, layer files and manifest as rh-generate's, so rh-verify accepts it),
+plus each subject's `synthetic_truth.pt` (albedo texture and offsets) for tests that know the answer.
+
 For tests and smoke runs while the path-traced generator is not at hand: an anny body with known offsets (a
 'garment' shell), a procedural albedo texture, order-2 SH light, Lambertian shading without shadows, 2x2
 super-sampled coverage. Because the image formation is exactly RANA's model, a method that recovers geometry,
@@ -14,9 +18,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from rh_common import sh
-from rh_common.colourspace import quantize8, to_display, srgb_encode
-from rh_common.imageio import sha256_file, write_exr, write_json, write_png
+from rh_common import layout, sh
+from rh_common.imageio import write_json
 
 from .body import PosedBody, body_topology, pose_body, vertex_normals
 from .raster import interpolate, project, rasterize
@@ -160,17 +163,17 @@ def make_dataset(out: str | Path, *, subjects: int = 1, train_frames: int = 8, t
     rn = vertex_normals(rest, topo.faces)
     subj_names = []
     for s in range(subjects):
-        name = f"subject_{s:03d}"
+        name = layout.subject_name(s)
         subj_names.append(name)
         ph = {k: float(np.clip(0.5 + rng.normal(0, 0.1), 0, 1)) for k in DEFAULT_PHENOTYPE}
         offsets = rn * shell_m
         tex = procedural_albedo(texture_size, rng)
-        write_json(out / name / "character.json", {"format": "rana-synthetic/1", "phenotype": ph, "seed": seed})
+        write_json(out / name / layout.CHARACTER_JSON, {"format": "rana-synthetic/1", "phenotype": ph, "seed": seed})
         torch.save({"albedo_texture": tex, "offsets": offsets}, out / name / "synthetic_truth.pt")
         train_sh = random_sh(rng)
         splits = {"train": train_frames, "test": test_frames}
         for split, n in splits.items():
-            d = out / name / f"protocol_{protocol}" / split
+            d = layout.split_dir(out, name, protocol, split)
             for i in range(n):
                 if split == "train":
                     pose = {"parameterization": "local-ref", "bones": {},
@@ -185,49 +188,28 @@ def make_dataset(out: str | Path, *, subjects: int = 1, train_frames: int = 8, t
                     sh_world = random_sh(rng)
                     layers = ("image", "mask", "albedo", "normal", "depth")
                 sh_cam = sh.rotate(sh_world, R_gl)
-                pb = pose_body(ph, {k: (np.asarray(v).tolist() if k != "bones" else
-                                        {b: np.asarray(m).tolist() for b, m in v.items()}) for k, v in pose.items()})
+                pose_json = {k: (np.asarray(v).tolist() if k != "bones" else
+                                 {b: np.asarray(m).tolist() for b, m in v.items()}) for k, v in pose.items()}
+                pb = pose_body(ph, pose_json)
                 L = render_lambertian(pb, offsets, tex, K, w2c, H, W, torch.as_tensor(sh_cam, dtype=torch.float32))
                 mean_rad = float(sh_world[0] @ np.array([0.2126, 0.7152, 0.0722])) / (4 * math.pi * sh.SH_CONSTANTS[0])
                 exposure = 1.0 / max(mean_rad, 1e-6)
-                stem = f"frame_{i:06d}"
-                files = {}
-                for layer in layers:
-                    arr = L[layer].numpy()
-                    if layer == "mask":
-                        files["mask"] = f"{stem}_mask.png"
-                        write_png(d / files["mask"], quantize8(arr))
-                        continue
-                    files[layer] = f"{stem}_{layer}.exr"
-                    write_exr(d / files[layer], arr)
-                    if layer == "image":
-                        write_png(d / f"{stem}_image.png", quantize8(to_display(arr, exposure)))
-                    elif layer == "albedo":
-                        write_png(d / f"{stem}_albedo.png", quantize8(srgb_encode(arr)))
-                    elif layer == "normal":
-                        write_png(d / f"{stem}_normal.png", quantize8((arr + 1) / 2 * (np.abs(arr).sum(-1, keepdims=True) > 0)))
                 meta = {
-                    "format": "rh-frame/1", "subject": name, "protocol": protocol, "split": split, "index": i,
-                    "width": W, "height": H,
+                    "subject": name, "protocol": protocol, "split": split, "width": W, "height": H,
                     "camera": {"K": cam.K, "world_to_camera": cam.world_to_camera,
                                "camera_to_world": cam.camera_to_world, "fov_y_deg": cam.fov_y_deg},
-                    "body": {"model": "anny", "phenotype": ph,
-                             "pose": {k: (np.asarray(v).tolist() if k != "bones" else
-                                          {b: np.asarray(m).tolist() for b, m in v.items()}) for k, v in pose.items()},
-                             "turntable_deg": 0.0},
+                    "body": {"model": "anny", "phenotype": ph, "pose": pose_json, "turntable_deg": 0.0},
                     "light": {"kind": "sh", "name": "synthetic", "source": "", "rotation_deg": 0.0, "scale": 1.0,
                               "sun_azimuth_deg": None, "sun_elevation_deg": None, "turbidity": None,
                               "sh_world": sh_world, "sh_camera": sh_cam, "negative_pixels_clamped": 0},
                     "exposure": exposure,
                     "render": {"variant": "rana-synthetic", "spp": 4, "aov_spp": 4, "max_depth": 1, "seed": seed,
                                "denoised": False, "preset": "synthetic"},
-                    "layers": {k: {"file": v, "sha256": sha256_file(d / v)} for k, v in files.items()},
                     "versions": {"rh": "synthetic"},
                 }
-                write_json(d / f"{stem}.json", meta)
-    write_json(out / "dataset.json", {"format": "rh-dataset/1", "generator": "rana.synthetic", "subjects": subj_names,
-                                      "character_pool": pool, "seed": seed})
-    manifest = {str(p.relative_to(out)): {"sha256": sha256_file(p), "bytes": p.stat().st_size}
-                for p in sorted(out.rglob("*")) if p.is_file() and p.name != "manifest.json"}
-    write_json(out / "manifest.json", manifest)
+                # The generator's own writer: the same files, frame record and checksums rh-verify checks.
+                layout.write_frame(d, i, {layer: L[layer].numpy() for layer in layers}, meta)
+    write_json(out / layout.DATASET_JSON, {"format": "rh-dataset/1", "generator": "rana.synthetic",
+                                           "subjects": subj_names, "character_pool": pool, "seed": seed})
+    layout.write_manifest(out)
     return out

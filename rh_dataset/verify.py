@@ -1,4 +1,8 @@
-"""`rh-verify DIR`: find every missing, truncated, altered or extra file and every NaN/Inf in a dataset."""
+"""`rh-verify DIR`: find every missing, truncated, altered or extra file and every NaN/Inf in a dataset.
+
+In: a dataset root, read through `rh_common.layout` (its manifest and frame records). Out: a `Report` listing each
+problem with the file it concerns; exit status 1 if there is any.
+"""
 from __future__ import annotations
 
 import argparse
@@ -8,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rh_common.imageio import ImageFileError, read_exr, read_json, read_png, sha256_file
+from rh_common import layout
+from rh_common.imageio import ImageFileError, read_exr, read_json, read_png
 
 __all__ = ["Problem", "verify", "main"]
 
@@ -47,47 +52,37 @@ def _check_content(path: Path) -> str | None:
 def verify(root: str | Path, *, check_content: bool = True, progress: bool = False) -> Report:
     root = Path(root)
     rep = Report()
-    manifest_path = root / "manifest.json"
+    manifest_path = root / layout.MANIFEST_JSON
     if not manifest_path.is_file():
         rep.problems.append(Problem(str(manifest_path), "missing: not a finished dataset (rerun rh-generate)"))
         return rep
     try:
-        listed = read_json(manifest_path)["files"]
-    except (ValueError, KeyError) as exc:
+        listed = layout.read_manifest(root)
+    except ValueError as exc:
         rep.problems.append(Problem(str(manifest_path), f"unreadable manifest ({exc})"))
         return rep
-    on_disk = {p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file() and p.name != "manifest.json"}
-    for rel in sorted(on_disk - set(listed)):
+    for rel in layout.unlisted_files(root, listed):
         what = "leftover temporary file from an interrupted write" if rel.endswith(".tmp") else "not in the manifest"
         rep.problems.append(Problem(rel, what))
     from tqdm import tqdm
 
-    for rel, info in tqdm(sorted(listed.items()), disable=not progress, unit="file", desc="verify"):
-        p = root / rel
+    for rel, entry in tqdm(sorted(listed.items()), disable=not progress, unit="file", desc="verify"):
         rep.files_checked += 1
-        if not p.is_file():
-            rep.problems.append(Problem(rel, "missing"))
-            continue
-        size = p.stat().st_size
-        if size != info["bytes"]:
-            kind = "truncated" if size < info["bytes"] else "altered"
-            rep.problems.append(Problem(rel, f"{kind}: {size} bytes, manifest says {info['bytes']}"))
-            continue
-        if sha256_file(p) != info["sha256"]:
-            rep.problems.append(Problem(rel, "altered: sha256 differs from the manifest"))
-            continue
-        if check_content:
-            msg = _check_content(p)
-            if msg:
-                rep.problems.append(Problem(rel, msg))
+        msg = layout.check_entry(root, rel, entry)
+        if msg is None and check_content:
+            msg = _check_content(root / rel)
+        if msg:
+            rep.problems.append(Problem(rel, msg))
     # Frame JSONs list their own layer files: a frame must be whole even if the manifest was rebuilt around a hole.
-    for fj in sorted(root.glob("subject_*/protocol_*/*/frame_*.json")):
+    for fj in layout.iter_frame_jsons(root):
         rep.frames_checked += 1
         try:
-            files = read_json(fj)["files"]
-        except (ValueError, KeyError):
-            continue  # already reported as unreadable above
-        for name in files:
+            record = layout.read_frame_record(fj)
+        except ValueError as exc:
+            if not any(p.path == fj.relative_to(root).as_posix() for p in rep.problems):  # else reported above
+                rep.problems.append(Problem(fj.relative_to(root).as_posix(), f"not a frame record ({exc})"))
+            continue
+        for name in record.files:
             if not (fj.parent / name).is_file():
                 rep.problems.append(Problem((fj.parent / name).relative_to(root).as_posix(),
                                             f"missing, listed by {fj.name}"))

@@ -1,8 +1,8 @@
-"""Frame writer: layers → files (EXR + PNG previews), the frame JSON written last, manifest, contact sheets.
+"""The generator's side of writing a dataset: frames with their render diagnostics, and contact sheets.
 
-A frame is complete when its JSON exists and every file it lists has the sha256 the JSON records. Every file is
-written atomically, the JSON after all layers, so a run killed at any moment leaves either a complete frame or
-one that `frame_is_complete` rejects and a rerun redoes.
+In: a split folder, a frame index, the rendered layers and the frame metadata (`rh_dataset.generate.frame_meta`).
+Out: the frame files through `rh_common.layout` (which owns the layout, the frame JSON and the manifest), with the
+beauty image's firefly count added to `render`; `contact_sheet.png` previews per split.
 """
 from __future__ import annotations
 
@@ -13,8 +13,10 @@ from typing import Iterable, Mapping
 import numpy as np
 from PIL import Image
 
-from rh_common.colourspace import quantize8, srgb_encode, to_display
-from rh_common.imageio import read_json, sha256_file, write_exr, write_json, write_png
+from rh_common import layout
+from rh_common.imageio import write_png
+# Re-exported: rh_dataset.generate and the backends import these from here.
+from rh_common.layout import FRAME_FORMAT, frame_is_complete, frame_stem, layer_files, write_manifest
 
 __all__ = [
     "FRAME_FORMAT",
@@ -26,102 +28,16 @@ __all__ = [
     "contact_sheet",
 ]
 
-FRAME_FORMAT = "rh-frame/1"
-
-
-def frame_stem(index: int) -> str:
-    return f"frame_{index:06d}"
-
-
-def layer_files(index: int, layer: str) -> list[str]:
-    """File names one layer occupies (see docs/ARCHITECTURE.md, "Dataset layout")."""
-    s = frame_stem(index)
-    return {
-        "image": [f"{s}_image.exr", f"{s}_image.png"],
-        "mask": [f"{s}_mask.png"],
-        "albedo": [f"{s}_albedo.exr", f"{s}_albedo.png"],
-        "normal": [f"{s}_normal.exr", f"{s}_normal.png"],
-        "depth": [f"{s}_depth.exr"],
-    }[layer]
-
-
-def _encode_layer(split_dir: Path, index: int, layer: str, data: np.ndarray, exposure: float) -> dict[str, str]:
-    files = layer_files(index, layer)
-    paths = [split_dir / f for f in files]
-    if not np.all(np.isfinite(data)):
-        raise ValueError(f"{paths[0]}: layer {layer!r} has {int(np.sum(~np.isfinite(data)))} NaN/Inf values; "
-                         "refusing to write it (the renderer produced an invalid frame)")
-    if layer == "image":
-        write_exr(paths[0], data)
-        write_png(paths[1], quantize8(to_display(data, exposure)))
-    elif layer == "mask":
-        write_png(paths[0], quantize8(data))
-    elif layer == "albedo":
-        write_exr(paths[0], data)
-        write_png(paths[1], quantize8(srgb_encode(data)))
-    elif layer == "normal":
-        write_exr(paths[0], data)
-        inside = np.any(data != 0.0, axis=-1, keepdims=True)
-        write_png(paths[1], np.where(inside, quantize8((data + 1.0) * 0.5), 0).astype(np.uint8))
-    elif layer == "depth":
-        write_exr(paths[0], data)
-    return {f: sha256_file(p) for f, p in zip(files, paths)}
-
 
 def write_frame(split_dir: str | os.PathLike, index: int, layers: Mapping[str, np.ndarray], meta: dict) -> Path:
-    """Write every layer then the frame JSON (`meta` plus the file list with checksums). Returns the JSON path."""
-    split_dir = Path(split_dir)
-    exposure = float(meta["exposure"])
-    listed: dict[str, dict[str, str]] = {}
-    for layer, data in layers.items():
-        for name, digest in _encode_layer(split_dir, index, layer, data, exposure).items():
-            listed[name] = {"layer": layer, "sha256": digest}
+    """`rh_common.layout.write_frame`, with `render.fireflies` recorded when the frame has an image."""
     record = dict(meta)
-    if "image" in layers:
+    if "image" in layers and np.all(np.isfinite(layers["image"])):  # a NaN image: layout.write_frame refuses it
         # Reported, never hidden: the count of isolated over-bright pixels of the image as written (no clamping).
         from rh_dataset.render.passes import count_fireflies
 
         record["render"] = {**record.get("render", {}), "fireflies": count_fireflies(layers["image"])}
-    record["format"] = FRAME_FORMAT
-    record["index"] = index
-    record["files"] = listed
-    json_path = split_dir / f"{frame_stem(index)}.json"
-    write_json(json_path, record)
-    return json_path
-
-
-def frame_is_complete(split_dir: str | os.PathLike, index: int, expected_layers: Iterable[str]) -> bool:
-    """True only if the frame JSON exists, lists exactly the expected layers' files, and every checksum matches."""
-    split_dir = Path(split_dir)
-    json_path = split_dir / f"{frame_stem(index)}.json"
-    if not json_path.is_file():
-        return False
-    try:
-        files = read_json(json_path)["files"]
-    except (ValueError, KeyError, TypeError):
-        return False
-    wanted = {f for layer in expected_layers for f in layer_files(index, layer)}
-    if set(files) != wanted:
-        return False
-    for name, info in files.items():
-        p = split_dir / name
-        if not p.is_file() or sha256_file(p) != info.get("sha256"):
-            return False
-    return True
-
-
-def write_manifest(root: str | os.PathLike) -> Path:
-    """sha256 and size of every file under `root` but the manifest itself and temporaries, sorted by path."""
-    root = Path(root)
-    entries = {}
-    for p in sorted(root.rglob("*")):
-        if not p.is_file() or p.name == "manifest.json" or p.name.endswith(".tmp"):
-            continue
-        rel = p.relative_to(root).as_posix()
-        entries[rel] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}
-    out = root / "manifest.json"
-    write_json(out, {"format": "rh-manifest/1", "files": entries})
-    return out
+    return layout.write_frame(split_dir, index, layers, record)
 
 
 def contact_sheet(split_dir: str | os.PathLike, indices: list[int], layers: Iterable[str], *, tile: int = 128,
@@ -149,6 +65,6 @@ def contact_sheet(split_dir: str | os.PathLike, indices: list[int], layers: Iter
                 x = c * (len(cols) * tile + gap) + j * tile + (tile - im.width) // 2
                 y = r * (tile + gap) + (tile - im.height) // 2
                 sheet.paste(im, (x, y))
-    out = split_dir / "contact_sheet.png"
+    out = split_dir / layout.CONTACT_SHEET
     write_png(out, np.asarray(sheet))
     return out

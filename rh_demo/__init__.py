@@ -58,7 +58,9 @@ def main(argv: list[str] | None = None) -> int:
             return rc
         print(f"== rh-demo: {name} done in {time.perf_counter() - t:.1f} s", flush=True)
     print("rh-demo: done. Look at:")
-    for sheet in sorted(data.glob("subject_*/protocol_*/*/contact_sheet.png")):
+    from rh_common.layout import CONTACT_SHEET
+
+    for sheet in sorted(data.glob(f"subject_*/protocol_*/*/{CONTACT_SHEET}")):
         print(f"  {sheet}")
     print(f"  {board / 'leaderboard.md'}\n  {board / 'index.html'}")
     return 0

@@ -1,5 +1,6 @@
-"""Reading the dataset's test split and a predictions folder, per docs/ARCHITECTURE.md, with every check that keeps a
-bad prediction set from producing a silently different score.
+"""Reading the dataset's test split and a predictions folder, per docs/ARCHITECTURE.md (names and frame records
+through `rh_common.layout`), with every check that keeps a bad prediction set from producing a silently different
+score.
 
 Ground truth, per frame (`<dataset>/<subject>/protocol_<p>/test/`): `frame_%06d.json` (complete frames only:
 the JSON is written last) with `exposure`, `width`, `height`; layers `frame_%06d_{image.exr, mask.png,
@@ -13,15 +14,16 @@ unreadable file.
 """
 from __future__ import annotations
 
-import re
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from rh_common import layout
 from rh_common.colourspace import srgb_decode, to_display
 from rh_common.imageio import ImageFileError, read_exr, read_json, read_png, sha256_file
+from rh_common.layout import protocol_dir
 
 __all__ = [
     "PredictionError",
@@ -48,9 +50,8 @@ __all__ = [
     "read_gt_image_stored",
 ]
 
-LAYERS = ("image", "albedo", "normal")
-_PRED_RE = re.compile(r"^frame_(\d{6})_(image|albedo|normal)\.(exr|png)$")
-_FRAME_JSON_RE = re.compile(r"^frame_(\d{6})\.json$")
+LAYERS = layout.PREDICTION_LAYERS
+_PRED_RE = layout.PREDICTION_FILE_RE
 
 
 class PredictionError(ValueError):
@@ -74,14 +75,16 @@ class GTFrame:
 
     @property
     def key(self) -> str:
-        return f"{self.subject}/frame_{self.index:06d}"
+        return f"{self.subject}/{layout.frame_stem(self.index)}"
 
     def layer(self, name: str) -> Path:
-        return self.folder / f"frame_{self.index:06d}_{name}"
+        """`name` is '<layer>.<ext>', e.g. 'image.exr'."""
+        stem, ext = name.rsplit(".", 1)
+        return self.folder / layout.layer_file_name(self.index, stem, ext)
 
     @property
     def json_path(self) -> Path:
-        return self.folder / f"frame_{self.index:06d}.json"
+        return layout.frame_json_path(self.folder, self.index)
 
 
 @dataclass
@@ -111,37 +114,31 @@ class PredictionIndex:
     has_normal: bool = False
 
 
-def protocol_dir(protocol: str) -> str:
-    p = protocol[len("protocol_"):] if protocol.startswith("protocol_") else protocol
-    if not re.fullmatch(r"[a-z0-9]+", p):
-        raise ValueError(f"protocol must look like 'a' or 'protocol_a', got {protocol!r}")
-    return f"protocol_{p}"
-
-
 def load_dataset(root: str | Path, protocol: str) -> DatasetIndex:
     """Index the test split of `protocol` in the dataset at `root` (complete frames = those with a JSON)."""
     root = Path(root)
     pdir = protocol_dir(protocol)
-    manifest = root / "manifest.json"
+    manifest = root / layout.MANIFEST_JSON
     if not manifest.is_file():
         raise FileNotFoundError(f"{manifest}: dataset manifest not found (is {root} a dataset folder?)")
     frames: list[GTFrame] = []
-    subjects = sorted(d.name for d in root.iterdir() if d.is_dir() and (d / pdir / "test").is_dir())
+    subjects = sorted(d.name for d in root.iterdir()
+                      if d.is_dir() and layout.split_dir(root, d.name, pdir, layout.TEST_SPLIT).is_dir())
     for subject in subjects:
-        folder = root / subject / pdir / "test"
+        folder = layout.split_dir(root, subject, pdir, layout.TEST_SPLIT)
         for jp in sorted(folder.iterdir()):
-            m = _FRAME_JSON_RE.match(jp.name)
-            if not m:
+            index = layout.frame_index_of(jp.name)
+            if index is None:
                 continue
-            meta = read_json(jp)
             try:
-                w, h, exposure = int(meta["width"]), int(meta["height"]), float(meta["exposure"])
-            except (KeyError, TypeError, ValueError) as exc:
-                raise ValueError(f"{jp}: frame JSON lacks a valid width/height/exposure ({exc})") from exc
-            frames.append(GTFrame(subject, int(m.group(1)), folder, w, h, exposure))
+                rec = layout.read_frame_record(jp)
+            except ValueError as exc:
+                raise ValueError(f"{jp}: not a valid frame record (width, height, exposure, ...): {exc}") from exc
+            frames.append(GTFrame(subject, index, folder, rec.width, rec.height, float(rec.exposure)))
     if not frames:
-        raise FileNotFoundError(f"{root}: no test frames for {pdir} (expected <subject>/{pdir}/test/frame_*.json)")
-    return DatasetIndex(root, pdir[len("protocol_"):], frames, sha256_file(manifest), subjects)
+        raise FileNotFoundError(f"{root}: no test frames for {pdir} "
+                                f"(expected <subject>/{pdir}/{layout.TEST_SPLIT}/frame_*.json)")
+    return DatasetIndex(root, layout.protocol_of(pdir), frames, sha256_file(manifest), subjects)
 
 
 def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplete: bool = False) -> PredictionIndex:
@@ -151,7 +148,7 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
     if not root.is_dir():
         raise PredictionError(root, [f"{root}: not a folder"])
     method: dict = {"name": root.resolve().name}
-    mj = root / "method.json"
+    mj = root / layout.METHOD_JSON
     problems: list[str] = []
     if mj.is_file():
         try:
@@ -163,7 +160,7 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
             method.update(loaded)
         except ValueError as exc:
             problems.append(f"{mj}: {exc}")
-    pdir = f"protocol_{ds.protocol}"
+    pdir = protocol_dir(ds.protocol)
     by_key = {f.key: f for f in ds.frames}
     found: dict[str, dict[str, Path]] = {}
     for entry in sorted(root.iterdir()):
@@ -172,7 +169,7 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
         if entry.name not in ds.subjects:
             problems.append(f"{entry}: unexpected folder (not a subject of the dataset's {pdir} test split)")
             continue
-        test = entry / pdir / "test"
+        test = layout.prediction_dir(root, entry.name, pdir)
         if not test.is_dir():
             continue  # counted as missing below
         for f in sorted(test.iterdir()):
@@ -182,7 +179,7 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
             if not m or not f.is_file():
                 problems.append(f"{f}: unexpected file (expected frame_NNNNNN_{{image,albedo,normal}}.{{exr,png}})")
                 continue
-            key = f"{entry.name}/frame_{m.group(1)}"
+            key = f"{entry.name}/{layout.frame_stem(int(m.group(1)))}"
             if key not in by_key:
                 problems.append(f"{f}: extra frame (no ground-truth frame {key} in the test split)")
                 continue
@@ -197,14 +194,14 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
     any_normal = any("normal" in v for v in found.values())
     for gt in ds.frames:
         layers = found.get(gt.key, {})
-        expected_dir = root / gt.subject / pdir / "test"
         if "image" not in layers:
-            missing.append(f"{expected_dir / f'frame_{gt.index:06d}_image.exr'} (or .png): missing frame")
+            missing.append(f"{layout.prediction_file(root, gt.subject, pdir, gt.index, 'image')} (or .png): "
+                           f"missing frame")
             continue
         for name, present in (("albedo", any_albedo), ("normal", any_normal)):
             if present and name not in layers:
-                missing.append(f"{expected_dir / f'frame_{gt.index:06d}_{name}.exr'} (or .png): missing {name} "
-                               f"(other frames have one)")
+                missing.append(f"{layout.prediction_file(root, gt.subject, pdir, gt.index, name)} (or .png): "
+                               f"missing {name} (other frames have one)")
         frames.append(PredFrame(gt, layers.get("image"), layers.get("albedo"), layers.get("normal")))
     if missing and not allow_incomplete:
         problems.extend(missing)

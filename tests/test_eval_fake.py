@@ -1,5 +1,5 @@
-"""A tiny fake Relighting Humans dataset and prediction sets, written with rh_common.imageio in the layout of
-docs/ARCHITECTURE.md; used by the other test_eval_* files (and checked here)."""
+"""A tiny fake Relighting Humans dataset (written by the real writer, rh_common.layout) and prediction sets in the
+predictions layout of docs/ARCHITECTURE.md; used by the other test_eval_* files (and checked here)."""
 from __future__ import annotations
 
 import json
@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rh_common import layout
 from rh_common.colourspace import quantize8, srgb_encode, to_display
 from rh_common.imageio import read_json, sha256_file, write_exr, write_json, write_png
 
@@ -33,8 +34,6 @@ def make_dataset(root: Path, *, size: int = SIZE, subjects=SUBJECTS, frames=FRAM
     root = Path(root)
     for si, subject in enumerate(subjects):
         for f in frames:
-            folder = root / subject / "protocol_a" / "test"
-            folder.mkdir(parents=True, exist_ok=True)
             cx, cy, r = size * (0.45 + 0.1 * f), size * (0.5 + 0.05 * si), size * 0.3
             normal, cov = _sphere(size, cx, cy, r)
             if empty_mask == (subject, f):
@@ -50,35 +49,18 @@ def make_dataset(root: Path, *, size: int = SIZE, subjects=SUBJECTS, frames=FRAM
             image += rng.normal(0, 0.01, image.shape).astype(np.float32).clip(-0.01, 0.01)
             image = np.clip(image, 0, None)
             exposure = 0.5
-            stem = f"frame_{f:06d}"
-            layers = {}
-            write_exr(folder / f"{stem}_image.exr", image)
-            write_png(folder / f"{stem}_image.png", quantize8(to_display(image, exposure)))
-            write_png(folder / f"{stem}_mask.png", quantize8(cov))
-            write_exr(folder / f"{stem}_albedo.exr", albedo)
-            write_png(folder / f"{stem}_albedo.png", quantize8(srgb_encode(albedo)))
-            write_exr(folder / f"{stem}_normal.exr", normal)
-            write_png(folder / f"{stem}_normal.png",
-                      quantize8((normal + 1) / 2) * (np.any(normal != 0, axis=-1)[..., None]).astype(np.uint8))
-            for name in ("image.exr", "image.png", "mask.png", "albedo.exr", "albedo.png", "normal.exr",
-                         "normal.png"):
-                p = folder / f"{stem}_{name}"
-                layers[name.replace(".", "_")] = {"file": p.name, "sha256": sha256_file(p)}
-            write_json(folder / f"{stem}.json", {
-                "format": "rh-frame/1", "subject": subject, "protocol": "a", "split": "test", "index": f,
-                "width": size, "height": size, "exposure": exposure, "layers": layers,
-            })
-    manifest = {}
-    for p in sorted(root.rglob("*")):
-        if p.is_file() and p.name != "manifest.json":
-            manifest[str(p.relative_to(root))] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}
-    write_json(root / "dataset.json", {"protocol": "a", "subjects": list(subjects)})
-    write_json(root / "manifest.json", manifest)
+            # The real writer (rh_common.layout): the same frame record, layer files and manifest as rh-generate's.
+            layout.write_frame(layout.split_dir(root, subject, "a", "test"), f,
+                               {"image": image, "mask": cov, "albedo": albedo, "normal": normal},
+                               {"subject": subject, "protocol": "a", "split": "test", "width": size, "height": size,
+                                "exposure": exposure})
+    write_json(root / layout.DATASET_JSON, {"protocol": "a", "subjects": list(subjects)})
+    layout.write_manifest(root)
     return root
 
 
 def gt_frames(ds: Path):
-    for jp in sorted(Path(ds).glob("subject_*/protocol_a/test/frame_*.json")):
+    for jp in layout.iter_frame_jsons(ds, "a", "test"):
         yield jp.parent, jp.stem, read_json(jp)
 
 
@@ -90,32 +72,36 @@ def make_predictions(ds: Path, out: Path, *, name: str = "oracle", kind: str | N
     out = Path(out)
     from rh_common.imageio import read_exr
     for folder, stem, meta in gt_frames(ds):
-        dst = out / folder.relative_to(ds)
-        dst.mkdir(parents=True, exist_ok=True)
+        rec = layout.FrameRecord.from_json(meta)
+
+        def out_file(layer: str, ext: str) -> Path:
+            return layout.prediction_file(out, rec.subject, rec.protocol, rec.index, layer, ext)
+
+        out_file("image", "exr").parent.mkdir(parents=True, exist_ok=True)
         for layer in layers:
-            src = folder / f"{stem}_{layer}.exr"
+            src = folder / layout.layer_file_name(meta["index"], layer, "exr")
             if fmt == "exr" and noise == 0.0 and albedo_scale == 1.0:
-                shutil.copyfile(src, dst / src.name)
+                shutil.copyfile(src, out_file(layer, "exr"))
                 continue
             arr = read_exr(src)
             if layer == "image":
                 arr = np.clip(arr * (1 + noise * rng.normal(size=arr.shape)), 0, None).astype(np.float32)
                 if fmt == "png":
-                    write_png(dst / f"{stem}_image.png", quantize8(to_display(arr, meta["exposure"])))
+                    write_png(out_file("image", "png"), quantize8(to_display(arr, meta["exposure"])))
                 else:
-                    write_exr(dst / f"{stem}_image.exr", arr)
+                    write_exr(out_file("image", "exr"), arr)
             elif layer == "albedo":
                 arr = np.clip(arr * albedo_scale + noise * rng.normal(size=arr.shape), 0, 1).astype(np.float32)
                 if fmt == "png":
-                    write_png(dst / f"{stem}_albedo.png", quantize8(srgb_encode(arr)))
+                    write_png(out_file("albedo", "png"), quantize8(srgb_encode(arr)))
                 else:
-                    write_exr(dst / f"{stem}_albedo.exr", arr)
+                    write_exr(out_file("albedo", "exr"), arr)
             else:
                 n = arr + noise * rng.normal(size=arr.shape) * np.any(arr != 0, axis=-1, keepdims=True)
                 if fmt == "png":
-                    write_png(dst / f"{stem}_normal.png", quantize8((np.clip(n, -1, 1) + 1) / 2))
+                    write_png(out_file("normal", "png"), quantize8((np.clip(n, -1, 1) + 1) / 2))
                 else:
-                    write_exr(dst / f"{stem}_normal.exr", n.astype(np.float32))
+                    write_exr(out_file("normal", "exr"), n.astype(np.float32))
     meta = {"name": name}
     if kind:
         meta["kind"] = kind
@@ -129,7 +115,7 @@ def test_fake_dataset_follows_layout(tmp_path):
     jp = ds / "subject_000" / "protocol_a" / "test" / "frame_000000.json"
     meta = json.loads(jp.read_text())
     assert meta["width"] == SIZE and meta["height"] == SIZE and meta["exposure"] > 0
-    manifest = read_json(ds / "manifest.json")
+    manifest = layout.read_manifest(ds)
     assert "subject_001/protocol_a/test/frame_000001_normal.exr" in manifest
     for rel, entry in manifest.items():
-        assert sha256_file(ds / rel) == entry["sha256"]
+        assert sha256_file(ds / rel) == entry.sha256

@@ -56,8 +56,10 @@ def _check_aovs(layers: dict) -> None:
         assert layers["albedo"].min() >= 0 and layers["albedo"].max() <= 1
 
 
-def _meta(exposure: float) -> dict:
-    return {"exposure": exposure, "render": {"spp": 1, "denoised": False}}
+def _meta(exposure: float, layers: dict) -> dict:
+    h, w = next(iter(layers.values())).shape[:2]
+    return {"subject": "subject_000", "protocol": "a", "split": "test", "width": w, "height": h,
+            "exposure": exposure, "render": {"spp": 1, "denoised": False}}
 
 
 # ------------------------------------------------------------------------------------------------ lights
@@ -76,7 +78,7 @@ def test_a_1e5_radiance_sun_renders_finite_and_float32_exr_keeps_it_exactly(tmp_
     # The writer's float32 EXR round trip is bit-exact above 65504 (half would give inf).
     img = out.layers["image"].copy()
     img[0, 0] = (1e5, 65504.0 * 1.5, 123456.789)
-    json_path = write_frame(tmp_path / "f", 0, {"image": img, "mask": out.layers["mask"]}, _meta(exposure))
+    json_path = write_frame(tmp_path / "f", 0, {"image": img, "mask": out.layers["mask"]}, _meta(exposure, out.layers))
     back = read_exr(tmp_path / "f" / "frame_000000_image.exr")
     assert back.dtype == np.float32 and np.array_equal(back, img)
     assert read_json(json_path)["render"]["fireflies"] >= 0
@@ -97,7 +99,7 @@ def test_an_all_black_hdri_gives_a_black_beauty_exposure_1_and_files_that_write(
     _check_aovs(out.layers)
     assert count_fireflies(out.layers["image"]) == 0
     np.testing.assert_array_equal(to_display(out.layers["image"], 1.0), 0.0)
-    write_frame(tmp_path / "f", 0, out.layers, _meta(exposure_for(light)))
+    write_frame(tmp_path / "f", 0, out.layers, _meta(exposure_for(light), out.layers))
     assert read_png(tmp_path / "f" / "frame_000000_image.png").max() == 0
     assert read_json(tmp_path / "f" / "frame_000000.json")["render"]["fireflies"] == 0
 
@@ -202,7 +204,7 @@ def test_the_writer_records_fireflies_and_never_clamps_them(tmp_path):
     img = np.full((12, 12, 3), 0.1, np.float32)
     img[3, 4] = 500.0
     img[8, 8] = 80.0
-    write_frame(tmp_path, 0, {"image": img}, _meta(1.0))
+    write_frame(tmp_path, 0, {"image": img}, _meta(1.0, {"image": img}))
     meta = read_json(tmp_path / "frame_000000.json")
     assert meta["render"]["fireflies"] == 2 and meta["render"]["denoised"] is False
     np.testing.assert_array_equal(read_exr(tmp_path / "frame_000000_image.exr"), img)

@@ -192,12 +192,13 @@ def test_export_refuses_an_imported_character_dataset(tmp_path, capsys):
     crashed on half-way (and nothing is written)."""
     from rh_dataset.export.cli import main as export_main
     from rh_common.imageio import write_json
+    from rh_common.layout import write_manifest
 
     root = tmp_path / "ds"
     root.mkdir()
     write_json(root / "dataset.json", {"format": "rh-dataset/1", "protocols": {"protocol_a": {
         "spec": {"character": {"file": "scan.glb", "sha256": "0" * 64, "scale": None}}}}})
-    write_json(root / "manifest.json", {})
+    write_manifest(root)
     out = tmp_path / "exported"
     assert export_main(["--dataset", str(root), "--protocol", "a", "--format", "usd", "--out", str(out)]) == 2
     assert "imported character (scan.glb" in capsys.readouterr().err

@@ -25,9 +25,16 @@ def layers(rng, h=8, w=10):
     }
 
 
+def frame_meta(L, exposure=1.0):
+    """The frame metadata rh-generate's writer needs (a FrameRecord but its index and file list)."""
+    h, w = L["image"].shape[:2]
+    return {"subject": "subject_000", "protocol": "a", "split": "test", "width": w, "height": h,
+            "exposure": exposure}
+
+
 def test_frame_round_trip_keeps_float32_hdr_and_documented_encodings(tmp_path, rng):
     L = layers(rng)
-    write_frame(tmp_path, 3, L, {"exposure": 1e-5})
+    write_frame(tmp_path, 3, L, frame_meta(L, 1e-5))
     assert np.array_equal(read_exr(tmp_path / "frame_000003_image.exr")[..., :3], L["image"])
     assert np.array_equal(read_exr(tmp_path / "frame_000003_depth.exr")[..., 0], L["depth"])
     m = read_png(tmp_path / "frame_000003_mask.png")
@@ -46,14 +53,14 @@ def test_non_finite_layers_are_refused_and_leave_no_json(tmp_path, rng):
     L = layers(rng)
     L["image"][0, 0, 0] = np.nan
     with pytest.raises(ValueError, match="NaN/Inf"):
-        write_frame(tmp_path, 0, L, {"exposure": 1.0})
+        write_frame(tmp_path, 0, L, frame_meta(L))
     assert not (tmp_path / "frame_000000.json").exists()
     assert not frame_is_complete(tmp_path, 0, L.keys())
 
 
 def test_a_damaged_or_partial_frame_is_not_complete(tmp_path, rng):
     L = layers(rng)
-    write_frame(tmp_path, 0, L, {"exposure": 1.0})
+    write_frame(tmp_path, 0, L, frame_meta(L))
     assert frame_is_complete(tmp_path, 0, L.keys())
     assert not frame_is_complete(tmp_path, 0, ["image", "mask"])  # layer set differs from the request
     p = tmp_path / "frame_000000_albedo.exr"
@@ -66,7 +73,8 @@ def test_verify_finds_missing_truncated_altered_extra_and_nonfinite_files(tmp_pa
     root = tmp_path / "ds"
     split = root / "subject_000" / "protocol_a" / "test"
     for i in range(3):
-        write_frame(split, i, layers(rng), {"exposure": 1.0})
+        L = layers(rng)
+        write_frame(split, i, L, frame_meta(L))
     write_json(root / "dataset.json", {"format": "rh-dataset/1"})
     write_manifest(root)
     assert verify(root).problems == []

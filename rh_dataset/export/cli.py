@@ -7,6 +7,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+from rh_common import layout
 from rh_common.cli_help import HelpFormatter
 from rh_common.imageio import read_json, write_json
 
@@ -26,13 +27,13 @@ def _prepare_out(out: Path, fmt: str, dataset: Path, protocol: str) -> None:
             raise ExportError(f"{out} holds a {rec.get('format')!r} export; choose another --out for {fmt!r}")
     elif out.is_dir() and any(p for p in out.iterdir() if not p.name.startswith(".")):
         raise ExportError(f"{out} is not empty and holds no export.json; choose an empty or new --out folder")
-    manifest = read_json(dataset / "manifest.json")
+    manifest = layout.read_manifest(dataset)
     from rh_dataset import __version__
 
     write_json(rec_path, {
         "export": EXPORT_FORMAT, "format": fmt, "protocol": protocol, "source": str(dataset.resolve()),
-        "source_dataset_json": read_json(dataset / "dataset.json"),
-        "source_files": len(manifest.get("files", {})), "generator_version": __version__,
+        "source_dataset_json": read_json(dataset / layout.DATASET_JSON),
+        "source_files": len(manifest), "generator_version": __version__,
     })
 
 
@@ -46,7 +47,7 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
     ds = check_dataset(dataset, protocol)
     out.mkdir(parents=True, exist_ok=True)
     _prepare_out(out, fmt, dataset, protocol)
-    hdri_folder = ds["protocols"][f"protocol_{protocol}"]["spec"].get("hdri_folder")
+    hdri_folder = ds["protocols"][layout.protocol_dir(protocol)]["spec"].get("hdri_folder")
     frames = list(iter_frames(dataset, protocol, splits, subjects))
     if not frames:
         raise ExportError(f"{dataset}: no frames of protocol {protocol!r} to export")

@@ -13,6 +13,7 @@ from typing import Iterator
 
 import numpy as np
 
+from rh_common import layout
 from rh_common.imageio import atomic_path, read_json
 
 __all__ = ["ExportError", "FrameRef", "iter_frames", "check_dataset", "save_npy", "rodrigues", "axis_angle",
@@ -34,21 +35,23 @@ class FrameRef:
     meta: dict
 
     def layer(self, suffix: str) -> Path:
-        return self.split_dir / f"frame_{self.index:06d}_{suffix}"
+        """`suffix` is '<layer>.<ext>', e.g. 'image.png'."""
+        name, ext = suffix.rsplit(".", 1)
+        return self.split_dir / layout.layer_file_name(self.index, name, ext)
 
 
 def check_dataset(root: Path, protocol: str) -> dict:
     """dataset.json of a finished dataset holding `protocol`; raises ExportError otherwise."""
     root = Path(root)
-    ds_path = root / "dataset.json"
+    ds_path = root / layout.DATASET_JSON
     if not ds_path.is_file():
         raise ExportError(f"{root} holds no dataset.json: not an rh dataset (make one with rh-generate)")
-    if not (root / "manifest.json").is_file():
+    if not (root / layout.MANIFEST_JSON).is_file():
         raise ExportError(f"{root} has no manifest.json: the run is unfinished; rerun rh-generate with the same flags")
     ds = read_json(ds_path)
-    if f"protocol_{protocol}" not in ds.get("protocols", {}):
+    if layout.protocol_dir(protocol) not in ds.get("protocols", {}):
         raise ExportError(f"{root} holds no protocol {protocol!r} (it holds {sorted(ds.get('protocols', {}))})")
-    imported = ds["protocols"][f"protocol_{protocol}"].get("spec", {}).get("character")
+    imported = ds["protocols"][layout.protocol_dir(protocol)].get("spec", {}).get("character")
     if imported:
         # Every export format carries the body model's parameters (anny's phenotype and pose); an imported rig has
         # its own skeleton, which none of these layouts can describe.
@@ -58,8 +61,7 @@ def check_dataset(root: Path, protocol: str) -> dict:
     return ds
 
 
-def subject_index(name: str) -> int:
-    return int(name.rsplit("_", 1)[1])
+subject_index = layout.subject_index
 
 
 def iter_frames(root: Path, protocol: str, splits: tuple[str, ...] | None = None,
@@ -67,17 +69,19 @@ def iter_frames(root: Path, protocol: str, splits: tuple[str, ...] | None = None
     """Frames in (subject, split as in the scene description, index) order."""
     root = Path(root)
     ds = check_dataset(root, protocol)
-    spec = ds["protocols"][f"protocol_{protocol}"]["spec"]
+    spec = ds["protocols"][layout.protocol_dir(protocol)]["spec"]
     split_names = [s["name"] for s in spec["splits"] if splits is None or s["name"] in splits]
     subject_dirs = sorted(root.glob("subject_*"))
     if subjects is not None:
         subject_dirs = subject_dirs[:subjects]
     for sd in subject_dirs:
         for split in split_names:
-            split_dir = sd / f"protocol_{protocol}" / split
+            split_dir = layout.split_dir(root, sd.name, protocol, split)
             for fj in sorted(split_dir.glob("frame_*.json")):
-                meta = read_json(fj)
-                yield FrameRef(sd.name, split, int(meta["index"]), split_dir, meta)
+                if layout.frame_index_of(fj.name) is None:
+                    continue
+                record = layout.read_frame_record(fj)
+                yield FrameRef(sd.name, split, record.index, split_dir, record.to_json())
 
 
 def save_npy(path: Path, obj) -> None:
@@ -111,9 +115,8 @@ def root_motion(pose_json: dict) -> np.ndarray:
     the world origin in the reference pose; `root_transform` (the turntable) is applied after skinning. So every
     vertex of the reference body that moves rigidly with the pelvis goes to ``root_transform @ root_delta @ x``.
     """
-    root = np.array(pose_json["bones"].get("root", np.eye(4)), dtype=np.float64)
-    rt = np.array(pose_json.get("root_transform", np.eye(4)), dtype=np.float64)
-    return rt @ root
+    pose = layout.read_body_pose(pose_json)
+    return pose.root_transform @ pose.bones.get("root", np.eye(4))
 
 
 @functools.lru_cache(maxsize=4)

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rh_common import layout
 from rh_common.colourspace import quantize8, srgb_encode
 from rh_common.imageio import read_json, write_exr, write_png
 
@@ -118,7 +119,7 @@ def subject_assets(dataset: Path, subject: str, out: Path) -> SubjectAssets:
     key = f"{Path(dataset).resolve()}::{subject}::{Path(out).resolve()}"
     if key in _ASSETS:
         return _ASSETS[key]
-    recipe = CharacterRecipe.from_json(read_json(Path(dataset) / subject / "character.json"))
+    recipe = CharacterRecipe.from_json(read_json(Path(dataset) / subject / layout.CHARACTER_JSON))
     character = build_character(recipe)
     files: dict[int, Path] = {}
     tex_dir = Path(out) / subject / "textures"
@@ -153,7 +154,7 @@ def _light_texture(f: FrameRef, stage_dir: Path, hdri_folder: str | None) -> tup
 
     keys = ("kind", "name", "source", "rotation_deg", "scale", "sun_azimuth_deg", "sun_elevation_deg", "turbidity")
     built = build_light(LightSpec(**{k: light[k] for k in keys}))
-    path = stage_dir / f"frame_{f.index:06d}_sky.exr"
+    path = stage_dir / layout.layer_file_name(f.index, "sky", "exr")
     write_exr(path, built.radiance)
     return _rel(path, stage_dir), 1.0
 
@@ -168,10 +169,10 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, dataset: Path, hdri_f
     pose = BodyPose.from_json(f.meta["body"]["pose"])
     meshes = pose_character(assets.character, dict(pose.bones), pose.root_transform)
 
-    stage_dir = Path(out) / f.subject / f"protocol_{protocol}" / f.split
+    stage_dir = layout.split_dir(out, f.subject, protocol, f.split)  # the source dataset's layout, mirrored
     stage_dir.mkdir(parents=True, exist_ok=True)
-    final = stage_dir / f"frame_{f.index:06d}.{ext}"
-    tmp = stage_dir / f".frame_{f.index:06d}.tmp.{ext}"  # USD picks the file format from the extension
+    final = stage_dir / f"{layout.frame_stem(f.index)}.{ext}"
+    tmp = stage_dir / f".{layout.frame_stem(f.index)}.tmp.{ext}"  # USD picks the file format from the extension
     stage = Usd.Stage.CreateNew(str(tmp))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rh_common import layout
 from rh_common.imageio import atomic_path, read_png, write_json, write_png
 from rh_dataset.poses import ANNY_BONE_LABELS, BodyPose
 
@@ -86,7 +87,7 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, vertices: bool = True
     if vertices:
         save_npy(d / "vertices" / f"{f.index}.npy", posed_body_vertices(f.meta))
         written.append(d / "vertices" / f"{f.index}.npy")
-    write_json(d / "rh" / f"frame_{f.index:06d}.json", {k: v for k, v in f.meta.items() if k != "files"})
+    write_json(d / "rh" / layout.frame_json_name(f.index), {k: v for k, v in f.meta.items() if k != "files"})
     return written
 
 

@@ -1,0 +1,27 @@
+"""The one owner of the dataset and predictions layout (docs/ARCHITECTURE.md, "Dataset layout", "Frame JSON",
+"Predictions layout").
+
+In: folders, frame coordinates, layers and frame metadata. Out: names and paths (`paths`), the typed frame JSON
+(`record`), frame files written and checked (`frames`), the manifest (`manifest`), the body-pose reader (`pose`).
+Everything that writes or reads a dataset — rh-generate's writer, rh-verify, rana, rh-eval, the exporters, the
+bench and the test fakes — goes through here, so the format exists once.
+"""
+from .frames import LAYERS, frame_is_complete, layer_files, write_frame
+from .manifest import MANIFEST_FORMAT, ManifestEntry, check_entry, read_manifest, unlisted_files, write_manifest
+from .paths import (CHARACTER_JSON, CONTACT_SHEET, DATASET_JSON, MANIFEST_JSON, METHOD_JSON, PREDICTION_FILE_RE,
+                    PREDICTION_LAYERS, TEST_SPLIT, frame_index_of, frame_json_name, frame_json_path, frame_stem,
+                    iter_frame_jsons, layer_file_name, prediction_dir, prediction_file, protocol_dir, protocol_of,
+                    split_dir, subject_index, subject_name)
+from .pose import PoseArrays, read_body_pose
+from .record import FRAME_FORMAT, FileEntry, FrameRecord, read_frame_record, write_frame_record
+
+__all__ = [
+    "CHARACTER_JSON", "CONTACT_SHEET", "DATASET_JSON", "MANIFEST_JSON", "METHOD_JSON", "TEST_SPLIT",
+    "subject_name", "subject_index", "protocol_dir", "protocol_of", "split_dir", "frame_stem", "frame_json_name",
+    "frame_json_path", "layer_file_name", "frame_index_of", "iter_frame_jsons",
+    "PREDICTION_LAYERS", "PREDICTION_FILE_RE", "prediction_dir", "prediction_file",
+    "FRAME_FORMAT", "FileEntry", "FrameRecord", "read_frame_record", "write_frame_record",
+    "LAYERS", "layer_files", "write_frame", "frame_is_complete",
+    "MANIFEST_FORMAT", "ManifestEntry", "write_manifest", "read_manifest", "unlisted_files", "check_entry",
+    "PoseArrays", "read_body_pose",
+]

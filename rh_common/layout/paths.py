@@ -1,0 +1,110 @@
+"""Names and paths of a dataset and of a predictions folder (docs/ARCHITECTURE.md, "Dataset layout" and
+"Predictions layout").
+
+In: a root folder and the coordinates of a frame (subject index or name, protocol, split, frame index, layer).
+Out: the file and folder names every reader and writer uses, so that no module types `frame_{:06d}` itself.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Iterator
+
+__all__ = [
+    "DATASET_JSON", "MANIFEST_JSON", "CHARACTER_JSON", "CONTACT_SHEET", "METHOD_JSON", "TEST_SPLIT",
+    "subject_name", "subject_index", "protocol_dir", "protocol_of", "split_dir", "frame_stem", "frame_json_name",
+    "frame_json_path", "layer_file_name", "frame_index_of", "iter_frame_jsons",
+    "PREDICTION_LAYERS", "PREDICTION_FILE_RE", "prediction_dir", "prediction_file",
+]
+
+DATASET_JSON = "dataset.json"
+MANIFEST_JSON = "manifest.json"
+CHARACTER_JSON = "character.json"
+CONTACT_SHEET = "contact_sheet.png"
+METHOD_JSON = "method.json"
+TEST_SPLIT = "test"  # the split rh-eval scores and a method predicts
+
+_SUBJECT_RE = re.compile(r"^subject_(\d{3,})$")
+_FRAME_JSON_RE = re.compile(r"^frame_(\d{6})\.json$")
+
+
+def subject_name(index: int) -> str:
+    """subject_000, subject_001, ... (three digits; more only past 999)."""
+    if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+        raise ValueError(f"subject index must be a non-negative integer, got {index!r}")
+    return f"subject_{index:03d}"
+
+
+def subject_index(name: str) -> int:
+    """Inverse of `subject_name`."""
+    m = _SUBJECT_RE.match(name)
+    if not m:
+        raise ValueError(f"not a subject folder name (subject_NNN): {name!r}")
+    return int(m.group(1))
+
+
+def protocol_dir(protocol: str) -> str:
+    """'a' (or 'protocol_a') → 'protocol_a'. Protocols are short lower-case names; anything else is refused so a
+    typo never becomes a folder."""
+    p = protocol[len("protocol_"):] if protocol.startswith("protocol_") else protocol
+    if not re.fullmatch(r"[a-z0-9]+", p):
+        raise ValueError(f"protocol must look like 'a' or 'protocol_a', got {protocol!r}")
+    return f"protocol_{p}"
+
+
+def protocol_of(dir_name: str) -> str:
+    """'protocol_a' → 'a' (inverse of `protocol_dir`)."""
+    return protocol_dir(dir_name)[len("protocol_"):]
+
+
+def split_dir(root: str | Path, subject: str | int, protocol: str, split: str) -> Path:
+    """`<root>/<subject>/protocol_<p>/<split>`: where one split's frames live."""
+    name = subject_name(subject) if isinstance(subject, int) else subject
+    return Path(root) / name / protocol_dir(protocol) / split
+
+
+def frame_stem(index: int) -> str:
+    return f"frame_{index:06d}"
+
+
+def frame_json_name(index: int) -> str:
+    return f"{frame_stem(index)}.json"
+
+
+def frame_json_path(folder: str | Path, index: int) -> Path:
+    return Path(folder) / frame_json_name(index)
+
+
+def layer_file_name(index: int, layer: str, ext: str) -> str:
+    """`frame_000000_<layer>.<ext>`: the naming of dataset layers and of prediction files alike."""
+    return f"{frame_stem(index)}_{layer}.{ext}"
+
+
+def frame_index_of(json_name: str) -> int | None:
+    """The index of a frame JSON's file name, or None if the name is not one."""
+    m = _FRAME_JSON_RE.match(json_name)
+    return int(m.group(1)) if m else None
+
+
+def iter_frame_jsons(root: str | Path, protocol: str = "*", split: str = "*") -> Iterator[Path]:
+    """Every frame JSON under a dataset root, sorted by path; `protocol` ('a') and `split` narrow the search."""
+    pdir = "protocol_*" if protocol == "*" else protocol_dir(protocol)
+    for p in sorted(Path(root).glob(f"subject_*/{pdir}/{split}/frame_*.json")):
+        if frame_index_of(p.name) is not None:
+            yield p
+
+
+# ------------------------------------------------------------------------------------------- predictions
+PREDICTION_LAYERS = ("image", "albedo", "normal")
+PREDICTION_FILE_RE = re.compile(r"^frame_(\d{6})_(image|albedo|normal)\.(exr|png)$")
+
+
+def prediction_dir(root: str | Path, subject: str, protocol: str) -> Path:
+    """`<predictions>/<subject>/protocol_<p>/test`: the mirror of the dataset's test split."""
+    return split_dir(root, subject, protocol, TEST_SPLIT)
+
+
+def prediction_file(root: str | Path, subject: str, protocol: str, index: int, layer: str, ext: str = "exr") -> Path:
+    if layer not in PREDICTION_LAYERS or ext not in ("exr", "png"):
+        raise ValueError(f"a prediction is one of {PREDICTION_LAYERS} as .exr or .png, got {layer!r}.{ext}")
+    return prediction_dir(root, subject, protocol) / layer_file_name(index, layer, ext)
