@@ -1,20 +1,26 @@
-"""Seconds per frame and samples per second of each render preset, on one benchmark character.
+"""Seconds per frame of each render preset, through the frame function `rh-generate` renders with.
 
     python bench/bench_generate.py [--resolution 512] [--presets draft standard reference] [--repeats 2]
 
-Renders subject 0 of protocol a in a random test pose under a random bundled HDRI with every test layer (beauty
-pass + AOV pass), at the given resolution, and prints a Markdown table. The first render of each preset is a
-warm-up (JIT compilation, cached on disk afterwards) and is not timed. Character building, posing and file
-writing are timed separately from rendering.
+Renders frame 0 of subject 0's test split of protocol a (a random pose under a random bundled HDRI, every test
+layer: beauty pass + AOV pass) with `rh_dataset.generate.render_frame_to_disk`, the function the local and Ray
+backends call, into a temporary folder: the same camera fill, culling, per-split path depth and writer as a
+dataset. Prints a Markdown table of each stage's median seconds. The first render of each preset is a warm-up (JIT
+compilation, cached on disk afterwards) and is not timed; building the subject is timed once.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import platform
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
+
+STAGES = ("pose", "light", "load", "beauty", "aov", "meta", "write")
 
 
 def main() -> None:
@@ -23,58 +29,52 @@ def main() -> None:
     p.add_argument("--presets", nargs="+", default=["draft", "standard", "reference"])
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--protocol", default="a")
     args = p.parse_args()
 
-    from rh_dataset.characters import build_character, pose_character, sample_recipe
-    from rh_dataset.characters.body import load_anny
-    from rh_dataset.generate import rng_for
-    from rh_dataset.lights import build_light, bundled_hdris, mitsuba_emitter_dict, sample_light
-    from rh_dataset.poses import sample_pose
-    from rh_dataset.render.camera import frame_body
-    from rh_dataset.render.passes import render_frame
-    from rh_dataset.render.scene import RenderSettings
+    from rh_dataset.cli import render_settings
+    from rh_dataset.generate import DatasetPlan, render_frame_to_disk, resolve_plan, subject_source
     from rh_dataset.render.variant import select_variant
-    from rh_dataset.spec import load_presets
+    from rh_dataset.spec import load_protocol
 
     variant = select_variant(None)
-    t = time.perf_counter()
-    recipe = sample_recipe(rng_for(args.seed, "character", 0), pool="benchmark", index=0)
-    character = build_character(recipe)
-    t_build = time.perf_counter() - t
-    pose = sample_pose(rng_for(args.seed, "pose", 0, "test", 0), load_anny())
-    t = time.perf_counter()
-    meshes = pose_character(character, dict(pose.bones), pose.root_transform)
-    t_pose = time.perf_counter() - t
-    light = build_light(sample_light(rng_for(args.seed, "light", 0, "a", "test", 0), bundled_hdris(),
-                                     allow_sunsky=False))
-    lo = np.min([m.vertices.min(0) for m in meshes], 0)
-    hi = np.max([m.vertices.max(0) for m in meshes], 0)
-    cam = frame_body(lo, hi, args.resolution, args.resolution, 30.0)
-    emitter = mitsuba_emitter_dict(light)
-    layers = ["image", "mask", "albedo", "normal", "depth"]
-    tris = sum(len(m.faces) for m in meshes)
-    print(f"machine: {platform.machine()}, {os.cpu_count()} cores; Mitsuba variant {variant}; "
-          f"{tris} triangles; {args.resolution}x{args.resolution}; light {light.spec.name}")
-    print(f"build_character {t_build:.2f} s, pose_character {t_pose * 1e3:.0f} ms\n")
-    print("| preset | spp | aov spp | max depth | scene load s | beauty s | aov s | s / frame | beauty Msamples/s |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    presets = load_presets()
-    px = args.resolution * args.resolution
-    for name in args.presets:
-        pr = presets[name]
-        depth = pr.depth_for("posed-envmap")  # a random test pose: protocol a's test split's scene class
-        s = RenderSettings(spp=pr.spp, aov_spp=pr.aov_spp, max_depth=depth, preset=name)
-        render_frame(meshes, emitter, cam, RenderSettings(spp=1, aov_spp=1, max_depth=depth), layers, 0)
-        load, beauty, aov = [], [], []
-        for r in range(args.repeats):
-            out = render_frame(meshes, emitter, cam, s, layers, seed=r)
-            load.append(out.seconds["load"])
-            beauty.append(out.seconds["beauty"])
-            aov.append(out.seconds["aov"])
-        lo_, b, a = (float(np.median(x)) for x in (load, beauty, aov))
-        print(f"| {name} | {pr.spp} | {pr.aov_spp} | {depth} | {lo_:.2f} | {b:.2f} | {a:.2f} | "
-              f"{lo_ + b + a:.2f} | {px * pr.spp / b / 1e6:.1f} |", flush=True)
-    print(f"\nperson coverage of the frame: {float(out.layers['mask'].mean()):.0%}")
+    spec = load_protocol(args.protocol).with_overrides(subjects=1, resolution=(args.resolution, args.resolution))
+    split = spec.split("test")
+    with tempfile.TemporaryDirectory(prefix="bench_generate_") as tmp:
+        plan = resolve_plan(DatasetPlan(out=Path(tmp), spec=spec, settings=render_settings(args.presets[0]),
+                                        seed=args.seed))
+        source = subject_source(plan)
+        t = time.perf_counter()
+        subject = source.subject(0)
+        t_subject = time.perf_counter() - t
+        pose = source.pose(subject, split, 0)
+        tris = sum(len(m.faces) for m in source.meshes(subject, pose))
+        print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average "
+              f"{' '.join(Path('/proc/loadavg').read_text().split()[:3]) if Path('/proc/loadavg').exists() else '?'}"
+              f"; Mitsuba variant {variant}; {tris} triangles before culling; {args.resolution}x{args.resolution}; "
+              f"protocol {spec.protocol} {split.name} split ({split.scene_class})")
+        print(f"subject (build character, frame camera) {t_subject:.2f} s\n")
+        print("| preset | spp | aov spp | max depth | pose+light s | scene load s | beauty s | aov s | "
+              "JSON+write s | s / frame | beauty Msamples/s |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        px = args.resolution * args.resolution
+        for name in args.presets:
+            settings = render_settings(name)
+            plan = dataclasses.replace(plan, settings=settings)
+            warm = dataclasses.replace(plan, settings=dataclasses.replace(settings, spp=1, aov_spp=1))
+            render_frame_to_disk(warm, source, subject, split, 0)
+            runs = [render_frame_to_disk(plan, source, subject, split, 0) for _ in range(args.repeats)]
+            med = {k: float(np.median([r.seconds.get(k, 0.0) for r in runs])) for k in STAGES}
+            total = float(np.median([sum(r.seconds.values()) for r in runs]))
+            print(f"| {name} | {settings.spp} | {settings.aov_spp} | {settings.for_split(split).max_depth} | "
+                  f"{med['pose'] + med['light']:.2f} | {med['load']:.2f} | {med['beauty']:.2f} | {med['aov']:.2f} | "
+                  f"{med['meta'] + med['write']:.2f} | {total:.2f} | {px * settings.spp / med['beauty'] / 1e6:.1f} |",
+                  flush=True)
+        from rh_common.imageio import read_png
+
+        mask = read_png(runs[-1].json_path.with_name(runs[-1].json_path.stem + "_mask.png"))
+        culled = runs[-1].scene_model
+    print(f"\nperson coverage of the frame: {float(mask.mean()) / 255:.0%}; scene model: {culled}")
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from rh_common.cli_help import HelpFormatter
 
-__all__ = ["main", "build_parser", "options_from_args"]
+__all__ = ["main", "build_parser", "options_from_args", "render_settings", "backend_from_args"]
 
 
 def _resolution(text: str) -> tuple[int, int]:
@@ -103,9 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def options_from_args(args: argparse.Namespace):
-    from rh_dataset.generate import GenerateOptions
-    from rh_dataset.render.scene import RenderSettings
-    from rh_dataset.spec import MotionSpec, SpecError, load_presets, load_protocol
+    """(the dataset plan, the backend) that the command line asks for."""
+    from rh_dataset.generate import DatasetPlan
+    from rh_dataset.spec import MotionSpec, SpecError, load_protocol
 
     motion = None
     if args.motion is not None:
@@ -130,24 +130,46 @@ def options_from_args(args: argparse.Namespace):
     spec = load_protocol(args.protocol).with_overrides(
         subjects=subjects, frames=args.frames, resolution=args.resolution, hdri_folder=args.hdri_folder,
         motion=motion, character=character)
+    settings = render_settings(args.preset, spp=args.spp, aov_spp=args.aov_spp, max_depth=args.max_depth,
+                               denoise=bool(args.denoise), cull=not args.no_cull)
+    plan = DatasetPlan(out=args.out, spec=spec, settings=settings, seed=args.seed, variant=args.variant,
+                       overwrite=args.overwrite, character_path=args.character)
+    return plan, backend_from_args(args)
+
+
+def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None = None, max_depth: int | None = None,
+                    denoise: bool = False, cull: bool = True):
+    """RenderSettings of a preset of scenes/presets.json, with the given fields overridden (None: the preset's)."""
+    from rh_dataset.render.scene import RenderSettings
+    from rh_dataset.spec import SpecError, load_presets
+
     presets = load_presets()
-    if args.preset not in presets:
-        raise SpecError(f"unknown --preset {args.preset!r}; choose one of {sorted(presets)}")
-    pr = presets[args.preset]
-    overridden = any(v is not None for v in (args.spp, args.aov_spp, args.max_depth))
-    settings = RenderSettings(
-        spp=args.spp if args.spp is not None else pr.spp,
-        aov_spp=args.aov_spp if args.aov_spp is not None else pr.aov_spp,
-        max_depth=args.max_depth if args.max_depth is not None else pr.max_depth,
+    if preset not in presets:
+        raise SpecError(f"unknown --preset {preset!r}; choose one of {sorted(presets)}")
+    pr = presets[preset]
+    overridden = any(v is not None for v in (spp, aov_spp, max_depth))
+    return RenderSettings(
+        spp=spp if spp is not None else pr.spp,
+        aov_spp=aov_spp if aov_spp is not None else pr.aov_spp,
+        max_depth=max_depth if max_depth is not None else pr.max_depth,
         preset=f"{pr.name}+overrides" if overridden else pr.name,
-        denoise=bool(args.denoise),
-        cull=not args.no_cull,
+        denoise=denoise,
+        cull=cull,
     )
-    return GenerateOptions(out=args.out, spec=spec, settings=settings, seed=args.seed, variant=args.variant,
-                           overwrite=args.overwrite, workers=args.workers, backend=args.backend,
-                           ray_address=args.ray_address, ray_frames_per_task=args.ray_frames_per_task,
-                           ray_cpus_per_task=args.ray_cpus_per_task, ray_gpus_per_task=args.ray_gpus_per_task,
-                           character_path=args.character)
+
+
+def backend_from_args(args: argparse.Namespace):
+    """The backend --backend names, with its own flags; a flag of the other backend is refused."""
+    from rh_dataset.backends import LocalBackend, RayBackend
+    from rh_dataset.generate import GenerateError
+
+    if args.backend == "ray":
+        if args.workers != 1:
+            raise GenerateError("--workers applies to the local backend; with --backend ray the cluster's CPUs are "
+                                "used (size tasks with --ray-cpus-per-task)")
+        return RayBackend(address=args.ray_address, frames_per_task=args.ray_frames_per_task,
+                          cpus_per_task=args.ray_cpus_per_task, gpus_per_task=args.ray_gpus_per_task)
+    return LocalBackend(workers=args.workers)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -157,13 +179,13 @@ def main(argv: list[str] | None = None) -> int:
 
     args = build_parser().parse_args(argv)
     try:
-        opts = options_from_args(args)
-        counts = generate(opts, progress=not args.no_progress)
+        plan, backend = options_from_args(args)
+        counts = generate(plan, backend, progress=not args.no_progress)
     except (ValueError, GenerateError, VariantError, FileNotFoundError, BlenderError) as exc:
         print(f"rh-generate: error: {exc}", file=sys.stderr)
         return 2
     print(f"rh-generate: {counts['rendered']} frames rendered, {counts['skipped']} already complete, "
-          f"{counts['seconds']:.1f} s; dataset in {opts.out}")
+          f"{counts['seconds']:.1f} s; dataset in {plan.out}")
     return 0
 
 

@@ -158,7 +158,7 @@ def test_motion_retargets_onto_an_imported_rig(limb_files, tmp_path):
 
     from rh_dataset.characters.imported import load_character_file
     from rh_dataset.cli import main
-    from rh_dataset.generate import imported_bone_map
+    from rh_dataset.generate.subjects import imported_bone_map
     from rh_dataset.poses.motion import read_motion
     from rh_dataset.poses.retarget import retarget
 

@@ -7,7 +7,7 @@ import pytest
 import ray
 
 from rh_common.imageio import read_json  # noqa: E402
-from rh_dataset.backends.ray_backend import CRASH_HOOK_ENV, plan_tasks  # noqa: E402
+from rh_dataset.backends.ray_backend import CRASH_HOOK_ENV  # noqa: E402
 from rh_dataset.cli import main as generate_main  # noqa: E402
 from rh_dataset.cli import build_parser, options_from_args  # noqa: E402
 from rh_dataset.verify import verify  # noqa: E402
@@ -43,11 +43,11 @@ def local_run(tmp_path_factory):
 
 
 def test_tasks_cover_every_frame_once():
-    opts = options_from_args(build_parser().parse_args([*SMALL, "--out", "x", "--frames", "5",
-                                                        "--ray-frames-per-task", "2"]))
-    frames = [(s, split, i) for s, split, a, b in plan_tasks(opts) for i in range(a, b)]
+    plan, backend = options_from_args(build_parser().parse_args([*SMALL, *RAY, "--out", "x", "--frames", "5"]))
+    tasks = backend.tasks(plan)
+    frames = [(s, split, i) for s, split, a, b in tasks for i in range(a, b)]
     assert len(frames) == len(set(frames)) == 10
-    assert [b - a for s, split, a, b in plan_tasks(opts)] == [2, 2, 1, 2, 2, 1]
+    assert [b - a for s, split, a, b in tasks] == [2, 2, 1, 2, 2, 1]
 
 
 def test_ray_backend_makes_the_same_files_as_the_local_one(cluster, local_run, tmp_path, capsys):

@@ -76,17 +76,14 @@ def test_denoise_image_keeps_the_inside_of_a_constant_image_but_not_its_border()
 
 
 def test_frame_metadata_records_denoised(tmp_path):
-    from rh_dataset.generate import frame_meta
+    from rh_dataset.generate.frames import frame_meta
     from rh_dataset.lights import LightSpec, build_light
-    from rh_dataset.poses import BodyPose
 
     write_exr(tmp_path / "c.exr", np.ones((8, 16, 3), np.float32))
     light = build_light(LightSpec("envmap", "c", str(tmp_path / "c.exr"), 0.0, 1.0))
-    subj = types.SimpleNamespace(index=0, camera=CAM, character=types.SimpleNamespace(phenotype={}))
+    subj = types.SimpleNamespace(index=0, camera=CAM)
     for flag in (False, True):
-        opts = types.SimpleNamespace(spec=types.SimpleNamespace(protocol="a", character=None),
-                                     settings=RenderSettings(denoise=flag))
-        meta = frame_meta(opts, subj, types.SimpleNamespace(name="test"), 0, BodyPose(bones={}, label="a"), light, 1, 1.0)
+        meta = frame_meta("a", RenderSettings(denoise=flag), subj, "test", {"model": "anny"}, light, 1, 1.0)
         assert meta["render"]["denoised"] is flag and meta["render"]["denoise"] is flag
 
 

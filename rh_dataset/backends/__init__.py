@@ -1,4 +1,7 @@
-"""Execution backends for `rh-generate`: the local one lives in rh_dataset.generate; `ray_backend` runs the same
-frames as Ray tasks (`--backend ray`)."""
+"""Where `rh-generate` renders frames: `LocalBackend` (this machine, worker processes) and `RayBackend` (Ray tasks
+on a cluster). Each holds its own settings and is handed to `rh_dataset.generate.generate`; both render every
+frame through `rh_dataset.generate.frames.render_frame_to_disk`."""
+from rh_dataset.backends.local import LocalBackend
+from rh_dataset.backends.ray_backend import RayBackend
 
-__all__: list[str] = []
+__all__ = ["LocalBackend", "RayBackend"]

@@ -1,10 +1,11 @@
-"""`rh-generate --backend ray`: the same frames as the local run, rendered as Ray tasks on a cluster.
+"""`rh-generate --backend ray`: a `DatasetPlan` and the Ray settings in; the same frames as the local run out,
+rendered as Ray tasks on a cluster.
 
-Work is split into tasks of up to `ray_frames_per_task` consecutive frames of one (subject, split). A task calls
-`generate.run_subject` restricted to its frames, so it renders exactly what the local run renders (every random
-choice derives from the seed and the frame's identity, `generate.rng_for`) and skips frames that are already
-complete (their JSON lists matching checksums). Tasks are therefore idempotent: a task retried after its worker
-died (`max_retries`) redoes only the frames it had not finished, and each file is written atomically, so a
+Work is split into tasks of up to `frames_per_task` consecutive frames of one (subject, split). A task calls
+`rh_dataset.generate.run_subject` restricted to its frames, so it renders exactly what the local run renders (every
+random choice derives from the seed and the frame's identity, `rh_dataset.generate.rng_for`) and skips frames that
+are already complete (their JSON lists matching checksums). Tasks are therefore idempotent: a task retried after its
+worker died (`max_retries`) redoes only the frames it had not finished, and each file is written atomically, so a
 half-written frame is never taken for a finished one. The driver (the machine running rh-generate) writes
 dataset.json before the tasks, and the contact sheets and manifest.json after all of them.
 
@@ -13,63 +14,77 @@ system). See docs/INTEROP.md ("Distributed generation with Ray").
 """
 from __future__ import annotations
 
+import dataclasses
 import os
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
-from rh_dataset.generate import FrameTask, GenerateError, GenerateOptions, run_subject, subject_name
+from rh_dataset.generate import DatasetPlan, FrameTask, GenerateError, OnFrame, run_subject, subject_source
 from rh_dataset.writer import contact_sheet
 
-__all__ = ["RayTask", "plan_tasks", "check_options", "run_ray", "MAX_RETRIES", "CRASH_HOOK_ENV"]
+__all__ = ["RayBackend", "RayTask", "MAX_RETRIES", "CRASH_HOOK_ENV"]
 
 MAX_RETRIES = 3
-# Test hook: if this environment variable names an existing file, the first task that renders a frame deletes the
-# file and kills its own worker process (os._exit), as a node failure would. Only tests set it.
+# Test hook: if this environment variable names an existing file when a task starts, the first frame that task
+# renders deletes the file and kills the worker process (os._exit), as a node failure would. Only tests set it; it
+# is read once per task, and a task without it reports frames with no extra step.
 CRASH_HOOK_ENV = "RH_RAY_TEST_CRASH_FILE"
 
-
-def plan_tasks(opts: GenerateOptions) -> list[tuple[int, str, int, int]]:
-    """(subject, split, start, stop) for every task, in the local run's order."""
-    n = int(opts.ray_frames_per_task)
-    return [(s, split.name, a, min(a + n, split.frames)) for s in range(opts.spec.subjects)
-            for split in opts.spec.splits for a in range(0, split.frames, n)]
-
-
 RayTask = tuple[int, str, int, int]
+"""(subject, split, start, stop): frames [start, stop) of one subject and split."""
 
 
-def check_options(opts: GenerateOptions) -> None:
-    if opts.workers != 1:
-        raise GenerateError("--workers applies to the local backend; with --backend ray the cluster's CPUs are "
-                            "used (size tasks with --ray-cpus-per-task)")
-    if opts.ray_frames_per_task < 1:
-        raise GenerateError(f"--ray-frames-per-task must be >= 1, got {opts.ray_frames_per_task}")
-    if opts.ray_cpus_per_task <= 0 or opts.ray_gpus_per_task < 0:
-        raise GenerateError("--ray-cpus-per-task must be > 0 and --ray-gpus-per-task >= 0")
-    try:
-        import ray  # noqa: F401
-    except ImportError:
-        raise GenerateError("--backend ray needs Ray: pip install 'ray==2.60.0'") from None
+@dataclass(frozen=True)
+class RayBackend:
+    address: str | None = None
+    """Cluster to join ('auto', 'ray://head:10001'); None starts a local one."""
+    frames_per_task: int = 8
+    cpus_per_task: float = 1.0
+    gpus_per_task: float = 0.0
+
+    def check(self, plan: DatasetPlan) -> None:
+        if self.frames_per_task < 1:
+            raise GenerateError(f"--ray-frames-per-task must be >= 1, got {self.frames_per_task}")
+        if self.cpus_per_task <= 0 or self.gpus_per_task < 0:
+            raise GenerateError("--ray-cpus-per-task must be > 0 and --ray-gpus-per-task >= 0")
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise GenerateError("--backend ray needs Ray: pip install 'ray==2.60.0'") from None
+
+    def tasks(self, plan: DatasetPlan) -> list[RayTask]:
+        """Every task, in the local run's order."""
+        n = int(self.frames_per_task)
+        return [(s, split.name, a, min(a + n, split.frames)) for s in range(plan.spec.subjects)
+                for split in plan.spec.splits for a in range(0, split.frames, n)]
+
+    def run(self, plan: DatasetPlan, on_frame: OnFrame) -> None:
+        """Render every frame of the plan as Ray tasks; `on_frame` is called once per frame, on the driver, as
+        frames finish (the first report of a frame wins: a frame rendered before its worker died counts as
+        rendered)."""
+        _run_ray(self, plan, on_frame)
 
 
-def _crash_hook() -> None:
-    path = os.environ.get(CRASH_HOOK_ENV)
-    if not path:
-        return
-    try:
-        os.unlink(path)
-    except FileNotFoundError:
-        return
-    os._exit(17)
+def _crash_after_first_render(on_frame: OnFrame, path: str) -> OnFrame:
+    def report(task: FrameTask, skipped: bool) -> None:
+        on_frame(task, skipped)
+        if not skipped:
+            try:
+                os.unlink(path)
+            except FileNotFoundError:
+                return
+            os._exit(17)
+
+    return report
 
 
-def _render_task(opts: GenerateOptions, s: int, split: str, start: int, stop: int, progress,
+def _render_task(plan: DatasetPlan, cpus: float, s: int, split: str, start: int, stop: int, progress,
                  torch_threads: int) -> list[tuple]:
     """Body of one Ray task: render the missing frames [start, stop) of (subject s, split)."""
     import drjit as dr
     import torch
 
-    dr.set_thread_count(max(1, int(round(opts.ray_cpus_per_task))))
+    dr.set_thread_count(max(1, int(round(cpus))))
     # The pose prior's rig comes out of anny (torch) and its last bits depend on torch's intra-op thread count;
     # Ray sets OMP_NUM_THREADS to the task's CPUs, so use the driver's count or the poses (JSON) differ by 1 ulp.
     torch.set_num_threads(torch_threads)
@@ -80,10 +95,10 @@ def _render_task(opts: GenerateOptions, s: int, split: str, start: int, stop: in
         events.append(ev)
         if progress is not None:
             progress.report.remote(ev)
-        if not skipped:
-            _crash_hook()
 
-    run_subject(opts, s, on_frame, frames={split: range(start, stop)}, sheets=False)
+    crash_file = os.environ.get(CRASH_HOOK_ENV)
+    report = _crash_after_first_render(on_frame, crash_file) if crash_file else on_frame
+    run_subject(plan, subject_source(plan), s, report, frames={split: range(start, stop)}, sheets=False)
     return events
 
 
@@ -103,35 +118,32 @@ def _progress_actor(ray):
     return Progress.remote()
 
 
-def run_ray(opts: GenerateOptions, on_frame: Callable[[FrameTask, bool], None]) -> None:
-    """Render every frame of the plan as Ray tasks; `on_frame` is called once per frame, on the driver, as frames
-    finish (the first report of a frame wins: a frame rendered before its worker died counts as rendered)."""
-    import dataclasses
+def _run_ray(backend: RayBackend, plan: DatasetPlan, on_frame: OnFrame) -> None:
     import logging
 
     import ray
 
     # Workers may run in another folder (or on another node): give them absolute paths.
-    spec = opts.spec
+    spec = plan.spec
     if spec.hdri_folder:
         spec = dataclasses.replace(spec, hdri_folder=str(Path(spec.hdri_folder).resolve()))
-    opts = dataclasses.replace(opts, out=Path(opts.out).resolve(), spec=spec)
+    plan = dataclasses.replace(plan, out=Path(plan.out).resolve(), spec=spec)
     started = False
     if not ray.is_initialized():
-        ray.init(address=opts.ray_address, include_dashboard=False, log_to_driver=False,
+        ray.init(address=backend.address, include_dashboard=False, log_to_driver=False,
                  logging_level=logging.WARNING)
         started = True
     try:
         progress = _progress_actor(ray)
         remote = ray.remote(_render_task).options(
-            num_cpus=opts.ray_cpus_per_task, num_gpus=opts.ray_gpus_per_task, max_retries=MAX_RETRIES,
+            num_cpus=backend.cpus_per_task, num_gpus=backend.gpus_per_task, max_retries=MAX_RETRIES,
             retry_exceptions=False)
-        tasks = plan_tasks(opts)
-        opts_ref = ray.put(opts)
+        tasks = backend.tasks(plan)
+        plan_ref = ray.put(plan)
         import torch
 
         threads = torch.get_num_threads()
-        pending = [remote.remote(opts_ref, s, split, a, b, progress, threads) for s, split, a, b in tasks]
+        pending = [remote.remote(plan_ref, backend.cpus_per_task, s, split, a, b, progress, threads) for s, split, a, b in tasks]
         seen: set[tuple] = set()
 
         def handle(events) -> None:
@@ -159,7 +171,6 @@ def run_ray(opts: GenerateOptions, on_frame: Callable[[FrameTask, bool], None]) 
         if started:
             ray.shutdown()
     # Contact sheets need every frame of a split: the driver makes them once all tasks are done.
-    key = f"protocol_{opts.spec.protocol}"
-    for s in range(opts.spec.subjects):
-        for split in opts.spec.splits:
-            contact_sheet(opts.out / subject_name(s) / key / split.name, list(range(split.frames)), split.layers)
+    for s in range(plan.spec.subjects):
+        for split in plan.spec.splits:
+            contact_sheet(plan.split_dir(s, split.name), list(range(split.frames)), split.layers)

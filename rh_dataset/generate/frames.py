@@ -1,0 +1,176 @@
+"""One frame: a `DatasetPlan`, a `SubjectSource` and its `Subject`, a split and a frame index in; the frame's layer
+files and JSON on disk and a `FrameResult` (what was written, the seconds of each stage) out.
+
+`render_frame_to_disk` is the one function that renders and writes a frame: the local backend, the Ray backend
+(through `run_subject`) and bench/bench_generate.py all call it, so they render the same scene (camera, culling,
+lights, settings). `run_subject` renders a subject's missing frames and writes its contact sheets.
+"""
+from __future__ import annotations
+
+import dataclasses
+import importlib.metadata as md
+import os
+import platform
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from rh_common import sh
+from rh_dataset import __version__
+from rh_dataset.generate.folder import keep_character_record
+from rh_dataset.generate.plan import DatasetPlan, FrameTask, light_library, subject_name
+from rh_dataset.generate.seeding import rng_for
+from rh_dataset.generate.subjects import Subject, SubjectSource
+from rh_dataset.render.scene import RenderSettings
+from rh_dataset.render.variant import select_variant
+from rh_dataset.spec import SplitSpec
+from rh_dataset.writer import contact_sheet, frame_is_complete, frame_stem, write_frame
+
+__all__ = ["FrameResult", "OnFrame", "render_frame_to_disk", "run_subject", "light_for", "exposure_for",
+           "frame_meta", "versions"]
+
+OnFrame = Callable[[FrameTask, bool], None]
+"""Called once per frame of a run: (the frame, whether it was already complete and skipped)."""
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    task: FrameTask
+    json_path: Path
+    seconds: dict[str, float]
+    """Wall time of each stage: pose, light, load, beauty, aov (and denoise), meta, write; total is their sum."""
+    scene_model: dict
+    """What the renderer built (also the frame JSON's render.scene_model)."""
+
+
+def light_for(plan: DatasetPlan, split: SplitSpec, s: int, i: int, library: dict):
+    """The frame's light: one per (subject, split) for a 'fixed' split, else one per frame."""
+    from rh_dataset.lights import build_light, sample_light
+
+    protocol_key = plan.spec.protocol
+    if split.light == "fixed":
+        rng = rng_for(plan.seed, "light", s, protocol_key, split.name)
+    else:
+        rng = rng_for(plan.seed, "light", s, protocol_key, split.name, i)
+    spec = sample_light(rng, library, exposure_ev_range=plan.spec.exposure_ev_range, allow_sunsky=plan.spec.sunsky)
+    return build_light(spec)
+
+
+def exposure_for(light) -> float:
+    """Display exposure of a light: the reciprocal of the map's mean radiance over the sphere.
+
+    It depends on the light only, so every frame under one fixed light shares one exposure (a training video
+    does not flicker), and the random EV jitter of the light is undone for display while the HDR keeps it.
+    """
+    H, W = light.radiance.shape[:2]
+    w = sh.pixel_solid_angles(H, W)
+    lum = light.radiance @ np.array([0.2126, 0.7152, 0.0722])
+    mean = float((lum * w[:, None] if w.ndim == 1 else lum * w).sum() / (4 * np.pi))
+    return 1.0 / mean if mean > 1e-12 else 1.0
+
+
+def versions() -> dict[str, str]:
+    out = {"rh": __version__, "python": platform.python_version()}
+    for pkg in ("mitsuba", "drjit", "anny", "numpy", "torch"):
+        try:
+            out[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            out[pkg] = "absent"
+    return out
+
+
+def light_spec_json(spec) -> dict:
+    d = dataclasses.asdict(spec)
+    d["source"] = os.path.basename(str(d.get("source", "")))  # no machine-specific absolute paths in the data
+    return d
+
+
+def frame_meta(protocol: str, settings: RenderSettings, subject: Subject, split_name: str, body: dict, light,
+               render_seed: int, exposure: float) -> dict:
+    """The frame JSON without its file checksums (the writer adds those). `settings` are the split's own
+    (`RenderSettings.for_split`)."""
+    cam = subject.camera
+    R = cam.world_to_opengl_rotation()
+    sh_world = np.asarray(light.sh_world, dtype=np.float64)
+    return {
+        "subject": subject_name(subject.index),
+        "protocol": protocol,
+        "split": split_name,
+        "width": cam.width,
+        "height": cam.height,
+        "camera": cam.to_json(),
+        "body": body,
+        "light": {**light_spec_json(light.spec), "sh_world": sh_world, "sh_camera": sh.rotate(sh_world, R),
+                  "negative_pixels_clamped": int(light.negative_pixels_clamped)},
+        "exposure": exposure,
+        "render": {**dataclasses.asdict(settings), "seed": render_seed, "variant": select_variant(None),
+                   "denoised": bool(settings.denoise)},
+        "versions": versions(),
+    }
+
+
+def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subject, split: SplitSpec,
+                         index: int) -> FrameResult:
+    """Render frame `index` of `split` for `subject` and write its layers and JSON (atomically, rh_dataset.writer).
+    Renders whether or not the frame is already on disk: skipping complete frames is `run_subject`'s job."""
+    from rh_dataset.lights import mitsuba_emitter_dict
+    from rh_dataset.render.passes import render_frame
+
+    s = subject.index
+    seconds: dict[str, float] = {}
+    t = time.perf_counter()
+    pose = source.pose(subject, split, index)
+    meshes = source.meshes(subject, pose)
+    seconds["pose"] = time.perf_counter() - t
+    t = time.perf_counter()
+    light = light_for(plan, split, s, index, light_library(plan.spec))
+    exposure = exposure_for(light)
+    seconds["light"] = time.perf_counter() - t
+    key = f"protocol_{plan.spec.protocol}"
+    render_seed = int(rng_for(plan.seed, "render", s, key, split.name, index).integers(0, 2**31 - 2))
+    # Only what the split needs: its scene class's path depth, no emitter without path tracing, no skin the clothes
+    # hide (rh_dataset.render.cull); the frame JSON records it under render.scene_model.
+    settings = plan.settings.for_split(split)
+    result = render_frame(meshes, mitsuba_emitter_dict(light) if split.path_traced else None, subject.camera,
+                          settings, split.layers, render_seed,
+                          hidden=source.hidden_faces(subject) if settings.cull else None)
+    seconds.update(result.seconds)
+    t = time.perf_counter()
+    meta = frame_meta(plan.spec.protocol, settings, subject, split.name,
+                      source.body_record(subject, split, index, pose), light, render_seed, exposure)
+    meta["render"]["scene_model"] = result.info
+    seconds["meta"] = time.perf_counter() - t
+    t = time.perf_counter()
+    split_dir = plan.split_dir(s, split.name)
+    write_frame(split_dir, index, result.layers, meta)
+    seconds["write"] = time.perf_counter() - t
+    return FrameResult(FrameTask(s, split.name, index), split_dir / f"{frame_stem(index)}.json", seconds, result.info)
+
+
+def run_subject(plan: DatasetPlan, source: SubjectSource, s: int, on_frame: OnFrame, *,
+                frames: dict[str, range] | None = None, sheets: bool = True) -> None:
+    """Render every missing frame of one subject (all splits) and its contact sheets.
+
+    `frames` (split name -> frame indices) restricts the work to those frames (a distributed task's share);
+    `sheets=False` leaves the contact sheets to whoever knows that every frame of the split is done."""
+    select_variant(plan.variant)
+    subject = None
+    for split in plan.spec.splits:
+        if frames is not None and split.name not in frames:
+            continue
+        split_dir = plan.split_dir(s, split.name)
+        for i in (range(split.frames) if frames is None else frames[split.name]):
+            task = FrameTask(s, split.name, i)
+            if frame_is_complete(split_dir, i, split.layers):
+                on_frame(task, True)
+                continue
+            if subject is None:  # built only when a frame is missing: a finished subject resumes at once
+                subject = source.subject(s)
+                keep_character_record(plan, s, subject.record)
+            render_frame_to_disk(plan, source, subject, split, i)
+            on_frame(task, False)
+        if sheets:
+            contact_sheet(split_dir, list(range(split.frames)), split.layers)

@@ -1,0 +1,112 @@
+"""The dataset plan: what one `rh-generate` run makes, independent of where it renders.
+
+In: the protocol description (`ProtocolSpec`), render settings, seed, Mitsuba variant, the output folder and, for an
+imported character, its file. Out: a `DatasetPlan` (checked by `resolve_plan`: lights readable, motion clips read
+and their strides fixed) and its `FrameTask`s, the (subject, split, frame) units every backend renders. Where the
+frames are rendered (processes, Ray tasks) is each backend's own settings (rh_dataset.backends), not part of this.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+from rh_dataset.render.scene import RenderSettings
+from rh_dataset.spec import ProtocolSpec, SplitSpec
+
+__all__ = ["DatasetPlan", "FrameTask", "GenerateError", "DATASET_FORMAT", "subject_name", "frame_tasks",
+           "resolve_plan", "pose_source", "motion_frame", "light_library"]
+
+DATASET_FORMAT = "rh-dataset/1"
+
+
+class GenerateError(RuntimeError):
+    """A run that cannot start or continue; the message names the problem and the fix."""
+
+
+@dataclass(frozen=True)
+class DatasetPlan:
+    """What is made: every file of the dataset follows from these fields alone."""
+
+    out: Path
+    spec: ProtocolSpec
+    settings: RenderSettings
+    seed: int = 0
+    variant: str | None = None
+    overwrite: bool = False
+    # The file `spec.character` names (rh-generate --character): rendered for every subject instead of anny.
+    character_path: Path | None = None
+
+    def split_dir(self, subject: int, split: str) -> Path:
+        return self.out / subject_name(subject) / f"protocol_{self.spec.protocol}" / split
+
+
+@dataclass(frozen=True)
+class FrameTask:
+    subject: int
+    split: str
+    index: int
+
+
+def subject_name(i: int) -> str:
+    return f"subject_{i:03d}"
+
+
+def frame_tasks(spec: ProtocolSpec) -> list[FrameTask]:
+    """Every frame of the protocol, in the order the local backend renders them."""
+    return [FrameTask(s, split.name, i) for s in range(spec.subjects) for split in spec.splits
+            for i in range(split.frames)]
+
+
+def pose_source(spec: ProtocolSpec, split: SplitSpec) -> SplitSpec:
+    """The split whose pose source a split uses ('train' reuses the train split's)."""
+    return spec.split("train") if split.poses == "train" else split
+
+
+def motion_frame(motion_spec, i: int) -> int:
+    return motion_spec.start + i * motion_spec.stride
+
+
+def light_library(spec: ProtocolSpec) -> dict:
+    """Name -> file of the environment maps this protocol draws its lights from."""
+    from rh_dataset.lights import bundled_hdris, hdri_library
+
+    return hdri_library(spec.hdri_folder) if spec.hdri_folder else bundled_hdris()
+
+
+def resolve_plan(plan: DatasetPlan) -> DatasetPlan:
+    """Check every input that a worker would otherwise fail on, before any file is written: the light maps (read
+    once; cached), and the motion clips (read once, through Blender; an automatic stride is fixed here)."""
+    from rh_dataset.lights import load_hdri
+
+    plan = dataclasses.replace(plan, out=Path(plan.out))
+    library = light_library(plan.spec)
+    if not library and not plan.spec.sunsky:
+        raise GenerateError(f"no .exr/.hdr environment maps in {plan.spec.hdri_folder}; point --hdri-folder at maps")
+    for path in library.values():
+        load_hdri(path)
+    return dataclasses.replace(plan, spec=resolve_motion(plan.spec))
+
+
+def resolve_motion(spec: ProtocolSpec) -> ProtocolSpec:
+    """Read every split's motion once (failing early, before any file is written), check that the split's frames
+    fit in the clip, and fix an automatic stride (the split's frames spread over the clip)."""
+    from rh_dataset.poses.motion import read_motion_cached
+
+    splits = []
+    for split in spec.splits:
+        if split.motion is not None:
+            ms = split.motion
+            n = len(read_motion_cached(ms.file, ms.sha256))
+            if ms.start >= n:
+                raise GenerateError(f"motion {ms.file} has {n} frames; start {ms.start} is past its end")
+            stride = ms.stride if ms.stride is not None else max(1, (n - ms.start) // split.frames)
+            last = ms.start + (split.frames - 1) * stride
+            if last >= n:
+                raise GenerateError(
+                    f"split {split.name} needs {split.frames} frames from motion {ms.file} (frames {ms.start}, "
+                    f"{ms.start + stride}, ... {last}) but the clip has {n}: lower --frames, --motion-stride or "
+                    f"--motion-start")
+            split = dataclasses.replace(split, motion=dataclasses.replace(ms, stride=stride))
+        splits.append(split)
+    return dataclasses.replace(spec, splits=tuple(splits))
