@@ -15,18 +15,8 @@ from PIL import Image
 
 from rh_common import layout
 from rh_common.imageio import write_png
-# Re-exported: rh_dataset.generate and the backends import these from here.
-from rh_common.layout import FRAME_FORMAT, frame_is_complete, frame_stem, layer_files, write_manifest
 
-__all__ = [
-    "FRAME_FORMAT",
-    "frame_stem",
-    "layer_files",
-    "write_frame",
-    "frame_is_complete",
-    "write_manifest",
-    "contact_sheet",
-]
+__all__ = ["write_frame", "contact_sheet"]
 
 
 def write_frame(split_dir: str | os.PathLike, index: int, layers: Mapping[str, np.ndarray], meta: dict) -> Path:
@@ -58,7 +48,7 @@ def contact_sheet(split_dir: str | os.PathLike, indices: list[int], layers: Iter
     for k, idx in enumerate(indices):
         r, c = divmod(k, per_row)
         for j, layer in enumerate(cols):
-            name = [f for f in layer_files(idx, layer) if f.endswith(".png")][0]
+            name = [f for f in layout.layer_files(idx, layer) if f.endswith(".png")][0]
             with Image.open(split_dir / name) as im:
                 im = im.convert("RGB")
                 im.thumbnail((tile, tile))

@@ -8,7 +8,8 @@ import pytest
 
 from rh_common.imageio import read_exr, read_json, read_png, write_json
 from rh_dataset.verify import verify
-from rh_dataset.writer import frame_is_complete, layer_files, write_frame, write_manifest
+from rh_common.layout import frame_is_complete, layer_files, write_manifest
+from rh_dataset.writer import write_frame
 
 
 def layers(rng, h=8, w=10):

@@ -11,11 +11,11 @@ Backends (rh_dataset.backends) import these stages and are handed to `generate`;
 """
 from rh_dataset.generate.frames import FrameResult, OnFrame, exposure_for, render_frame_to_disk, run_subject
 from rh_dataset.generate.plan import (DATASET_FORMAT, DatasetPlan, FrameTask, GenerateError, frame_tasks,
-                                      resolve_plan, subject_name)
+                                      resolve_plan)
 from rh_dataset.generate.run import Backend, generate
 from rh_dataset.generate.seeding import rng_for
 from rh_dataset.generate.subjects import Subject, SubjectSource, subject_source
 
 __all__ = ["generate", "Backend", "DatasetPlan", "FrameTask", "FrameResult", "OnFrame", "GenerateError",
-           "DATASET_FORMAT", "frame_tasks", "resolve_plan", "subject_name", "rng_for", "exposure_for",
+           "DATASET_FORMAT", "frame_tasks", "resolve_plan", "rng_for", "exposure_for",
            "render_frame_to_disk", "run_subject", "Subject", "SubjectSource", "subject_source"]

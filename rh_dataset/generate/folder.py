@@ -11,9 +11,10 @@ import dataclasses
 import json
 import shutil
 
+from rh_common import layout
 from rh_common.imageio import dumps_json, read_json, write_json
 from rh_dataset import __version__
-from rh_dataset.generate.plan import DATASET_FORMAT, DatasetPlan, GenerateError, subject_name
+from rh_dataset.generate.plan import DATASET_FORMAT, DatasetPlan, GenerateError
 from rh_dataset.generate.seeding import KEY_HASH, hashed_keys
 
 __all__ = ["prepare_out", "keep_character_record", "dataset_record", "json_roundtrip"]
@@ -44,7 +45,7 @@ def prepare_out(plan: DatasetPlan) -> None:
     if out.exists() and not out.is_dir():
         raise GenerateError(f"--out {out} is a file; pass a folder")
     ds_path = out / "dataset.json"
-    key = f"protocol_{plan.spec.protocol}"
+    key = layout.protocol_dir(plan.spec.protocol)
     record = json_roundtrip(dataset_record(plan))
     if ds_path.is_file():
         ds = read_json(ds_path)
@@ -72,7 +73,7 @@ def prepare_out(plan: DatasetPlan) -> None:
 def keep_character_record(plan: DatasetPlan, s: int, record: dict) -> None:
     """Write the subject's character.json, or check that the one already there describes this character (a resumed
     run must not mix characters)."""
-    path = plan.out / subject_name(s) / "character.json"
+    path = plan.out / layout.subject_name(s) / layout.CHARACTER_JSON
     if path.is_file() and not plan.overwrite:
         if read_json(path) != json_roundtrip(record):
             raise GenerateError(f"{path} describes another character than this run would make; "

@@ -18,16 +18,16 @@ from typing import Callable
 
 import numpy as np
 
-from rh_common import sh
+from rh_common import layout, sh
 from rh_dataset import __version__
 from rh_dataset.generate.folder import keep_character_record
-from rh_dataset.generate.plan import DatasetPlan, FrameTask, light_library, subject_name
+from rh_dataset.generate.plan import DatasetPlan, FrameTask, light_library
 from rh_dataset.generate.seeding import rng_for
 from rh_dataset.generate.subjects import Subject, SubjectSource
 from rh_dataset.render.scene import RenderSettings
 from rh_dataset.render.variant import select_variant
 from rh_dataset.spec import SplitSpec
-from rh_dataset.writer import contact_sheet, frame_is_complete, frame_stem, write_frame
+from rh_dataset.writer import contact_sheet, write_frame
 
 __all__ = ["FrameResult", "OnFrame", "render_frame_to_disk", "run_subject", "light_for", "exposure_for",
            "frame_meta", "versions"]
@@ -96,7 +96,7 @@ def frame_meta(protocol: str, settings: RenderSettings, subject: Subject, split_
     R = cam.world_to_opengl_rotation()
     sh_world = np.asarray(light.sh_world, dtype=np.float64)
     return {
-        "subject": subject_name(subject.index),
+        "subject": layout.subject_name(subject.index),
         "protocol": protocol,
         "split": split_name,
         "width": cam.width,
@@ -147,7 +147,7 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
     split_dir = plan.split_dir(s, split.name)
     write_frame(split_dir, index, result.layers, meta)
     seconds["write"] = time.perf_counter() - t
-    return FrameResult(FrameTask(s, split.name, index), split_dir / f"{frame_stem(index)}.json", seconds, result.info)
+    return FrameResult(FrameTask(s, split.name, index), layout.frame_json_path(split_dir, index), seconds, result.info)
 
 
 def run_subject(plan: DatasetPlan, source: SubjectSource, s: int, on_frame: OnFrame, *,
@@ -164,7 +164,7 @@ def run_subject(plan: DatasetPlan, source: SubjectSource, s: int, on_frame: OnFr
         split_dir = plan.split_dir(s, split.name)
         for i in (range(split.frames) if frames is None else frames[split.name]):
             task = FrameTask(s, split.name, i)
-            if frame_is_complete(split_dir, i, split.layers):
+            if layout.frame_is_complete(split_dir, i, split.layers):
                 on_frame(task, True)
                 continue
             if subject is None:  # built only when a frame is missing: a finished subject resumes at once

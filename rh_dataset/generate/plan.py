@@ -11,10 +11,11 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
+from rh_common import layout
 from rh_dataset.render.scene import RenderSettings
 from rh_dataset.spec import ProtocolSpec, SplitSpec
 
-__all__ = ["DatasetPlan", "FrameTask", "GenerateError", "DATASET_FORMAT", "subject_name", "frame_tasks",
+__all__ = ["DatasetPlan", "FrameTask", "GenerateError", "DATASET_FORMAT", "frame_tasks",
            "resolve_plan", "pose_source", "motion_frame", "light_library"]
 
 DATASET_FORMAT = "rh-dataset/1"
@@ -38,7 +39,7 @@ class DatasetPlan:
     character_path: Path | None = None
 
     def split_dir(self, subject: int, split: str) -> Path:
-        return self.out / subject_name(subject) / f"protocol_{self.spec.protocol}" / split
+        return layout.split_dir(self.out, subject, self.spec.protocol, split)
 
 
 @dataclass(frozen=True)
@@ -46,10 +47,6 @@ class FrameTask:
     subject: int
     split: str
     index: int
-
-
-def subject_name(i: int) -> str:
-    return f"subject_{i:03d}"
 
 
 def frame_tasks(spec: ProtocolSpec) -> list[FrameTask]:

@@ -9,12 +9,12 @@ from __future__ import annotations
 import time
 from typing import Protocol
 
+from rh_common import layout
 from rh_dataset.generate.folder import prepare_out
 from rh_dataset.generate.frames import OnFrame
-from rh_dataset.generate.plan import DatasetPlan, FrameTask, frame_tasks, resolve_plan, subject_name
+from rh_dataset.generate.plan import DatasetPlan, FrameTask, frame_tasks, resolve_plan
 from rh_dataset.generate.subjects import subject_source
 from rh_dataset.render.variant import select_variant
-from rh_dataset.writer import frame_stem, write_manifest
 
 __all__ = ["Backend", "generate"]
 
@@ -43,12 +43,13 @@ def generate(plan: DatasetPlan, backend: Backend, *, progress: bool = True) -> d
 
     def on_frame(task: FrameTask, skipped: bool) -> None:
         counts["skipped" if skipped else "rendered"] += 1
-        bar.set_postfix_str(f"{subject_name(task.subject)}/{task.split}/{frame_stem(task.index)}", refresh=False)
+        where = f"{layout.subject_name(task.subject)}/{task.split}/{layout.frame_stem(task.index)}"
+        bar.set_postfix_str(where, refresh=False)
         bar.update(1)
 
     t0 = time.perf_counter()
     backend.run(plan, on_frame)
     bar.close()
-    write_manifest(plan.out)
+    layout.write_manifest(plan.out)
     counts["seconds"] = time.perf_counter() - t0
     return counts
