@@ -103,7 +103,7 @@ class FrameGroundTruth:
     def need(self, name: str) -> np.ndarray:
         arr = getattr(self, name)
         if arr is None:
-            raise ValueError(f"the prediction has a {name} layer but FrameGroundTruth.{name} is None")
+            raise ValueError(f"the prediction has the {name} layer but FrameGroundTruth.{name} is None")
         return arr
 
 
@@ -291,12 +291,15 @@ def score_frame(pred: FramePrediction, gt: FrameGroundTruth, convention: Convent
     return scores
 
 
-def read_frame(frame: PredFrame, metrics=ALL_METRICS, *,
+def read_frame(frame: PredFrame, metrics=ALL_METRICS, *, layers=("image", "albedo", "normal"),
                stored: dict[Path, np.ndarray] | None = None) -> tuple[FramePrediction, FrameGroundTruth]:
     """One frame of a predictions folder (`dataset_io.scan_predictions`) and its ground truth, as `score_frame` takes
-    them; only the layers `metrics` compare are read. `stored`: prediction layers already decoded, by path (taken
-    out of it; rh-eval's up-front check keeps them)."""
+    them; only the prediction's `layers` that `metrics` compare are read. `stored`: prediction layers already
+    decoded, by path (taken out of it; rh-eval's up-front check keeps them)."""
     metrics = check_metrics(metrics)
+    bad = [name for name in layers if name not in ("image", "albedo", "normal")]
+    if bad:
+        raise ValueError(f"unknown layer(s) {bad}; choose from ('image', 'albedo', 'normal')")
     stored = stored if stored is not None else {}
     gt = frame.gt
 
@@ -307,13 +310,14 @@ def read_frame(frame: PredFrame, metrics=ALL_METRICS, *,
         return arr if arr is not None else decode_layer(path, gt)
 
     image_metrics = any(m in metrics for m in IMAGE_METRICS)
-    normals = "normal" in metrics and frame.normal is not None
-    albedo = image_metrics and frame.albedo is not None
-    prediction = FramePrediction(image=pred_layer(frame.image) if image_metrics else None,
+    image = image_metrics and "image" in layers
+    albedo = image_metrics and "albedo" in layers and frame.albedo is not None
+    normals = "normal" in metrics and "normal" in layers and frame.normal is not None
+    prediction = FramePrediction(image=pred_layer(frame.image) if image else None,
                                  albedo=pred_layer(frame.albedo) if albedo else None,
                                  normal=pred_layer(frame.normal) if normals else None)
     truth = FrameGroundTruth(mask=read_gt_mask(gt), exposure=gt.exposure,
-                             image=read_gt_image_stored(gt) if image_metrics else None,
+                             image=read_gt_image_stored(gt) if image else None,
                              albedo=read_gt_albedo(gt) if albedo else None,
                              normal=read_gt_normal(gt) if normals else None)
     return prediction, truth
