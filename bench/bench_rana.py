@@ -6,10 +6,10 @@ and iteration count. Prints a table (and writes it as JSON with --out).
     python bench/bench_rana.py --pretrained pre/pretrained.pt    # personalize from pretrained G_N/G_A
 
 For each (resolution, steps): the coarse stage (timed once per resolution; cached), personalization from scratch
-(or from --pretrained), prediction for every test frame, then LPIPS (alex) and PSNR from `rh_eval.metrics` on the
-display-space images (exposure from the GT frame) in rh-eval's default region, plus PSNR over the whole frame and
-inside the GT mask. Also reports the
-SMPL+D baseline at each resolution (no personalization: its time is the coarse stage alone).
+(or from --pretrained), prediction for every test frame, then rh-eval's scores of each frame
+(`rh_eval.score_frame`): LPIPS (alex) and PSNR in the default region, PSNR in the `full` region (the whole frame)
+and in the `mask` region (inside the GT mask). Also reports the SMPL+D baseline at each resolution (no
+personalization: its time is the coarse stage alone).
 """
 from __future__ import annotations
 
@@ -26,33 +26,24 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rh_common.colourspace import to_display  # noqa: E402
-from rh_common.imageio import read_exr, read_png  # noqa: E402
-
 
 def _scores(pred_root: Path, dataset: Path, protocol: str, subject: str) -> dict:
-    """LPIPS (alex) and PSNR in rh-eval's default region (the person's dilated box, both images composited over
-    the same background by the ground-truth coverage: the leaderboard's numbers for one subject), plus PSNR over
-    the whole frame and inside the ground-truth mask."""
-    from rh_eval.conventions import Convention, apply_region, compute_region
-    from rh_eval.metrics import lpips, psnr
+    """rh-eval's numbers for one subject, from `rh_eval.score_frame`: LPIPS (alex) and PSNR in the default region
+    (the person's dilated box, both images composited over the same background by the ground-truth coverage: the
+    leaderboard's convention), PSNR in the `full` region (the whole frame) and in the `mask` region (the tight box,
+    composited, averaged over the ground-truth mask's pixels)."""
+    from rh_eval import Convention, read_frame, score_frame
+    from rh_eval.dataset_io import load_dataset, scan_predictions
 
-    conv = Convention()
+    index = scan_predictions(pred_root, load_dataset(dataset, protocol), allow_incomplete=True)  # one subject
     lp, ps, ps_full, psm = [], [], [], []
-    for jp in sorted((dataset / subject / f"protocol_{protocol}" / "test").glob("frame_*.json")):
-        meta = json.loads(jp.read_text())
-        stem = jp.stem
-        gt = to_display(read_exr(jp.parent / f"{stem}_image.exr")[..., :3], meta["exposure"])
-        pr = to_display(read_exr(pred_root / subject / f"protocol_{protocol}" / "test" / f"{stem}_image.exr"),
-                        meta["exposure"])
-        m8 = read_png(jp.parent / f"{stem}_mask.png")
-        m8 = m8 if m8.ndim == 2 else m8[..., 0]
-        reg = compute_region(m8, conv)
-        p, g = apply_region(pr, reg, conv), apply_region(gt, reg, conv)
-        lp.append(float(lpips(p, g, data_range=1.0)))
-        ps.append(float(psnr(p, g, data_range=1.0)))
-        ps_full.append(float(psnr(pr, gt, data_range=1.0)))
-        psm.append(float(psnr(pr, gt, data_range=1.0, mask=m8 >= 128)))
+    for frame in (f for f in index.frames if f.gt.subject == subject):
+        pred, gt = read_frame(frame, ("lpips", "psnr"), layers=("image",))
+        box = score_frame(pred, gt, Convention(), ("lpips", "psnr")).image
+        lp.append(box.lpips)
+        ps.append(box.psnr)
+        ps_full.append(score_frame(pred, gt, Convention(region="full"), ("psnr",)).image.psnr)
+        psm.append(score_frame(pred, gt, Convention(region="mask"), ("psnr",)).image.psnr)
     return {"lpips": float(np.mean(lp)), "psnr": float(np.mean(ps)), "psnr_full": float(np.mean(ps_full)),
             "psnr_mask": float(np.mean(psm)), "frames": len(lp)}
 
@@ -136,7 +127,7 @@ def main(argv=None) -> int:
               f"{r.get('cpu_s_per_step', float('nan')):10.3f} {r['lpips']:7.4f} {r['psnr']:6.2f} "
               f"{r['psnr_full']:10.2f} {r['psnr_mask']:10.2f}")
     print("LPIPS, PSNR: rh-eval's default region (the leaderboard's convention), mean over the subject's test frames; "
-          "PSNR(full): whole frame; PSNR(mask): inside the ground-truth mask. train s: wall seconds of "
+          "PSNR(full): whole frame; PSNR(mask): inside the ground-truth mask (rh-eval's regions). train s: wall seconds of "
           "personalization (SMPL+D: its coarse stage); CPU s: the process's CPU seconds for the same (with one torch "
           "thread, what an otherwise idle core takes, whatever else runs); "
           f"{torch.get_num_threads()} torch threads; load average at the end "

@@ -135,7 +135,6 @@ def main(argv=None) -> dict:
     p.add_argument("--out", default=None, help="write savings.json and savings.md here")
     args = p.parse_args(argv)
 
-    from rh_common.colourspace import to_display
     from rh_dataset.characters import build_character, sample_recipe
     from rh_dataset.generate import rng_for
     from rh_dataset.render.cull import HIDDEN_MARGIN_M, _hidden_faces
@@ -218,11 +217,10 @@ def main(argv=None) -> dict:
         st = lambda depth: RenderSettings(spp=pr.spp, aov_spp=pr.aov_spp, max_depth=depth, cull=False)  # noqa: E731
         deep, _ = frame(scene, st(args.deep), ["image", "mask"], seed)
         sc = bt.Scorer({"image": deep.layers["image"], "mask": deep.layers["mask"]}, scene.exposure)
-        deep_disp = sc._crop(to_display(deep.layers["image"], scene.exposure))
         trunc = {}
         for depth in (2, 3, 4):
             img, _ = frame(scene, st(depth), ["image"], seed)
-            trunc[depth] = psnr(sc._crop(to_display(img.layers["image"], scene.exposure)), deep_disp, data_range=1.0)
+            trunc[depth] = sc.psnr(img.layers["image"])
         four, three, t4, t3 = timed_pair(lambda: frame(scene, st(PREVIOUS_STANDARD_DEPTH), ["image"], seed),
                                          lambda: frame(scene, st(cls.max_depth), ["image"], seed), args.repeats)
         e = sc.beauty(three.layers["image"])
@@ -239,12 +237,10 @@ def main(argv=None) -> dict:
             # samples shrink the noise only, so a rising PSNR shows the figure above is a conservative bound.
             hd = lambda depth: RenderSettings(spp=args.check_spp, aov_spp=1, max_depth=depth, cull=False)  # noqa
             deep_h, _ = frame(scene, hd(args.deep), ["image"], seed + 2)
-            deep_h = sc._crop(to_display(deep_h.layers["image"], scene.exposure))
             trunc_h = {}
             for depth in (2, 3):
                 img, _ = frame(scene, hd(depth), ["image"], seed + 2)
-                trunc_h[depth] = psnr(sc._crop(to_display(img.layers["image"], scene.exposure)), deep_h,
-                                      data_range=1.0)
+                trunc_h[depth] = sc.psnr(img.layers["image"], reference=deep_h.layers["image"])
             R["depth_check"] = {"spp": args.check_spp, "psnr_vs_deep": trunc_h}
             rows.append([f"  the same at {args.check_spp} spp (not timed)", "-", "-", "-",
                          "PSNR vs depth %d, same seed: d2 %.1f, d3 %.1f dB" % (args.deep, trunc_h[2], trunc_h[3]),

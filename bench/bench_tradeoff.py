@@ -18,10 +18,10 @@ within memory.
 Errors, all against the reference of the same scene:
   relMSE   mean over the person's box of (x - r)^2 / (r^2 + 0.01), linear radiance at the frame's exposure, per
            channel (0.01 = (0.1)^2 keeps dark pixels from dominating; a common rendering convention);
-  PSNR     rh_eval.metrics.psnr in display space (srgb(clip(exposure * radiance))) over the evaluator's `default`
-           region: the reference mask's bounding box dilated by round(50*min(H,W)/720) px, both images composited
-           over white with the reference coverage (exactly what rh-eval compares);
-  FLIP     rh_eval.metrics.flip (LDR, ppd 67.02) on the same composited crop;
+  PSNR     rh-eval's image PSNR (`rh_eval.score_frame`, the reference as the ground truth): display space
+           (srgb(clip(exposure * radiance))) over the evaluator's `default` region: the reference mask's bounding
+           box dilated by round(50*min(H,W)/720) px, both images composited over white with the reference coverage;
+  FLIP     rh-eval's image FLIP (LDR, ppd 67.02) on the same composited crop;
   AOVs     albedo PSNR (linear, inside the mask), normal mean angular error (rh_eval.metrics.normal_angular_error),
            mask mean absolute coverage error, each against the reference AOVs.
 Times are wall-clock seconds of the beauty (or AOV) pass only, excluding scene loading; the machine is shared
@@ -184,36 +184,39 @@ def reference(scene: Scene, args, res: int) -> tuple[dict, float, bool]:
 # ------------------------------------------------------------------------------------------------- metrics
 
 class Scorer:
-    """Errors of a beauty image / AOVs against one scene's reference (see the module docstring)."""
+    """Errors of a beauty image / AOVs against one scene's reference (see the module docstring). PSNR and FLIP are
+    rh-eval's, from `rh_eval.score_frame` with the reference as the ground truth."""
 
     def __init__(self, ref: dict, exposure: float):
-        from rh_common.colourspace import quantize8, to_display
+        from rh_common.colourspace import quantize8
+        from rh_eval import FrameGroundTruth
         from rh_eval.conventions import Convention, compute_region
 
         self.ref = ref
         self.exposure = exposure
         self.conv = Convention()  # the evaluator's default region: dilated mask bbox, over white
-        self.region = compute_region(quantize8(ref["mask"]), self.conv)
+        self.truth = FrameGroundTruth(mask=quantize8(ref["mask"]), exposure=exposure, image=ref["image"])
+        self.region = compute_region(self.truth.mask, self.conv)
         self.inside = ref["mask"] >= 0.5
         r = self.region
-        self.ref_disp = self._crop(to_display(ref["image"], exposure))
         self.ref_lin = ref["image"][r.y0:r.y1, r.x0:r.x1].astype(np.float64) * exposure
 
-    def _crop(self, disp):
-        from rh_eval.conventions import apply_region
+    def _scores(self, img: np.ndarray, metrics, reference: np.ndarray | None = None):
+        from rh_eval import FramePrediction, score_frame
 
-        return apply_region(disp, self.region, self.conv)
+        truth = self.truth if reference is None else dataclasses.replace(self.truth, image=reference)
+        return score_frame(FramePrediction(image=img), truth, self.conv, metrics).image
+
+    def psnr(self, img: np.ndarray, reference: np.ndarray | None = None) -> float:
+        """rh-eval's PSNR of `img` against the reference (or against `reference`, in the reference's region)."""
+        return self._scores(img, ("psnr",), reference).psnr
 
     def beauty(self, img: np.ndarray) -> dict:
-        from rh_common.colourspace import to_display
-        from rh_eval.metrics import flip, psnr
-
         r = self.region
         x = img[r.y0:r.y1, r.x0:r.x1].astype(np.float64) * self.exposure
         rel = float(np.mean((x - self.ref_lin) ** 2 / (self.ref_lin ** 2 + RELMSE_EPS)))
-        d = self._crop(to_display(img, self.exposure))
-        return {"relmse": rel, "psnr": psnr(d, self.ref_disp, data_range=1.0),
-                "flip": flip(d, self.ref_disp, data_range=1.0)}
+        e = self._scores(img, ("psnr", "flip"))
+        return {"relmse": rel, "psnr": e.psnr, "flip": e.flip}
 
     def aovs(self, lay: dict) -> dict:
         from rh_eval.metrics import normal_angular_error, psnr
@@ -337,16 +340,12 @@ def main(argv=None) -> dict:
             render(scene, ["image"], 1, d, seed=0)  # warm-up: each max depth is its own kernel
             lay, b, _, _ = render(scene, ["image"], args.depth_spp, d, seed=777, chunk=args.chunk_spp)
             imgs[d] = (lay["image"], b)
-        from rh_common.colourspace import to_display
-        from rh_eval.metrics import psnr
-
-        deep_disp = sc._crop(to_display(imgs[deep][0], scene.exposure))
         lum = lambda im: float((im[..., :3] @ np.array([0.2126, 0.7152, 0.0722]))[sc.inside].mean())  # noqa: E731
         smallest = None
         for d in sorted(args.depths):
             img, b = imgs[d]
             e = sc.beauty(img)
-            trunc_db = psnr(sc._crop(to_display(img, scene.exposure)), deep_disp, data_range=1.0)
+            trunc_db = sc.psnr(img, reference=imgs[deep][0])
             missing = 1.0 - lum(img) / lum(imgs[deep][0])
             if smallest is None and trunc_db >= DEPTH_TOLERANCE_DB:
                 smallest = d

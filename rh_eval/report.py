@@ -1,14 +1,52 @@
-"""Writing a result: the JSON summary and the per-frame CSV beside it."""
+"""Summarising and writing a result: per-metric means and stds, the JSON summary and the per-frame CSV beside it.
+
+In: per-frame values (`summarise`); the result dict, rows and columns of `Evaluator.evaluate` (`write_result`).
+Out: summary dicts; the JSON and CSV files."""
 from __future__ import annotations
 
 import csv
 import io
 import math
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from rh_common.imageio import atomic_path, write_json
 
-__all__ = ["write_result", "csv_path_for", "format_value"]
+__all__ = ["summarise", "write_result", "csv_path_for", "format_value"]
+
+
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and not math.isnan(v)
+
+
+def summarise(values: list, *, psnr_like: bool) -> dict:
+    """Mean and population std (ddof=0) of the defined values of one metric.
+
+    `None`/NaN values (undefined: empty mask) are counted in `n_undefined`, never averaged. PSNR: +inf values
+    (identical images) are counted in `n_infinite` and left out of the mean and std, which are over the finite
+    values; when every defined value is infinite, mean is the string "inf" and std is null.
+    """
+    defined = [float(v) for v in values if _is_num(v)]
+    out: dict[str, Any] = {"n": len(defined), "n_undefined": len(values) - len(defined)}
+    if psnr_like:
+        finite = [v for v in defined if math.isfinite(v)]
+        out["n_infinite"] = len(defined) - len(finite)
+        if finite:
+            out["mean"] = float(np.mean(finite))
+            out["std"] = float(np.std(finite))
+        elif defined:
+            out["mean"], out["std"] = "inf", None
+        else:
+            out["mean"], out["std"] = None, None
+        return out
+    if defined:
+        out["mean"] = float(np.mean(defined))
+        out["std"] = float(np.std(defined))
+    else:
+        out["mean"], out["std"] = None, None
+    return out
 
 
 def csv_path_for(json_path: Path) -> Path:

@@ -17,6 +17,7 @@ from rh_common.imageio import read_exr, read_png, write_exr, write_png
 from rh_eval.cli import build_parser, main
 from rh_eval.conventions import Convention, MIN_CROP, compute_region, margin_for
 from rh_eval.evaluate import EvalOptions, Evaluator
+from rh_eval.metrics.lpips import get_lpips_net
 from test_eval_fake import make_dataset, make_predictions
 
 FRAME_DIR = Path("subject_000/protocol_a/test")
@@ -348,15 +349,18 @@ def test_networks_see_only_the_evaluated_region(tmp_path, monkeypatch):
     ds = make_dataset(tmp_path / "ds", size=160, subjects=("subject_000",), frames=(0,))
     pred = make_predictions(ds, tmp_path / "p", noise=0.05, layers=("image",))
     ev = Evaluator(EvalOptions(metrics=("lpips",), progress=False))
+    net = get_lpips_net("alex")  # the one the public `lpips` functions run
     shapes = []
-    real = ev.lpips_net.features
-    monkeypatch.setattr(ev.lpips_net, "features", lambda x: shapes.append(tuple(x.shape)) or real(x))
+    real = net.features
+    monkeypatch.setattr(net, "features", lambda x: shapes.append(tuple(x.shape)) or real(x))
     ev.evaluate(pred, ds)
     mask = read_png(ds / FRAME_DIR / "frame_000000_mask.png")
     r = compute_region(mask, Convention())
-    assert shapes == [(1, 3, r.y1 - r.y0, r.x1 - r.x0)] * 2 and r.x1 - r.x0 < 160  # prediction, ground truth
+    assert shapes == [(1, 3, r.y1 - r.y0, r.x1 - r.x0)] * 2 and r.x1 - r.x0 < 160  # ground truth, prediction
     # the networks and their weights are loaded once per process
-    assert Evaluator(EvalOptions(metrics=("lpips",), progress=False)).lpips_net is ev.lpips_net
+    loaded = get_lpips_net.cache_info().currsize
+    Evaluator(EvalOptions(metrics=("lpips",), progress=False))
+    assert get_lpips_net.cache_info().currsize == loaded and get_lpips_net("alex") is net
 
 
 def test_progress_bar_on_long_runs(ds, noisy, capsys):

@@ -100,19 +100,14 @@ def test_smpld_baseline_predicts_through_the_same_writer(dataset, trained, tmp_p
 
 
 def _masked_psnr(dataset, pred) -> float:
-    from rh_common.colourspace import to_display
-    from rh_common.imageio import read_exr, read_png
+    """Mean image PSNR inside the ground-truth mask: rh-eval's `mask` region, through the public per-frame scorer."""
+    from rh_eval import Convention, read_frame, score_frame
+    from rh_eval.dataset_io import load_dataset, scan_predictions
 
-    out = []
-    for jp in sorted((dataset / "subject_000" / "protocol_a" / "test").glob("frame_*.json")):
-        meta = json.loads(jp.read_text())
-        gt = to_display(read_exr(jp.parent / f"{jp.stem}_image.exr")[..., :3], meta["exposure"])
-        pr = to_display(read_exr(pred / "subject_000" / "protocol_a" / "test" / f"{jp.stem}_image.exr")[..., :3],
-                        meta["exposure"])
-        m = read_png(jp.parent / f"{jp.stem}_mask.png")
-        m = (m if m.ndim == 2 else m[..., 0]) >= 128
-        out.append(10 * np.log10(1.0 / max(float(((pr - gt) ** 2)[m].mean()), 1e-12)))
-    return float(np.mean(out))
+    conv = Convention(region="mask")
+    frames = scan_predictions(pred, load_dataset(dataset, "a")).frames
+    return float(np.mean([score_frame(*read_frame(f, ("psnr",), layers=("image",)), conv, ("psnr",)).image.psnr
+                          for f in frames]))
 
 
 def test_rana_is_not_worse_than_its_smpld_initialisation(dataset, trained, tmp_path):

@@ -5,18 +5,21 @@ import math
 
 import numpy as np
 
-__all__ = ["_validate", "_validate_mask"]
+__all__ = ["_validate", "_validate_mask", "_stack"]
 
 
 def _validate(pred, target, *, data_range: float | None, name: str, channels: int | None = 3,
               batch: bool = False, value_range: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Check a (pred, target) pair and return them as float64 arrays.
+    """Check a (pred, target) pair and return them as float64 arrays (`target` None: `pred` alone, returned with None).
 
     - numpy arrays of a floating dtype (an integer array is refused: forgetting /255 is the classic bug);
     - the same shape, (H, W, C) or, with `batch`, also (N, H, W, C), with C == `channels` when given;
     - every value finite;
     - every value inside `value_range` (default [0, data_range]) when a data range is given.
     """
+    alone = target is None
+    if alone:  # one set of images (the network metrics' reference features): checked as a pair with itself
+        target = pred
     for label, arr in (("pred", pred), ("target", target)):
         if not isinstance(arr, np.ndarray):
             raise ValueError(f"{name}: {label} must be a numpy array, got {type(arr).__name__}")
@@ -38,18 +41,19 @@ def _validate(pred, target, *, data_range: float | None, name: str, channels: in
                 and data_range > 0):
             raise ValueError(f"{name}: data_range must be a positive finite number, got {data_range!r}")
     p = np.asarray(pred, dtype=np.float64)
-    t = np.asarray(target, dtype=np.float64)
-    for label, arr in (("pred", p), ("target", t)):
+    t = p if alone else np.asarray(target, dtype=np.float64)
+    checked = (("pred", p),) if alone else (("pred", p), ("target", t))
+    for label, arr in checked:
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"{name}: {label} contains NaN or Inf")
     lo_hi = value_range if value_range is not None else ((0.0, float(data_range)) if data_range is not None else None)
     if lo_hi is not None:
         lo, hi = lo_hi
-        for label, arr in (("pred", p), ("target", t)):
+        for label, arr in checked:
             amin, amax = float(arr.min()), float(arr.max())
             if amin < lo or amax > hi:
                 raise ValueError(f"{name}: {label} values span [{amin:.6g}, {amax:.6g}], outside [{lo:g}, {hi:g}]")
-    return p, t
+    return p, (None if alone else t)
 
 
 def _validate_mask(mask, shape_hw: tuple[int, int], *, name: str) -> np.ndarray | None:
@@ -62,3 +66,17 @@ def _validate_mask(mask, shape_hw: tuple[int, int], *, name: str) -> np.ndarray 
     if mask.shape != tuple(shape_hw):
         raise ValueError(f"{name}: mask shape {mask.shape} != image (H, W) {tuple(shape_hw)}")
     return mask
+
+
+def _stack(images, *, name: str, label: str):
+    """A list or tuple of equal-shape (H, W, C) arrays as one (N, H, W, C) array; anything else as it is (checked by
+    `_validate`). The network metrics take either, so a caller with separate crops need not stack them itself."""
+    if not isinstance(images, (list, tuple)):
+        return images
+    if not images:
+        raise ValueError(f"{name}: {label} is an empty list")
+    shapes = {getattr(a, "shape", None) for a in images}
+    if len(shapes) != 1 or any(not isinstance(a, np.ndarray) or a.ndim != 3 for a in images):
+        raise ValueError(f"{name}: a {label} list must hold (H, W, C) numpy arrays of one shape, got shapes "
+                         f"{sorted(map(str, shapes))}")
+    return np.stack(images)

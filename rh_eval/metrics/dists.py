@@ -7,7 +7,8 @@
        (means, variances, covariance over the whole map, population form)
     -> 1 - sum(alpha S1 + beta S2) with alpha, beta the published weights divided by their joint sum.
 
-Identical inputs give 0 (up to round-off). A `mask` is refused, as for LPIPS.
+Identical inputs give 0 (up to round-off). A `mask` is refused, as for LPIPS. Batches and reference features
+(`dists_features`) as for LPIPS.
 """
 from __future__ import annotations
 
@@ -18,10 +19,10 @@ import torch
 from torch import nn
 
 from ..weights import load_backbone, load_dists_alpha_beta
-from ._validate import _validate
-from .lpips import to_tensor01
+from ._validate import _stack, _validate
+from .lpips import check_same_features, to_tensor01
 
-__all__ = ["dists", "DISTSNet", "get_dists_net"]
+__all__ = ["dists", "dists_features", "DISTSNet", "get_dists_net"]
 
 _MEAN = torch.tensor([0.485, 0.456, 0.406]).view(1, 3, 1, 1)
 _STD = torch.tensor([0.229, 0.224, 0.225]).view(1, 3, 1, 1)
@@ -123,14 +124,40 @@ def get_dists_net() -> DISTSNet:
     return DISTSNet()
 
 
-def dists(pred: np.ndarray, target: np.ndarray, *, data_range: float = 1.0, mask=None) -> float | np.ndarray:
-    """DISTS of `pred` against the reference `target`; (H, W, 3) -> float, (N, H, W, 3) -> (N,). 0 if identical."""
-    p, t = _validate(pred, target, data_range=data_range, name="dists", batch=True)
+def dists_features(target, *, data_range: float = 1.0) -> list[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]:
+    """DISTS's per-tap statistics (`DISTSNet.prepare`) of reference images ((H, W, 3), (N, H, W, 3) or a list of
+    equal-shape (H, W, 3) in [0, data_range]), batch first. `dists(pred, target_features=...)` takes them instead of
+    the target images, so a reference scored many times (rh-eval's ground truth) runs once."""
+    t, _ = _validate(_stack(target, name="dists", label="target"), None, data_range=data_range, name="dists",
+                     batch=True)
+    return _features(t, data_range)
+
+
+def _features(checked: np.ndarray, data_range: float):
+    net = get_dists_net()
+    return net.prepare(net.features(to_tensor01(checked, data_range)))
+
+
+def dists(pred, target=None, *, data_range: float = 1.0, mask=None,
+          target_features: list | None = None) -> float | np.ndarray:
+    """DISTS of `pred` against the reference `target`; (H, W, 3) -> float, (N, H, W, 3) or a list of equal-shape
+    (H, W, 3) -> (N,). 0 if identical. One image is the batch of one. Give the reference as `target` images or as
+    their `dists_features` (same data range), not both."""
     if mask is not None:
         raise ValueError("dists: a mask is not supported (DISTS is defined on a rectangle); crop and composite "
                          "with rh_eval.conventions first")
-    net = get_dists_net()
-    # official argument order: D(ref, dist) -> feats0 = reference
-    d = net.distance(net.features(to_tensor01(t, data_range)), net.features(to_tensor01(p, data_range)))
-    out = d.numpy()
-    return float(out[0]) if pred.ndim == 3 else out
+    if (target is None) == (target_features is None):
+        raise ValueError("dists: give either target or target_features")
+    single = isinstance(pred, np.ndarray) and pred.ndim == 3
+    pred = _stack(pred, name="dists", label="pred")
+    if target_features is None:
+        p, t = _validate(pred, _stack(target, name="dists", label="target"), data_range=data_range, name="dists",
+                         batch=True)
+        target_features = _features(t, data_range)
+    else:
+        p, _ = _validate(pred, None, data_range=data_range, name="dists", batch=True)
+    fp = _features(p, data_range)
+    check_same_features("dists", [c for _, c, _ in target_features], [c for _, c, _ in fp])
+    # official argument order: D(ref, dist)
+    out = get_dists_net().distance_prepared(target_features, fp).numpy()
+    return float(out[0]) if single else out

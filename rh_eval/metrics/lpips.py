@@ -11,6 +11,10 @@ so lpips(a, b) == lpips(b, a) up to round-off.
 
 A `mask` is refused: LPIPS is defined on a rectangle; the region convention (`rh_eval.conventions`) crops and
 composites before the network runs.
+
+`lpips` scores a batch ((N, H, W, 3) or a list of equal-shape images; one image is the batch of one). The reference
+side may be given as `lpips_features(target)` instead of the images: rh-eval keeps the ground truth's features in a
+cache and passes them back, through this same function.
 """
 from __future__ import annotations
 
@@ -20,9 +24,9 @@ import numpy as np
 import torch
 
 from ..weights import load_backbone, load_lpips_heads
-from ._validate import _validate
+from ._validate import _stack, _validate
 
-__all__ = ["lpips", "LPIPSNet", "get_lpips_net", "BACKBONES"]
+__all__ = ["lpips", "lpips_features", "LPIPSNet", "get_lpips_net", "BACKBONES"]
 
 BACKBONES = {"alex": "alexnet", "vgg": "vgg16"}
 _SHIFT = torch.tensor([-0.030, -0.088, -0.188]).view(1, 3, 1, 1)
@@ -81,16 +85,55 @@ def to_tensor01(x: np.ndarray, data_range: float) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray((x / data_range).transpose(0, 3, 1, 2), dtype=np.float32))
 
 
-def lpips(pred: np.ndarray, target: np.ndarray, *, data_range: float = 1.0, mask=None,
-          backbone: str = "alex") -> float | np.ndarray:
-    """LPIPS v0.1 distance; (H, W, 3) -> float, (N, H, W, 3) -> (N,) array. 0 for identical inputs."""
-    p, t = _validate(pred, target, data_range=data_range, name="lpips", batch=True)
+def _check_backbone(backbone: str) -> None:
+    if backbone not in BACKBONES:
+        raise ValueError(f"lpips: backbone must be one of {sorted(BACKBONES)}, got {backbone!r}")
+
+
+def check_same_features(name: str, got: list, want: list) -> None:
+    """Reference features given to `lpips`/`dists` must be those of images shaped like `pred`: a feature set of
+    another batch size would broadcast silently (N=1 against N) instead of failing."""
+    shapes = [tuple(t.shape) for t in got]
+    if shapes != [tuple(t.shape) for t in want]:
+        raise ValueError(f"{name}: target_features do not match pred (tap shapes {shapes} != "
+                         f"{[tuple(t.shape) for t in want]}): compute them from targets shaped like pred")
+
+
+def lpips_features(target, *, data_range: float = 1.0, backbone: str = "alex") -> list[torch.Tensor]:
+    """LPIPS's normalised features of reference images ((H, W, 3), (N, H, W, 3) or a list of equal-shape (H, W, 3)
+    in [0, data_range]): one (N, C, h, w) tensor per tap, batch first. `lpips(pred, target_features=...)` takes
+    them instead of the target images, so a reference scored many times (rh-eval's ground truth) runs once."""
+    _check_backbone(backbone)
+    t, _ = _validate(_stack(target, name="lpips", label="target"), None, data_range=data_range, name="lpips",
+                     batch=True)
+    return _features(t, data_range, backbone)
+
+
+def _features(checked: np.ndarray, data_range: float, backbone: str) -> list[torch.Tensor]:
+    return get_lpips_net(backbone).features(to_tensor01(checked, data_range))
+
+
+def lpips(pred, target=None, *, data_range: float = 1.0, mask=None, backbone: str = "alex",
+          target_features: list[torch.Tensor] | None = None) -> float | np.ndarray:
+    """LPIPS v0.1 distance; (H, W, 3) -> float, (N, H, W, 3) or a list of equal-shape (H, W, 3) -> (N,) array. 0 for
+    identical inputs. One image is the batch of one. Give the reference as `target` images or as their
+    `lpips_features` (same backbone and data range), not both."""
+    _check_backbone(backbone)
     if mask is not None:
         raise ValueError("lpips: a mask is not supported (LPIPS is defined on a rectangle); crop and composite "
                          "with rh_eval.conventions first")
-    if backbone not in BACKBONES:
-        raise ValueError(f"lpips: backbone must be one of {sorted(BACKBONES)}, got {backbone!r}")
+    if (target is None) == (target_features is None):
+        raise ValueError("lpips: give either target or target_features")
+    single = isinstance(pred, np.ndarray) and pred.ndim == 3
+    pred = _stack(pred, name="lpips", label="pred")
+    if target_features is None:
+        p, t = _validate(pred, _stack(target, name="lpips", label="target"), data_range=data_range, name="lpips",
+                         batch=True)
+        target_features = _features(t, data_range, backbone)
+    else:
+        p, _ = _validate(pred, None, data_range=data_range, name="lpips", batch=True)
     net = get_lpips_net(backbone)
-    d = net.distance(net.features(to_tensor01(p, data_range)), net.features(to_tensor01(t, data_range)))
-    out = d.numpy()
-    return float(out[0]) if pred.ndim == 3 else out
+    fp = _features(p, data_range, backbone)
+    check_same_features("lpips", target_features, fp)
+    out = net.distance(fp, target_features).numpy()
+    return float(out[0]) if single else out
