@@ -91,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     from .dataset_io import PredictionError
     from .evaluate import EvalOptions, Evaluator
     from .report import write_result
-    from .weights import WeightError
+    from rh_common.weights import WeightError
     from rh_common.imageio import ImageFileError
 
     try:

@@ -31,7 +31,7 @@ from .dataset_io import (DatasetIndex, PredictionError, PredictionIndex, albedo_
 from .metrics import flip, normal_angular_error, psnr, ssim
 from .metrics.dists import get_dists_net
 from .metrics.lpips import get_lpips_net
-from .weights import WEIGHTS, weights_record
+from rh_common.weights import WEIGHTS, weights_record
 
 __all__ = ["ALL_METRICS", "EvalOptions", "Evaluator", "FeatureCache", "summarise", "metric_columns",
            "RESULT_FORMAT"]

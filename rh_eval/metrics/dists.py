@@ -17,7 +17,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..weights import load_backbone, load_dists_alpha_beta
+from rh_common.weights import load_backbone, load_dists_alpha_beta
+
 from ._validate import _validate
 from .lpips import to_tensor01
 

@@ -19,7 +19,8 @@ import functools
 import numpy as np
 import torch
 
-from ..weights import load_backbone, load_lpips_heads
+from rh_common.weights import load_backbone, load_lpips_heads
+
 from ._validate import _validate
 
 __all__ = ["lpips", "LPIPSNet", "get_lpips_net", "BACKBONES"]
