@@ -34,5 +34,5 @@ if [ ! -x .blender-venv/bin/python ] || ! .blender-venv/bin/python -c "import bp
 fi
 
 # anny builds its mesh cache on first use (~2 min, ~790 MB); do it once here rather than inside a test.
-python -c "import rh_dataset.characters.body as b; b.warm_cache()"
+python -c "import rh_common.body_model as b; b.warm_cache()"
 echo "setup: done"

@@ -56,7 +56,7 @@ from rh_common.blender import run_blender_script  # noqa: E402
 from rh_common.imageio import atomic_path, read_exr, write_json  # noqa: E402
 
 BLENDER_SCRIPT = HERE / "cycles_render_bpy.py"
-NEAR, FAR = 0.01, 1000.0  # Camera.mitsuba_sensor's clip planes
+NEAR, FAR = 0.01, 1000.0  # rh_dataset.render.camera.mitsuba_sensor's clip planes
 
 
 # ------------------------------------------------------------------------------------------------- export

@@ -26,11 +26,11 @@ def main() -> None:
     args = p.parse_args()
 
     from rh_dataset.characters import build_character, pose_character, sample_recipe
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
     from rh_dataset.generate import rng_for
     from rh_dataset.lights import build_light, bundled_hdris, mitsuba_emitter_dict, sample_light
     from rh_dataset.poses import sample_pose
-    from rh_dataset.render.camera import frame_body
+    from rh_common.camera import frame_body
     from rh_dataset.render.passes import render_frame
     from rh_dataset.render.scene import RenderSettings
     from rh_dataset.render.variant import select_variant

@@ -111,7 +111,7 @@ def aov_diff(a: dict, b: dict) -> dict:
 
 def closeup_camera(scene):
     """A camera twice as close, aimed at the upper body: the legs and feet fall outside its frustum."""
-    from rh_dataset.render.camera import Camera
+    from rh_common.camera import Camera
 
     cam = scene.camera
     o, t = np.array(cam.origin), np.array(cam.target)

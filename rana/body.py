@@ -37,7 +37,7 @@ class BodyTopology:
 
 @functools.lru_cache(maxsize=2)
 def body_topology() -> BodyTopology:
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
 
     m = load_anny()
     faces = m.get_triangular_faces().to(torch.int64).cpu()
@@ -62,18 +62,12 @@ def _descends_from(m, i: int, ancestor: int) -> bool:
 def pose_tensor_from_json(pose_json: dict, model) -> tuple[torch.Tensor, np.ndarray]:
     """(1, J, 4, 4) local-ref bone deltas and the 4x4 root transform of a frame's `body.pose`.
 
-    Uses `rh_dataset.poses.BodyPose` when that module provides it (the one reader of its own format); otherwise
-    reads the documented JSON directly: `bones` {label: 4x4} (identity bones omitted), optional `root_transform`.
+    Reads the documented JSON (docs/ARCHITECTURE.md): `bones` {label: 4x4} (identity bones omitted), optional
+    `root_transform`. RANA reads what the dataset stores and never imports the generator.
     """
-    try:
-        from rh_dataset.poses import BodyPose  # type: ignore[attr-defined]
-
-        bp = BodyPose.from_json(pose_json)
-        tensor = bp.as_anny_tensor(model)
-        root = np.asarray(getattr(bp, "root_transform", np.eye(4)), dtype=np.float64)
-        return tensor.to(torch.float64), root
-    except ImportError:
-        pass
+    if pose_json.get("parameterization", "local-ref") != "local-ref":
+        raise ValueError(f"pose: only the 'local-ref' parameterisation is supported, got "
+                         f"{pose_json['parameterization']!r}")
     labels = list(model.bone_labels)
     pose = torch.eye(4, dtype=torch.float64).repeat(1, len(labels), 1, 1)
     for lab, mat in pose_json.get("bones", {}).items():
@@ -100,7 +94,7 @@ class PosedBody:
 @torch.no_grad()
 def pose_body(phenotype: dict, pose_json: dict) -> PosedBody:
     """Pose anny for one frame from its metadata (`body.phenotype`, `body.pose`)."""
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
 
     m = load_anny()
     pose, root = pose_tensor_from_json(pose_json, m)

@@ -19,7 +19,7 @@ import numpy as np
 from rh_common import sh
 from rh_common.imageio import read_json, write_json
 from rh_dataset import __version__
-from rh_dataset.render.camera import Camera, frame_body
+from rh_common.camera import Camera, frame_body
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
 from rh_dataset.render.variant import select_variant
@@ -241,7 +241,7 @@ def _motion_frame(motion_spec, i: int) -> int:
 
 
 def _pose_for(opts: GenerateOptions, split: SplitSpec, s: int, i: int, character=None):
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
     from rh_dataset.poses import sample_pose, turntable
 
     if opts.spec.character is not None:  # an imported character: its rest-pose turntable, or its own motion
@@ -297,7 +297,7 @@ def _motion_record(opts: GenerateOptions, split: SplitSpec, i: int, pose, phenot
     check finds (reported, not rejected: the frame shows what the capture did, retargeted)."""
     if split.poses == "turntable" or _pose_source(opts, split).poses != "motion":
         return None
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
     from rh_dataset.poses import find_intersections
     from rh_dataset.poses.motion import read_motion_cached
 

@@ -7,7 +7,6 @@ A look-development tool, not the dataset renderer: it builds its own small scene
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
@@ -104,7 +103,6 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.n < 1:
         raise SystemExit("--n must be >= 1")
-    os.environ.setdefault("WARP_LOG_LEVEL", "error")
     rng = np.random.default_rng(args.seed)
     tiles = []
     for i in range(args.n):

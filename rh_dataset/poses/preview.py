@@ -85,7 +85,7 @@ def contact_sheet(poses: list[BodyPose], model, out: str, *, side: bool = True, 
 
 
 def main(argv: list[str] | None = None) -> None:
-    from ..characters.body import load_anny
+    from rh_common.body_model import load_anny
     from .prior import sample_poses
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

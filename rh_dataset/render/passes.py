@@ -13,7 +13,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .camera import Camera
+from rh_common.camera import Camera
+
 from .cull import drop_faces, outside_frustum
 from .scene import MeshLike, RenderSettings, scene_dict
 from .variant import require_variant

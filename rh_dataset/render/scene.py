@@ -10,7 +10,9 @@ from typing import Any, Protocol, Sequence
 
 import numpy as np
 
-from .camera import Camera
+from rh_common.camera import Camera
+
+from .camera import mitsuba_sensor
 from .variant import require_variant
 
 __all__ = ["MeshLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf"]
@@ -128,7 +130,7 @@ def scene_dict(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camera,
     d: dict[str, Any] = {
         "type": "scene",
         "integrator": integrator,
-        "sensor": camera.mitsuba_sensor(spp, pixel_format=pixel_format),
+        "sensor": mitsuba_sensor(camera, spp, pixel_format=pixel_format),
     }
     if emitter is not None:
         d["environment"] = emitter
