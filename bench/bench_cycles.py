@@ -392,7 +392,7 @@ def main(argv=None) -> dict:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
-    from rh_dataset.render.variant import select_variant
+    from rh_dataset.variant import select_variant
 
     variant = select_variant(None)
     load0 = os.getloadavg()

@@ -33,7 +33,7 @@ def main() -> None:
     from rh_common.camera import frame_body
     from rh_dataset.render.passes import render_frame
     from rh_dataset.render.scene import RenderSettings
-    from rh_dataset.render.variant import select_variant
+    from rh_dataset.variant import select_variant
     from rh_dataset.spec import load_presets
 
     variant = select_variant(None)

@@ -284,7 +284,7 @@ def main(argv=None) -> dict:
     out_dir = Path(args.out or args.cache)
     out_dir.mkdir(parents=True, exist_ok=True)
 
-    from rh_dataset.render.variant import select_variant
+    from rh_dataset.variant import select_variant
     from rh_dataset.spec import load_presets
 
     variant = select_variant(None)

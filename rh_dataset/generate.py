@@ -22,7 +22,7 @@ from rh_dataset import __version__
 from rh_common.camera import Camera, frame_body
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 from rh_dataset.spec import ProtocolSpec, SplitSpec
 from rh_dataset.writer import contact_sheet, frame_is_complete, frame_stem, write_frame, write_manifest
 

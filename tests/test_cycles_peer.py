@@ -21,7 +21,7 @@ from rh_dataset.lights import LightSpec, build_light, bundled_hdris, load_hdri, 
 from rh_common.camera import Camera
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 
 ROOT = Path(__file__).resolve().parents[1]
 

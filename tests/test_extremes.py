@@ -21,7 +21,7 @@ from rh_dataset.lights import LightSpec, build_light, load_hdri, mitsuba_emitter
 from rh_common.camera import Camera
 from rh_dataset.render.passes import FIREFLY_K, count_fireflies, render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 from rh_dataset.writer import write_frame
 
 ALL = ["image", "mask", "albedo", "normal", "depth"]

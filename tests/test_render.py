@@ -8,7 +8,7 @@ from analytic_scenes import quad, uv_sphere
 from rh_common.camera import Camera
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -15,7 +15,7 @@ from rh_dataset.lights import (LightSpec, brute_force_irradiance, build_light, b
 from rh_common.camera import Camera
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 
 ALBEDO = np.array([0.6, 0.5, 0.4])
 

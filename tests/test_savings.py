@@ -13,7 +13,7 @@ from rh_common.camera import Camera
 from rh_dataset.render.cull import FRUSTUM_MARGIN_PX, drop_faces, outside_frustum
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 
 AOVS = ["mask", "albedo", "normal", "depth"]
 ENV = {"type": "constant", "radiance": {"type": "rgb", "value": 1.0}}

@@ -24,11 +24,9 @@ STUDIO_HDRI = Path("/usr/share/blender/datafiles/studiolights/world/studio.exr")
 
 
 def _mi():
-    import mitsuba as mi
+    from ..variant import ensure_variant
 
-    if mi.variant() is None:
-        mi.set_variant("llvm_ad_rgb")
-    return mi
+    return ensure_variant()
 
 
 def _mesh(mi, pm: PosedMesh):

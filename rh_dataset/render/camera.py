@@ -9,13 +9,14 @@ from __future__ import annotations
 
 from rh_common.camera import Camera
 
+from ..variant import load_mitsuba
+
 __all__ = ["mitsuba_sensor"]
 
 
 def mitsuba_sensor(camera: Camera, spp: int, *, pixel_format: str = "rgb") -> dict:
     """The Mitsuba `perspective` sensor dict that renders exactly `camera` with `spp` samples per pixel."""
-    import mitsuba as mi
-
+    mi = load_mitsuba()
     to_world = mi.ScalarTransform4f().look_at(
         origin=list(map(float, camera.origin)), target=list(map(float, camera.target)),
         up=list(map(float, camera.up)),

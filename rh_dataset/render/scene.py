@@ -13,7 +13,7 @@ import numpy as np
 from rh_common.camera import Camera
 
 from .camera import mitsuba_sensor
-from .variant import require_variant
+from ..variant import load_mitsuba, require_variant
 
 __all__ = ["MeshLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf"]
 
@@ -73,8 +73,7 @@ class RenderSettings:
 
 
 def mitsuba_bsdf(material: MaterialLike) -> Any:
-    import mitsuba as mi
-
+    mi = load_mitsuba()
     require_variant()
     # Mitsuba looks textures up with v = 0 on the bitmap's first row; our UVs follow OpenGL (v = 0 at the
     # bottom), so the texture is flipped once here rather than every UV set being rewritten.
@@ -98,8 +97,7 @@ def mitsuba_bsdf(material: MaterialLike) -> Any:
 
 def mitsuba_mesh(mesh: MeshLike) -> Any:
     """A Mitsuba mesh built in memory from arrays (no temporary files)."""
-    import mitsuba as mi
-
+    mi = load_mitsuba()
     require_variant()
     V = np.asarray(mesh.vertices, dtype=np.float32)
     F = np.asarray(mesh.faces, dtype=np.uint32)
