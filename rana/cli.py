@@ -18,6 +18,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from rh_common.threads import torch_threads
+
 from .config import PRESETS, add_config_flags, apply_config_flags, get_preset
 
 __all__ = ["main", "build_parser", "plot_losses"]
@@ -144,10 +146,11 @@ def main(argv: list[str] | None = None) -> int:
             from .train import personalize
 
             cfg = apply_config_flags(get_preset(args.preset), args)
-            for s in _subjects(args.subject, args.dataset, args.protocol, "train"):
-                run = personalize(args.dataset, s, args.protocol, args.runs / s, cfg, pretrained=args.pretrained,
-                                  progress=not args.no_progress, force=args.force)
-                print(f"rana train: {s} done → {run.path}")
+            with torch_threads(cfg.threads):  # the command's own count, restored when it returns
+                for s in _subjects(args.subject, args.dataset, args.protocol, "train"):
+                    run = personalize(args.dataset, s, args.protocol, args.runs / s, cfg,
+                                      pretrained=args.pretrained, progress=not args.no_progress, force=args.force)
+                    print(f"rana train: {s} done → {run.path}")
         elif args.cmd == "predict":
             from .predict import predict_rana
 
@@ -162,11 +165,12 @@ def main(argv: list[str] | None = None) -> int:
 
             cfg = apply_config_flags(get_preset(args.preset), args)
             subs = _subjects(args.subject, args.dataset, args.protocol, "test")
-            for s in subs:
-                if (args.runs / s / "coarse.pt").is_file():
-                    continue  # an existing run's own coarse stage is the one to use
-                ensure_coarse(args.dataset, s, args.protocol, args.runs / s, cfg, pretrained=args.pretrained,
-                              progress=not args.no_progress)
+            with torch_threads(cfg.threads):
+                for s in subs:
+                    if (args.runs / s / "coarse.pt").is_file():
+                        continue  # an existing run's own coarse stage is the one to use
+                    ensure_coarse(args.dataset, s, args.protocol, args.runs / s, cfg, pretrained=args.pretrained,
+                                  progress=not args.no_progress)
             n = predict_smpld(args.dataset, args.protocol, args.runs, args.out, subjects=subs,
                               background=args.background, progress=not args.no_progress, name=args.name)
             print(f"rana smpld: {n} frames written to {args.out}")

@@ -211,8 +211,6 @@ class Evaluator:
 
     def __init__(self, options: EvalOptions | None = None) -> None:
         self.options = options or EvalOptions()
-        if self.options.threads:
-            torch.set_num_threads(self.options.threads)
         conv = self.options.convention
         self.lpips_net = get_lpips_net(conv.backbone) if "lpips" in self.options.metrics else None
         self.dists_net = get_dists_net() if "dists" in self.options.metrics else None

@@ -17,6 +17,7 @@ import os
 from pathlib import Path
 from typing import Callable
 
+from rh_common.threads import torch_threads as threads_block
 from rh_dataset.generate import FrameTask, GenerateError, GenerateOptions, run_subject, subject_name
 from rh_dataset.writer import contact_sheet
 
@@ -67,12 +68,10 @@ def _render_task(opts: GenerateOptions, s: int, split: str, start: int, stop: in
                  torch_threads: int) -> list[tuple]:
     """Body of one Ray task: render the missing frames [start, stop) of (subject s, split)."""
     import drjit as dr
-    import torch
 
     dr.set_thread_count(max(1, int(round(opts.ray_cpus_per_task))))
     # The pose prior's rig comes out of anny (torch) and its last bits depend on torch's intra-op thread count;
     # Ray sets OMP_NUM_THREADS to the task's CPUs, so use the driver's count or the poses (JSON) differ by 1 ulp.
-    torch.set_num_threads(torch_threads)
     events: list[tuple] = []
 
     def on_frame(task: FrameTask, skipped: bool) -> None:
@@ -83,7 +82,8 @@ def _render_task(opts: GenerateOptions, s: int, split: str, start: int, stop: in
         if not skipped:
             _crash_hook()
 
-    run_subject(opts, s, on_frame, frames={split: range(start, stop)}, sheets=False)
+    with threads_block(torch_threads):
+        run_subject(opts, s, on_frame, frames={split: range(start, stop)}, sheets=False)
     return events
 
 
