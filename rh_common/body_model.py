@@ -1,6 +1,6 @@
 """The anny body model, loaded once per process and shared by the generator (characters, poses) and RANA.
 
-In: a topology name (default the one the benchmark uses). Out: an `anny.Anny` model (float32, CPU, eval mode),
+In: a topology name (default the one the benchmark uses). Out: an `anny.Anny` model (float64, CPU, eval mode),
 cached per topology. anny (PyPI, NAVER; code Apache-2.0, MakeHuman-derived data CC0) builds a ~790 MB cache on
 first use (~2 min); `warm_cache()` does that during set-up so no test or run pays for it unexpectedly.
 Why in rh_common: two packages pose the same body; one loader means one cache and one topology choice.
@@ -20,7 +20,7 @@ ANNY_TOPOLOGY = "anny-noeyes-notongue"
 
 @functools.lru_cache(maxsize=4)
 def load_anny(topology: str = ANNY_TOPOLOGY):
-    """Return an `anny.Anny` model (float32, CPU, eval mode). Cached per topology."""
+    """Return an `anny.Anny` model (float64, CPU, eval mode). Cached per topology."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*CUDA.*")
         import anny  # heavy import (warp, torch): only when a body is needed
