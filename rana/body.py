@@ -62,12 +62,18 @@ def _descends_from(m, i: int, ancestor: int) -> bool:
 def pose_tensor_from_json(pose_json: dict, model) -> tuple[torch.Tensor, np.ndarray]:
     """(1, J, 4, 4) local-ref bone deltas and the 4x4 root transform of a frame's `body.pose`.
 
-    Reads the documented JSON (docs/ARCHITECTURE.md): `bones` {label: 4x4} (identity bones omitted), optional
-    `root_transform`. RANA reads what the dataset stores and never imports the generator.
+    Uses `rh_dataset.poses.BodyPose` when that module provides it (the one reader of its own format); otherwise
+    reads the documented JSON directly: `bones` {label: 4x4} (identity bones omitted), optional `root_transform`.
     """
-    if pose_json.get("parameterization", "local-ref") != "local-ref":
-        raise ValueError(f"pose: only the 'local-ref' parameterisation is supported, got "
-                         f"{pose_json['parameterization']!r}")
+    try:
+        from rh_dataset.poses import BodyPose  # type: ignore[attr-defined]
+
+        bp = BodyPose.from_json(pose_json)
+        tensor = bp.as_anny_tensor(model)
+        root = np.asarray(getattr(bp, "root_transform", np.eye(4)), dtype=np.float64)
+        return tensor.to(torch.float64), root
+    except ImportError:
+        pass
     labels = list(model.bone_labels)
     pose = torch.eye(4, dtype=torch.float64).repeat(1, len(labels), 1, 1)
     for lab, mat in pose_json.get("bones", {}).items():
