@@ -1,7 +1,7 @@
 """The dependency rule between our packages, read from the source with `ast` (nothing is imported).
 
 In: every .py file of rh_common, rh_dataset, rh_eval, rana and rh_demo. Out: pass, or a failure naming each
-offending `file:line` and the edge. Four checks:
+offending `file:line` and the edge. Four checks on the packages:
   * allowed edges: rh_common imports no other package of ours; rh_dataset and rh_eval import only rh_common;
     rana imports rh_common (and nothing of rh_dataset or rh_eval); rh_demo may import every package.
     Module-level and function-level imports both count: a lazy import is still a dependency.
@@ -9,6 +9,7 @@ offending `file:line` and the edge. Four checks:
   * no import cycle between modules at import time (module-level imports only; an import inside a function runs
     after both modules have loaded, and `if TYPE_CHECKING:` blocks never run).
   * no cycle between the parts of a package (its subpackages and top modules), lazy imports included.
+And every import of one of our modules (packages, tests, bench) names a module or name that exists.
 Why a test and not a convention: the seams cost more than they saved once rana reached into the generator for the
 body model and into the evaluator for its weights (issue #14); this keeps the graph from growing back.
 """
@@ -169,6 +170,54 @@ def test_no_private_module_or_name_across_packages():
                 bad.append(f"{e.where()}: {e.src} imports private name {n} from {e.dst}")
     if bad:
         pytest.fail("private names imported across packages:\n  " + "\n  ".join(bad), pytrace=False)
+
+
+def _bound_names(module: str) -> set[str]:
+    """Every name `module` binds anywhere (defs, classes, assignments, imports): a lenient 'does it exist'."""
+    out: set[str] = set()
+    for n in ast.walk(ast.parse(MODULES[module].read_text(encoding="utf-8"))):
+        if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            out.add(n.name)
+        elif isinstance(n, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+            for t in (n.targets if isinstance(n, ast.Assign) else [n.target]):
+                out.update(x.id for x in ast.walk(t) if isinstance(x, ast.Name))
+        elif isinstance(n, (ast.Import, ast.ImportFrom)):
+            out.update((a.asname or a.name).split(".")[0] for a in n.names)
+    return out
+
+
+def test_every_import_of_ours_resolves():
+    """Each import of one of our modules, in the packages, tests and bench, names a module or name that exists.
+    Why: with the editable install, a module moved away in a working copy is still found in the installed
+    checkout, so a stale import would pass there and fail in a clean one."""
+    bound: dict[str, set[str]] = {}
+    bad = []
+    files = [p for d in PACKAGES + ("tests", "bench") for p in sorted((ROOT / d).rglob("*.py"))]
+    for path in files:
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        me = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            where = f"{path.relative_to(ROOT)}:{getattr(node, 'lineno', 0)}"
+            if isinstance(node, ast.Import):
+                bad += [f"{where}: import {a.name} (no such module)" for a in node.names
+                        if a.name.split(".")[0] in PACKAGES and a.name not in MODULES]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = me.split(".") if path.name == "__init__.py" else me.split(".")[:-1]
+                    base = base[: len(base) - (node.level - 1)]
+                    target = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    target = node.module or ""
+                if target.split(".")[0] not in PACKAGES:
+                    continue
+                if target not in MODULES:
+                    bad.append(f"{where}: from {target} import ... (no such module)")
+                    continue
+                names = bound.setdefault(target, _bound_names(target))
+                bad += [f"{where}: from {target} import {a.name} (not there)" for a in node.names
+                        if a.name != "*" and a.name not in names and f"{target}.{a.name}" not in MODULES]
+    if bad:
+        pytest.fail("imports of our modules that do not resolve:\n  " + "\n  ".join(bad), pytrace=False)
 
 
 def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
