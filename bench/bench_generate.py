@@ -34,8 +34,8 @@ def main() -> None:
 
     from rh_dataset.cli import render_settings
     from rh_dataset.generate import DatasetPlan, render_frame_to_disk, resolve_plan, subject_source
-    from rh_dataset.render.variant import select_variant
     from rh_dataset.spec import load_protocol
+    from rh_dataset.variant import select_variant
 
     variant = select_variant(None)
     spec = load_protocol(args.protocol).with_overrides(subjects=1, resolution=(args.resolution, args.resolution))

@@ -111,7 +111,7 @@ def aov_diff(a: dict, b: dict) -> dict:
 
 def closeup_camera(scene):
     """A camera twice as close, aimed at the upper body: the legs and feet fall outside its frustum."""
-    from rh_dataset.render.camera import Camera
+    from rh_common.camera import Camera
 
     cam = scene.camera
     o, t = np.array(cam.origin), np.array(cam.target)
@@ -139,7 +139,7 @@ def main(argv=None) -> dict:
     from rh_dataset.generate import rng_for
     from rh_dataset.render.cull import HIDDEN_MARGIN_M, _hidden_faces
     from rh_dataset.render.scene import RenderSettings
-    from rh_dataset.render.variant import select_variant
+    from rh_dataset.variant import select_variant
     from rh_dataset.spec import load_presets, load_scene_classes
     from rh_eval.metrics import psnr
 

@@ -76,11 +76,11 @@ def _sun_rotation(radiance: np.ndarray, target_phi_deg: float) -> float:
 
 def build_scene(name: str, resolution: int, seed: int = 0) -> Scene:
     from rh_dataset.characters import body_bounds, build_character, pose_character, sample_recipe
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
     from rh_dataset.generate import exposure_for, rng_for
     from rh_dataset.lights import LightSpec, build_light, bundled_hdris, load_hdri, mitsuba_emitter_dict, normalised_scale
     from rh_dataset.poses import BodyPose, sample_pose
-    from rh_dataset.render.camera import frame_body
+    from rh_common.camera import frame_body
 
     recipe = sample_recipe(rng_for(seed, "character", 0), pool="benchmark", index=0)
     character = build_character(recipe)
@@ -287,7 +287,7 @@ def main(argv=None) -> dict:
     out_dir = Path(args.out or args.cache)
     out_dir.mkdir(parents=True, exist_ok=True)
 
-    from rh_dataset.render.variant import select_variant
+    from rh_dataset.variant import select_variant
     from rh_dataset.spec import load_presets
 
     variant = select_variant(None)

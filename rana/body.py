@@ -39,7 +39,7 @@ class BodyTopology:
 
 @functools.lru_cache(maxsize=2)
 def body_topology() -> BodyTopology:
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
 
     m = load_anny()
     faces = m.get_triangular_faces().to(torch.int64).cpu()
@@ -84,7 +84,7 @@ class PosedBody:
 @torch.no_grad()
 def pose_body(phenotype: dict, pose_json: dict) -> PosedBody:
     """Pose anny for one frame from its metadata (`body.phenotype`, `body.pose`)."""
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
 
     m = load_anny()
     pose, root = pose_tensor_from_json(pose_json, m)

@@ -142,13 +142,16 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         if args.cmd == "train":
+            from rh_common.threads import torch_threads
+
             from .train import personalize
 
             cfg = apply_config_flags(get_preset(args.preset), args)
-            for s in _subjects(args.subject, args.dataset, args.protocol, "train"):
-                run = personalize(args.dataset, s, args.protocol, args.runs / s, cfg, pretrained=args.pretrained,
-                                  progress=not args.no_progress, force=args.force)
-                print(f"rana train: {s} done → {run.path}")
+            with torch_threads(cfg.threads):  # the command's own count, restored when it returns
+                for s in _subjects(args.subject, args.dataset, args.protocol, "train"):
+                    run = personalize(args.dataset, s, args.protocol, args.runs / s, cfg,
+                                      pretrained=args.pretrained, progress=not args.no_progress, force=args.force)
+                    print(f"rana train: {s} done → {run.path}")
         elif args.cmd == "predict":
             from .predict import predict_rana
 
@@ -158,18 +161,21 @@ def main(argv: list[str] | None = None) -> int:
                              mask_composite=args.mask_composite)
             print(f"rana predict: {n} frames written to {args.out}")
         elif args.cmd == "smpld":
+            from rh_common.threads import torch_threads
+
             from .predict import predict_smpld
             from .train import ensure_coarse
 
             cfg = apply_config_flags(get_preset(args.preset), args)
             subs = _subjects(args.subject, args.dataset, args.protocol, "test")
-            for s in subs:
-                if (args.runs / s / "coarse.pt").is_file():
-                    continue  # an existing run's own coarse stage is the one to use
-                ensure_coarse(args.dataset, s, args.protocol, args.runs / s, cfg, pretrained=args.pretrained,
-                              progress=not args.no_progress)
-            n = predict_smpld(args.dataset, args.protocol, args.runs, args.out, subjects=subs,
-                              background=args.background, progress=not args.no_progress, name=args.name)
+            with torch_threads(cfg.threads):  # the command's own count, restored when it returns
+                for s in subs:
+                    if (args.runs / s / "coarse.pt").is_file():
+                        continue  # an existing run's own coarse stage is the one to use
+                    ensure_coarse(args.dataset, s, args.protocol, args.runs / s, cfg, pretrained=args.pretrained,
+                                  progress=not args.no_progress)
+                n = predict_smpld(args.dataset, args.protocol, args.runs, args.out, subjects=subs,
+                                  background=args.background, progress=not args.no_progress, name=args.name)
             print(f"rana smpld: {n} frames written to {args.out}")
         elif args.cmd == "plot":
             out = plot_losses(args.run, args.out or args.run / "losses.png",

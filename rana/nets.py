@@ -130,13 +130,13 @@ def gaussian_blur(x: torch.Tensor, k: int) -> torch.Tensor:
 
 class VGGPerceptual(nn.Module):
     """L1 between VGG16 features relu1_2, relu2_2, relu3_3, relu4_3 (TextureNet/RANA appendix), ImageNet weights
-    from `rh_eval.weights.load_backbone('vgg16')` (sha256-pinned). Inputs in [0, 1], (B, 3, H, W)."""
+    from `rh_common.weights.load_backbone('vgg16')` (sha256-pinned). Inputs in [0, 1], (B, 3, H, W)."""
 
     TAPS = (3, 8, 15, 22)
 
     def __init__(self) -> None:
         super().__init__()
-        from rh_eval.weights import load_backbone
+        from rh_common.weights import load_backbone
 
         feats = load_backbone("vgg16").features
         # A private copy of layers 0..22 so nothing we do (e.g. .train()) touches the evaluator's cached model.

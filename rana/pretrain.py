@@ -32,6 +32,7 @@ import torch
 from rh_common import sh
 from rh_common.colourspace import luminance
 from rh_common.imageio import atomic_path
+from rh_common.threads import torch_threads
 
 from .body import body_topology
 from .config import RanaConfig, get_preset, PRESETS
@@ -177,8 +178,6 @@ def pretrain(dataset: str | Path, protocol: str, out: str | Path, cfg: RanaConfi
              force: bool = False) -> Path:
     from tqdm import tqdm
 
-    if cfg.threads > 0:
-        torch.set_num_threads(cfg.threads)
     dataset, out = Path(dataset), Path(out)
     run = RunDir(out)
     if force:
@@ -284,7 +283,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         cfg = apply_config_flags(get_preset(args.preset), args)
-        path = pretrain(args.dataset, args.protocol, args.out, cfg, progress=not args.no_progress, force=args.force)
+        with torch_threads(cfg.threads):  # the command's own count, restored when it returns
+            path = pretrain(args.dataset, args.protocol, args.out, cfg, progress=not args.no_progress, force=args.force)
     except (FileNotFoundError, ValueError) as exc:
         print(f"rana-pretrain: error: {exc}", file=sys.stderr)
         return 2

@@ -110,7 +110,7 @@ def render_lambertian(body: PosedBody, offsets: torch.Tensor | None, albedo_tex:
 
 
 def _frame_camera(H: int, W: int, fov_y_deg: float = 30.0):
-    from rh_dataset.render.camera import frame_body
+    from rh_common.camera import frame_body
 
     rest = pose_body(DEFAULT_PHENOTYPE, {"bones": {}}).posed0.numpy()
     lo, hi = rest.min(0), rest.max(0)
@@ -147,7 +147,7 @@ def make_dataset(out: str | Path, *, subjects: int = 1, train_frames: int = 8, t
                  shell_m: float = 0.012, pool: str = "benchmark", aov_only_train: bool = False) -> Path:
     """Write a small dataset; returns its root. `aov_only_train` makes pretraining-style train frames
     (albedo, normal, mask; no image), like the generator does for rh_dataset/scenes/rana_pretrain.json."""
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
 
     out = Path(out)
     rng = np.random.default_rng(seed)

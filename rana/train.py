@@ -219,8 +219,6 @@ def ensure_coarse(dataset: str | Path, subject: str, protocol: str, run_dir: str
                   pretrained: str | Path | None = None, progress: bool = True, force: bool = False):
     """The run folder (config written or checked) and the subject's coarse stage, computed once into
     `<run>/coarse.pt`. Returns (run, coarse, training frames, pretrained weights or None)."""
-    if cfg.threads > 0:
-        torch.set_num_threads(cfg.threads)
     run = RunDir(run_dir)
     if force:
         run.clear()

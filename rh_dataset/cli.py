@@ -175,7 +175,7 @@ def backend_from_args(args: argparse.Namespace):
 def main(argv: list[str] | None = None) -> int:
     from rh_dataset.generate import GenerateError, generate
     from rh_common.blender import BlenderError
-    from rh_dataset.render.variant import VariantError
+    from rh_dataset.variant import VariantError
 
     args = build_parser().parse_args(argv)
     try:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rh_common.imageio import dumps_json
+from rh_common.imageio import dumps_json, sha256_file
 
 __all__ = [
     "SCENES_DIR",
@@ -84,12 +84,10 @@ class MotionSpec:
     @classmethod
     def from_file(cls, path: str | Path, **kwargs) -> "MotionSpec":
         """A MotionSpec for a file on disk (its sha256 computed now); a missing file is a SpecError."""
-        from rh_dataset.poses.motion import file_sha256
-
         path = Path(path)
         if not path.is_file():
             raise SpecError(f"motion file {path} does not exist: pass the path of a .bvh (or .fbx/.glb/.gltf) file")
-        return cls(file=str(path), sha256=file_sha256(path), **kwargs)
+        return cls(file=str(path), sha256=sha256_file(path), **kwargs)
 
     def to_json(self) -> dict:
         return {"name": Path(self.file).name, "sha256": self.sha256, "start": self.start, "stride": self.stride,

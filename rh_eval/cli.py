@@ -91,8 +91,9 @@ def main(argv: list[str] | None = None) -> int:
     from .dataset_io import PredictionError
     from .evaluate import EvalOptions, Evaluator
     from .report import write_result
-    from .weights import WeightError
+    from rh_common.weights import WeightError
     from rh_common.imageio import ImageFileError
+    from rh_common.threads import torch_threads
 
     try:
         metrics = tuple(m.strip() for m in args.metrics.split(",") if m.strip())
@@ -102,8 +103,9 @@ def main(argv: list[str] | None = None) -> int:
                            cache_mb=args.cache_mb, allow_incomplete=args.allow_incomplete,
                            progress=False if args.no_progress else None, threads=args.threads,
                            workers=args.workers, preload_mb=args.preload_mb)
-        ev = Evaluator(opts)
-        result, rows, cols = ev.evaluate(args.predictions, args.dataset, args.protocol)
+        with torch_threads(opts.threads):  # the command's own count; the Evaluator never changes it
+            ev = Evaluator(opts)
+            result, rows, cols = ev.evaluate(args.predictions, args.dataset, args.protocol)
     except (PredictionError, ImageFileError, WeightError, FileNotFoundError, ValueError) as exc:
         print(f"rh-eval: error: {exc}", file=sys.stderr)
         return 2

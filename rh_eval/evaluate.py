@@ -26,6 +26,7 @@ import numpy as np
 import torch
 
 from rh_common.imageio import ImageFileError, sha256_file
+from rh_common.weights import WEIGHTS, weights_record
 
 from . import __version__
 from .conventions import Convention
@@ -37,7 +38,6 @@ from .metrics.lpips import get_lpips_net
 from .report import summarise
 from .scoring import (ALL_METRICS, IMAGE_METRICS, FrameScores, NetworkPair, check_metrics, prepare_frame,
                       read_frame, record_pair_scores, score_pairs)
-from .weights import WEIGHTS, weights_record
 
 __all__ = ["ALL_METRICS", "EvalOptions", "Evaluator", "FeatureCache", "summarise", "metric_columns",
            "RESULT_FORMAT"]
@@ -116,8 +116,6 @@ class Evaluator:
 
     def __init__(self, options: EvalOptions | None = None) -> None:
         self.options = options or EvalOptions()
-        if self.options.threads:
-            torch.set_num_threads(self.options.threads)
         # Loaded (once per process) and checked against their pinned sha256 now, before any file is read.
         if "lpips" in self.options.metrics:
             get_lpips_net(self.options.convention.backbone)

@@ -18,10 +18,10 @@ import pytest
 
 from analytic_scenes import uv_sphere
 from rh_dataset.lights import LightSpec, build_light, bundled_hdris, load_hdri, mitsuba_emitter_dict, normalised_scale
-from rh_dataset.render.camera import Camera
+from rh_common.camera import Camera
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 
 ROOT = Path(__file__).resolve().parents[1]
 

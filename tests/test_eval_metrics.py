@@ -16,7 +16,7 @@ from PIL import Image
 import rh_eval
 from rh_eval.metrics import FLIP_PPD, dists, flip, lpips, mse, normal_angular_error, psnr, ssim
 from rh_eval.metrics.ssim import ssim_map
-from rh_eval import weights as W
+from rh_common import weights as W
 
 CALIB = Path(rh_eval.__file__).parent / "calibration"
 

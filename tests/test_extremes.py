@@ -18,10 +18,10 @@ from rh_common.colourspace import quantize8, to_display
 from rh_common.imageio import read_exr, read_json, read_png, write_exr
 from rh_dataset.generate import exposure_for
 from rh_dataset.lights import LightSpec, build_light, load_hdri, mitsuba_emitter_dict, normalised_scale
-from rh_dataset.render.camera import Camera
+from rh_common.camera import Camera
 from rh_dataset.render.passes import FIREFLY_K, count_fireflies, render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 from rh_dataset.writer import write_frame
 
 ALL = ["image", "mask", "albedo", "normal", "depth"]
@@ -221,7 +221,7 @@ def character():
 
 
 def _extreme_poses():
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
     from rh_dataset.poses import joint_specs, pose_from_angles, rig_for
 
     specs = joint_specs(rig_for(load_anny()))
@@ -250,7 +250,7 @@ def test_extreme_legal_poses_give_finite_unit_normals(character):
 
 def test_an_extreme_pose_renders_finite_layers(character):
     from rh_dataset.characters import body_bounds, pose_character
-    from rh_dataset.render.camera import frame_body
+    from rh_common.camera import frame_body
 
     pose = _extreme_poses()["deep-squat"]
     meshes = pose_character(character, dict(pose.bones), pose.root_transform)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rh_dataset.characters.body import load_anny
+from rh_common.body_model import load_anny
 from rh_dataset.poses import BodyPose, sample_pose
 from rh_dataset.poses.motion import Motion, MotionError, read_motion
 from rh_dataset.poses.retarget import CMU_TO_ANNY, MIXAMO_TO_ANNY, anny_skeleton, guess_bone_map, motion_to_anny, \

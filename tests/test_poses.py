@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from rh_dataset.characters.body import load_anny
+from rh_common.body_model import load_anny
 from rh_dataset.poses import (ANNY_BONE_LABELS, BodyPose, find_intersections, joint_specs, pose_from_angles,
                               rig_for, sample_pose, sample_poses, turntable)
 

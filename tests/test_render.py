@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from analytic_scenes import quad, uv_sphere
-from rh_dataset.render.camera import Camera
+from rh_common.camera import Camera
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -12,10 +12,10 @@ from analytic_scenes import uv_sphere
 from rh_common.colourspace import luminance
 from rh_dataset.lights import (LightSpec, brute_force_irradiance, build_light, bundled_hdris, downsample_equirect,
                                mitsuba_emitter_dict, normalised_scale, load_hdri)
-from rh_dataset.render.camera import Camera
+from rh_common.camera import Camera
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 
 ALBEDO = np.array([0.6, 0.5, 0.4])
 

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from analytic_scenes import uv_sphere
-from rh_dataset.render.camera import Camera
+from rh_common.camera import Camera
 from rh_dataset.render.cull import FRUSTUM_MARGIN_PX, drop_faces, outside_frustum
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 
 AOVS = ["mask", "albedo", "normal", "depth"]
 ENV = {"type": "constant", "radiance": {"type": "rgb", "value": 1.0}}
@@ -247,7 +247,7 @@ def _inside_by_parity(points: np.ndarray, V: np.ndarray, F: np.ndarray) -> np.nd
 @pytest.mark.slow
 def test_a_clothed_character_renders_the_same_without_its_hidden_skin(character):
     from rh_dataset.characters import body_bounds, pose_character
-    from rh_dataset.render.camera import frame_body
+    from rh_common.camera import frame_body
     from rh_dataset.render.cull import hidden_faces
 
     meshes = pose_character(character, None, None)

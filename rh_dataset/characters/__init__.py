@@ -1,8 +1,8 @@
 """Characters: anny bodies dressed in procedural garments and hair, with procedural skin and fabric textures.
 
 Public API: recipes (`CharacterRecipe`, `sample_recipe`), `build_character`, `pose_character`, `body_bounds`.
+The body model itself is loaded by `rh_common.body_model` (shared with RANA).
 """
-from .body import ANNY_TOPOLOGY, load_anny, warm_cache
 from .character import (
     Character,
     CharacterPart,
@@ -28,9 +28,6 @@ from .recipe import (
 )
 
 __all__ = [
-    "ANNY_TOPOLOGY",
-    "load_anny",
-    "warm_cache",
     "Character",
     "CharacterPart",
     "Material",

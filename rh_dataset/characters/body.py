@@ -1,49 +1,20 @@
-"""The anny body model, loaded once per process and shared by characters, poses and RANA.
+"""The generator's numpy views of the anny body: topology, one posed run, normals, phenotype sampling.
 
-anny (PyPI, NAVER; code Apache-2.0, MakeHuman-derived data CC0) builds a ~790 MB cache on first use (~2 min);
-`warm_cache()` does that during set-up so no test or run pays for it unexpectedly.
+In: a phenotype (and optional bone deltas) and the topology name. Out: float64 numpy arrays, so the character code
+treats anny as "phenotype + pose -> arrays" without touching torch. Everything here is a pure function of its
+arguments (the model is cached). The model itself is loaded by `rh_common.body_model` (RANA poses the same body).
 """
 from __future__ import annotations
 
-import contextlib
+import dataclasses
 import functools
-import os
-import warnings
 
-__all__ = ["load_anny", "warm_cache", "ANNY_TOPOLOGY"]
+import numpy as np
 
-# Eyes and tongue are separate shells inside the head: they are never visible under our garments' hair and
-# eyelids, and they add self-intersections to the pose checks, so the benchmark uses the topology without them.
-ANNY_TOPOLOGY = "anny-noeyes-notongue"
+from rh_common.body_model import ANNY_TOPOLOGY, load_anny
+from rh_common.threads import torch_threads
 
-
-@functools.lru_cache(maxsize=4)
-def load_anny(topology: str = ANNY_TOPOLOGY):
-    """Return an `anny.Anny` model (float32, CPU, eval mode). Cached per topology."""
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*CUDA.*")
-        os.environ.setdefault("WARP_LOG_LEVEL", "error")
-        import anny  # heavy import (warp, torch): only when a body is needed
-
-        model = anny.Anny(topology=topology)
-    return model.eval()
-
-
-def warm_cache() -> None:
-    """Build anny's on-disk cache for the topology the generator uses."""
-    model = load_anny()
-    print(f"anny ready: {model.template_vertices.shape[-2]} vertices, {len(model.bone_labels)} bones")
-
-
-# ----------------------------------------------------------------------------------------------------------------
-# Numpy views of the model. Everything below is a pure function of its arguments (the model is cached), so the
-# character code can treat anny as "phenotype + pose -> arrays" without touching torch.
-# ----------------------------------------------------------------------------------------------------------------
-import dataclasses  # noqa: E402  (kept next to the code that needs it; the loader above stays minimal)
-
-import numpy as np  # noqa: E402
-
-__all__ += ["BodyTopology", "body_topology", "run_anny", "vertex_normals", "sample_phenotype", "PHENOTYPE_LABELS"]
+__all__ = ["BodyTopology", "body_topology", "run_anny", "vertex_normals", "sample_phenotype", "PHENOTYPE_LABELS"]
 
 PHENOTYPE_LABELS = ("gender", "age", "muscle", "weight", "height", "proportions")
 
@@ -86,24 +57,6 @@ def body_topology(topology: str = ANNY_TOPOLOGY) -> BodyTopology:
     )
 
 
-@contextlib.contextmanager
-def single_threaded_torch():
-    """Run torch on one thread inside the block.
-
-    anny's blendshape and skinning reductions sum in an order that depends on torch's thread count, which moves
-    the last digit of vertices and bone poses; one thread makes generated data identical whatever the machine's
-    core count, the --workers split or a Ray worker's OMP_NUM_THREADS.
-    """
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
-
-
 def run_anny(
     phenotype: dict[str, float],
     bone_deltas: dict[str, np.ndarray] | None = None,
@@ -131,7 +84,9 @@ def run_anny(
                 raise ValueError(f"run_anny: bone_deltas[{label!r}] must be a finite 4x4 matrix, got shape {d.shape}")
             pose[label] = torch.tensor(np.array(d), dtype=model.dtype)[None]  # copy: inputs may be read-only
     pheno = {k: torch.tensor([float(phenotype[k])], dtype=model.dtype) for k in PHENOTYPE_LABELS}
-    with torch.no_grad(), single_threaded_torch():
+    # One thread: anny's reductions sum in a thread-count-dependent order (last digit of vertices and bone
+    # poses); one thread makes generated data identical whatever the core count, --workers or Ray worker.
+    with torch.no_grad(), torch_threads(1):
         out = model(pose_parameters=pose, phenotype_kwargs=pheno, pose_parameterization="local-ref")
     keys = ("vertices", "rest_vertices", "bone_poses", "rest_bone_poses", "rest_bone_heads")
     return {k: out[k][0].cpu().numpy().astype(np.float64) for k in keys}

@@ -15,7 +15,9 @@ import functools
 
 import numpy as np
 
-from .body import ANNY_TOPOLOGY, body_topology, run_anny, vertex_normals
+from rh_common.body_model import ANNY_TOPOLOGY
+
+from .body import body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, shoe_height_map
 from .geometry import body_features, split_faces
 from .hair import build_hair

@@ -18,7 +18,9 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
 
-from .body import ANNY_TOPOLOGY, body_topology
+from rh_common.body_model import ANNY_TOPOLOGY
+
+from .body import body_topology
 from .geometry import BodyFeatures, boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 

@@ -15,7 +15,9 @@ from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 from scipy.spatial import ConvexHull, cKDTree
 
-from .body import ANNY_TOPOLOGY, BodyTopology, body_topology, run_anny, vertex_normals
+from rh_common.body_model import ANNY_TOPOLOGY
+
+from .body import BodyTopology, body_topology, run_anny, vertex_normals
 
 __all__ = [
     "BodyFeatures",

@@ -24,7 +24,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from .body import ANNY_TOPOLOGY
+from rh_common.body_model import ANNY_TOPOLOGY
+
 from .garments import PartGeometry, _smoothstep
 from .geometry import BodyFeatures, bind_points, closed_tube, drop_unreferenced, surface_clearance
 

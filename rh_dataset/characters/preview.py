@@ -7,7 +7,6 @@ A look-development tool, not the dataset renderer: it builds its own small scene
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
@@ -25,11 +24,9 @@ STUDIO_HDRI = Path("/usr/share/blender/datafiles/studiolights/world/studio.exr")
 
 
 def _mi():
-    import mitsuba as mi
+    from ..variant import ensure_variant
 
-    if mi.variant() is None:
-        mi.set_variant("llvm_ad_rgb")
-    return mi
+    return ensure_variant()
 
 
 def _mesh(mi, pm: PosedMesh):
@@ -104,7 +101,6 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.n < 1:
         raise SystemExit("--n must be >= 1")
-    os.environ.setdefault("WARP_LOG_LEVEL", "error")
     rng = np.random.default_rng(args.seed)
     tiles = []
     for i in range(args.n):

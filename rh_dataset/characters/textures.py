@@ -12,9 +12,10 @@ import numpy as np
 from PIL import Image
 from scipy import ndimage
 
+from rh_common.body_model import ANNY_TOPOLOGY
 from rh_common.colourspace import srgb_decode
 
-from .body import ANNY_TOPOLOGY, body_topology
+from .body import body_topology
 from .geometry import BodyFeatures, _mask_image, uv_raster
 from .recipe import Garment, SkinTone, skin_albedo_linear
 

@@ -25,7 +25,7 @@ from rh_dataset.generate.plan import DatasetPlan, FrameTask, light_library
 from rh_dataset.generate.seeding import rng_for
 from rh_dataset.generate.subjects import Subject, SubjectSource
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 from rh_dataset.spec import SplitSpec
 from rh_dataset.writer import contact_sheet, write_frame
 

@@ -14,7 +14,7 @@ from rh_dataset.generate.folder import prepare_out
 from rh_dataset.generate.frames import OnFrame
 from rh_dataset.generate.plan import DatasetPlan, FrameTask, frame_tasks, resolve_plan
 from rh_dataset.generate.subjects import subject_source
-from rh_dataset.render.variant import select_variant
+from rh_dataset.variant import select_variant
 
 __all__ = ["Backend", "generate"]
 

@@ -17,13 +17,13 @@ import numpy as np
 
 from rh_dataset.generate.plan import DatasetPlan, GenerateError, motion_frame, pose_source
 from rh_dataset.generate.seeding import rng_for
-from rh_dataset.render.camera import Camera, frame_body
+from rh_common.camera import Camera, frame_body
 from rh_dataset.spec import SplitSpec
 
 __all__ = ["Subject", "SubjectSource", "AnnySubjects", "ImportedSubjects", "subject_source", "imported_bone_map"]
 
 CAMERA_FILL = 0.96
-"""Fraction of the frame's height the framed box fills (rh_dataset.render.camera.frame_body)."""
+"""Fraction of the frame's height the framed box fills (rh_common.camera.frame_body)."""
 
 
 @dataclass(frozen=True)
@@ -104,7 +104,7 @@ class AnnySubjects:
         return Subject(s, character, recipe.to_json(), cam)
 
     def pose(self, subject: Subject, split: SplitSpec, i: int):
-        from rh_dataset.characters.body import load_anny
+        from rh_common.body_model import load_anny
         from rh_dataset.poses import sample_pose, turntable
 
         if split.poses == "turntable":
@@ -139,7 +139,7 @@ class AnnySubjects:
         if motion is not None:
             # Self-intersections the prior's check finds: reported, not rejected (the frame shows what the capture
             # did, retargeted).
-            from rh_dataset.characters.body import load_anny
+            from rh_common.body_model import load_anny
             from rh_dataset.poses import find_intersections
 
             motion["intersections"] = [dataclasses.asdict(x) for x in find_intersections(

@@ -15,6 +15,8 @@ from rh_common import sh
 from rh_common.colourspace import luminance
 from rh_common.imageio import ImageFileError, read_exr
 
+from ..variant import load_mitsuba
+
 __all__ = [
     "HdriError",
     "DEBIAN_STUDIOLIGHTS",
@@ -93,7 +95,7 @@ def _read_any(path: Path) -> np.ndarray:
         except ImageFileError as exc:
             raise HdriError(f"{exc}; re-export it as a float32 RGB EXR") from None
     try:
-        import mitsuba as mi  # Bitmap I/O is variant-independent: no set_variant here
+        mi = load_mitsuba()  # Bitmap I/O is variant-independent: no variant is set here
 
         bmp = mi.Bitmap(str(path))
         bmp = bmp.convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)

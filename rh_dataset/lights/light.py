@@ -20,6 +20,7 @@ import numpy as np
 from rh_common import sh
 from rh_common.colourspace import luminance
 
+from ..variant import ensure_variant
 from .library import load_hdri, normalised_scale
 from .mitsuba_env import envmap_to_world, mitsuba_envmap_array, rotation_z
 from .sunsky import bake_sunsky
@@ -198,10 +199,7 @@ def mitsuba_emitter_dict(light: Light) -> dict:
     places bitmap rows at the poles, this layout makes its lookup return our pixel values at our pixel centres.
     Needs a Mitsuba variant; if none is set, sets `llvm_ad_rgb` (the project's default), never switches one.
     """
-    import mitsuba as mi
-
-    if mi.variant() is None:
-        mi.set_variant("llvm_ad_rgb")
+    mi = ensure_variant()
     return {
         "type": "envmap",
         "bitmap": mi.Bitmap(mitsuba_envmap_array(light.radiance)),

@@ -25,8 +25,9 @@ from typing import Any, Iterator
 
 import numpy as np
 
+from ..variant import DEFAULT_VARIANT, ensure_variant
+
 __all__ = [
-    "DEFAULT_VARIANT",
     "ENVMAP_BASIS",
     "rotation_z",
     "envmap_to_world",
@@ -35,8 +36,6 @@ __all__ = [
     "vectorised_variant",
     "eval_emitter",
 ]
-
-DEFAULT_VARIANT = "llvm_ad_rgb"
 
 # Mitsuba envmap local frame (+Y up) → our world frame (+Z up); a cyclic permutation, det +1.
 ENVMAP_BASIS = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -84,13 +83,9 @@ def vectorised_variant() -> Iterator[Any]:
     """Yield the mitsuba module with a JIT (vectorised) variant active: the current one if it is vectorised;
     `llvm_ad_rgb` for the block if a scalar variant is active (restored afterwards); if no variant is set yet,
     `llvm_ad_rgb` is set and stays set."""
-    import mitsuba as mi
-
+    # Mitsuba 3.9's variant_context cannot restore "no variant", so the project default stays set.
+    mi = ensure_variant(DEFAULT_VARIANT)
     current = mi.variant()
-    if current is None:
-        # Mitsuba 3.9's variant_context cannot restore "no variant", so the project default stays set.
-        mi.set_variant(DEFAULT_VARIANT)
-        current = DEFAULT_VARIANT
     if not current.startswith("scalar"):
         yield mi
         return

@@ -16,16 +16,16 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import hashlib
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from rh_common.imageio import sha256_file
+
 from .skeleton import Skeleton, SkeletonPose, posed_heads
 
-__all__ = ["Motion", "MotionError", "read_motion", "read_motion_cached", "motion_from_arrays", "MOTION_SUFFIXES",
-           "file_sha256"]
+__all__ = ["Motion", "MotionError", "read_motion", "read_motion_cached", "motion_from_arrays", "MOTION_SUFFIXES"]
 
 MOTION_SUFFIXES = (".bvh", ".fbx", ".glb", ".gltf")
 _SCRIPT = Path(__file__).with_name("bpy_read_motion.py")
@@ -37,14 +37,6 @@ _FK_TOL = 1e-3  # as a fraction of the skeleton's height
 
 class MotionError(ValueError):
     """A motion file that cannot be used; the message names the file and what to do."""
-
-
-def file_sha256(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -172,7 +164,7 @@ def read_motion(path: str | Path, *, scale: float | None = None) -> Motion:
         raise MotionError(f"motion file {path} does not exist: pass the path of a .bvh (or .fbx/.glb/.gltf) file")
     if path.suffix.lower() not in MOTION_SUFFIXES:
         raise MotionError(f"motion file {path}: unsupported type {path.suffix!r}; use one of {MOTION_SUFFIXES}")
-    digest = file_sha256(path)
+    digest = sha256_file(path)
     with tempfile.TemporaryDirectory(prefix="rh_motion_") as tmp:
         out = Path(tmp) / "motion.npz"
         try:
@@ -204,7 +196,7 @@ def read_motion_cached(path: str | Path, sha256: str, *, scale: float | None = N
     path = Path(path)
     if not path.is_file():
         raise MotionError(f"motion file {path} does not exist: pass the path of a .bvh (or .fbx/.glb/.gltf) file")
-    now = file_sha256(path)
+    now = sha256_file(path)
     if now != sha256:
         raise MotionError(f"motion file {path} has changed since the run started (sha256 {now[:12]}, expected "
                           f"{sha256[:12]}): rerun with the file as it was, or start a new --out")

@@ -27,10 +27,9 @@ def _posed_vertices(pose: BodyPose, model) -> np.ndarray:
 def render_pose(vertices: np.ndarray, faces: np.ndarray, *, azimuth_deg: float = 0.0, size: int = 256,
                 spp: int = 16) -> np.ndarray:
     """(size, size, 3) linear RGB render; the camera orbits +Z, azimuth 0 = at -Y looking at the body's front."""
-    import mitsuba as mi
+    from ..variant import ensure_variant
 
-    if mi.variant() is None:
-        mi.set_variant("llvm_ad_rgb")
+    mi = ensure_variant()
     mesh = mi.Mesh("body", len(vertices), len(faces), has_vertex_normals=False)
     params = mi.traverse(mesh)
     params["vertex_positions"] = mi.Float(np.ascontiguousarray(vertices, dtype=np.float32).ravel())
@@ -85,7 +84,7 @@ def contact_sheet(poses: list[BodyPose], model, out: str, *, side: bool = True, 
 
 
 def main(argv: list[str] | None = None) -> None:
-    from ..characters.body import load_anny
+    from rh_common.body_model import load_anny
     from .prior import sample_poses
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -298,7 +298,7 @@ def retarget(motion: Motion, target: Skeleton, bone_map: Mapping[str, str] | Non
 def anny_skeleton(phenotype: Mapping[str, float] | None = None, *, model=None) -> Skeleton:
     """anny's 104-bone rig for a body shape as a Skeleton: heads at anny's reference (A-)pose joints, tails along
     each bone's local +Y (where anny's bones point) by the distance to its first child (2 cm for leaves)."""
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
 
     from .rig import rig_for
 

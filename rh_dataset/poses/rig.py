@@ -110,9 +110,9 @@ def rig_for(model, phenotype: Mapping[str, float] | None = None) -> Rig:
 def _rig_cached(model, phenotype_key: tuple[tuple[str, float], ...]) -> Rig:
     import torch
 
-    from rh_dataset.characters.body import single_threaded_torch
+    from rh_common.threads import torch_threads
 
-    with torch.no_grad(), single_threaded_torch():  # thread count changes the last digits (see there)
+    with torch.no_grad(), torch_threads(1):  # thread count changes the last digits (rh_common.threads)
         out = model(pose_parameters=None, phenotype_kwargs=dict(phenotype_key) or None)
     as_np = lambda t: t.detach().cpu().numpy().astype(np.float64)  # noqa: E731
     return Rig(

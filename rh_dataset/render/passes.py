@@ -13,10 +13,11 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .camera import Camera
+from rh_common.camera import Camera
+
 from .cull import drop_faces, outside_frustum
 from .scene import MeshLike, RenderSettings, scene_dict
-from .variant import require_variant
+from ..variant import load_mitsuba, require_variant
 
 __all__ = ["LAYERS", "FrameRender", "render_frame", "denoise_image", "count_fireflies", "FIREFLY_K"]
 
@@ -59,7 +60,7 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
     """
     import time
 
-    import mitsuba as mi
+    mi = load_mitsuba()
 
     unknown = set(layers) - set(LAYERS)
     if unknown:

@@ -10,8 +10,10 @@ from typing import Any, Protocol, Sequence
 
 import numpy as np
 
-from .camera import Camera
-from .variant import require_variant
+from rh_common.camera import Camera
+
+from .camera import mitsuba_sensor
+from ..variant import load_mitsuba, require_variant
 
 __all__ = ["MeshLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf"]
 
@@ -71,8 +73,7 @@ class RenderSettings:
 
 
 def mitsuba_bsdf(material: MaterialLike) -> Any:
-    import mitsuba as mi
-
+    mi = load_mitsuba()
     require_variant()
     # Mitsuba looks textures up with v = 0 on the bitmap's first row; our UVs follow OpenGL (v = 0 at the
     # bottom), so the texture is flipped once here rather than every UV set being rewritten.
@@ -96,8 +97,7 @@ def mitsuba_bsdf(material: MaterialLike) -> Any:
 
 def mitsuba_mesh(mesh: MeshLike) -> Any:
     """A Mitsuba mesh built in memory from arrays (no temporary files)."""
-    import mitsuba as mi
-
+    mi = load_mitsuba()
     require_variant()
     V = np.asarray(mesh.vertices, dtype=np.float32)
     F = np.asarray(mesh.faces, dtype=np.uint32)
@@ -128,7 +128,7 @@ def scene_dict(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camera,
     d: dict[str, Any] = {
         "type": "scene",
         "integrator": integrator,
-        "sensor": camera.mitsuba_sensor(spp, pixel_format=pixel_format),
+        "sensor": mitsuba_sensor(camera, spp, pixel_format=pixel_format),
     }
     if emitter is not None:
         d["environment"] = emitter

@@ -18,7 +18,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..weights import load_backbone, load_dists_alpha_beta
+from rh_common.weights import load_backbone, load_dists_alpha_beta
+
 from ._validate import _stack, _validate
 from .lpips import check_same_features, to_tensor01
 

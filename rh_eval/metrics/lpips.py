@@ -23,7 +23,8 @@ import functools
 import numpy as np
 import torch
 
-from ..weights import load_backbone, load_lpips_heads
+from rh_common.weights import load_backbone, load_lpips_heads
+
 from ._validate import _stack, _validate
 
 __all__ = ["lpips", "lpips_features", "LPIPSNet", "get_lpips_net", "BACKBONES"]

@@ -1,4 +1,9 @@
-"""Locating, sha256-pinning and loading the weights of the learned metrics, and the backbones in plain torch.
+"""Locating, sha256-pinning and loading pretrained weights (the learned metrics', RANA's VGG loss), and the
+backbones in plain torch.
+
+In: a weight name (`WEIGHTS`). Out: a verified local path, or a loaded, frozen network / tensors.
+Why in rh_common: the evaluator (LPIPS, DISTS) and RANA (its VGG perceptual loss) use the same pinned files;
+one registry means one place that decides which bytes are trusted.
 
 Nothing here downloads. Every file is found on local disk, hashed, and compared with the sha256 pinned below;
 anything else is refused (`WeightError`). The files:

@@ -1,0 +1,84 @@
+"""Mitsuba's variant, chosen by explicit calls; the one place that prepares the process for drjit.
+
+In: a variant name, or None (choose: `cuda_ad_rgb` where a GPU works, else `llvm_ad_rgb`). Out: the variant
+set, its name; `ensure_variant` and `load_mitsuba` return the `mitsuba` module.
+Mitsuba's variant is process-global (drjit keeps per-variant JIT state) and cannot be unset once chosen. So the
+command picks it (rh-generate's --variant -> `select_variant`) and passes the name down as an argument; code that
+needs only *a* vectorised variant asks `ensure_variant()`, which keeps whatever is set and sets the project
+default only when nothing is. No module sets a variant by itself, and nothing passes the choice through the
+environment. Every part of the generator imports Mitsuba through here (a leaf module: lights, characters, poses
+and render all use it), so the LLVM pin below always comes first.
+"""
+from __future__ import annotations
+
+import os
+
+__all__ = ["select_variant", "require_variant", "ensure_variant", "load_mitsuba", "VariantError",
+           "DEFAULT_VARIANT"]
+
+DEFAULT_VARIANT = "llvm_ad_rgb"  # the project's default where no command chose: CPU, bit-identical everywhere
+_LLVM19 = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"
+
+
+class VariantError(RuntimeError):
+    pass
+
+
+def load_mitsuba():
+    """The `mitsuba` module, imported after pinning the LLVM library drjit loads (no variant is set here).
+
+    drjit reads DRJIT_LIBLLVM_PATH from the environment (its only channel) when it first loads libLLVM, and the
+    LLVM backend aborts the process (uncatchably) with LLVM 15/16; so Debian's libLLVM 19 is named, when present,
+    before drjit can load. `setdefault`: a path the user set wins. This is the only environment variable the
+    package sets.
+    """
+    if os.path.exists(_LLVM19):
+        os.environ.setdefault("DRJIT_LIBLLVM_PATH", _LLVM19)
+    import mitsuba as mi
+
+    return mi
+
+
+def select_variant(requested: str | None = None) -> str:
+    """Set and return Mitsuba's variant. `requested=None` keeps the current one, or picks cuda_ad_rgb if it
+    initialises, else llvm_ad_rgb. Switching a variant already set is refused."""
+    mi = load_mitsuba()
+    current = mi.variant()
+    if requested is None and current is not None:
+        return current
+    if requested is not None:
+        if requested not in mi.variants():
+            raise VariantError(f"Mitsuba variant {requested!r} is not available; choose one of {mi.variants()}")
+        if current not in (None, requested):
+            # drjit keeps per-variant JIT state; switching mid-run would mix two renderers in one dataset.
+            raise VariantError(f"Mitsuba variant already set to {current!r} in this process; cannot switch to {requested!r}")
+        mi.set_variant(requested)
+        return requested
+    for candidate in ("cuda_ad_rgb", "llvm_ad_rgb"):
+        if candidate not in mi.variants():
+            continue
+        try:
+            mi.set_variant(candidate)
+            if candidate == "cuda_ad_rgb":
+                import drjit as dr
+
+                dr.eval(mi.Float(1.0) + 1.0)  # fails here when no CUDA driver/GPU is usable
+            return candidate
+        except Exception:
+            continue
+    raise VariantError("neither cuda_ad_rgb nor llvm_ad_rgb works; run `bash setup.sh` (installs libllvm19)")
+
+
+def require_variant() -> str:
+    """The variant in use; if none is set yet, the one `select_variant(None)` picks."""
+    return load_mitsuba().variant() or select_variant(None)
+
+
+def ensure_variant(default: str = DEFAULT_VARIANT):
+    """The `mitsuba` module with a variant set: the current one, or `default` when none is set yet (it then
+    stays set: Mitsuba 3.9 cannot return to "no variant"). For tools and helpers that render or evaluate
+    emitters under whatever variant the command chose, and never switch it."""
+    mi = load_mitsuba()
+    if mi.variant() is None:
+        select_variant(default)
+    return mi
