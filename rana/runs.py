@@ -138,7 +138,7 @@ class RunDir:
             if latest is None:
                 raise FileNotFoundError(f"{self.ckpt_dir}: no checkpoints (train the run first)")
             path = latest[1]
-        return load_tensors(path, f"restart the run in {self.path} with --force to write it again")
+        return load_tensors(path, f"rerun `rana train` with --force for the run folder {self.path} to write it again")
 
     def resume(self, parts: dict) -> int:
         """Load the newest checkpoint into `parts` (name -> module or optimizer; None entries are skipped), cut

@@ -329,8 +329,9 @@ def test_the_walk_resolves_relative_and_function_level_imports():
     found = [(n.lineno, top) for n, top in _walk(node, True) if isinstance(n, ast.ImportFrom)]
     assert found == [(1, True), (2, True), (3, True), (5, False), (7, False)]
     rel = ast.parse("from .writer import x").body[0]
-    assert _resolve("rh_dataset.generate", rel) == "rh_dataset.writer"
-    assert _resolve("rh_dataset", rel) == "rh_dataset.writer"
+    assert _resolve("rh_dataset.cli", rel) == "rh_dataset.writer"  # a module: `.` is its package
+    assert _resolve("rh_dataset", rel) == "rh_dataset.writer"  # a package: `.` is itself
+    assert _resolve("rh_dataset.generate", rel) == "rh_dataset.generate.writer"
     up = ast.parse("from ..render import camera").body[0]
     assert _resolve("rh_dataset.poses.rig", up) == "rh_dataset.render"
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
