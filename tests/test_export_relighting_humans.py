@@ -235,3 +235,14 @@ def test_a_foreign_folder_is_refused(tmp_path_factory, tmp_path, capsys):
     assert export_main(["--dataset", str(tmp_path), "--format", "usd", "--out", str(tmp_path / "o"),
                         "--no-progress"]) == 2
     assert "not an rh dataset" in capsys.readouterr().err
+
+
+def test_a_light_that_is_not_on_this_machine_is_a_one_line_error(tmp_path_factory, tmp_path, monkeypatch, capsys):
+    import rh_dataset.export.rh_light as rh_light
+
+    ds = tiny_dataset(tmp_path_factory)
+    monkeypatch.setattr(rh_light, "hdri_path", lambda light, folder: None)  # as on a machine without the maps
+    assert export_main(["--dataset", str(ds), "--format", "relighting-humans", "--out", str(tmp_path / "o"),
+                        "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "is not on this machine" in err and "--hdri-folder" in err
