@@ -20,22 +20,21 @@ from rh_dataset.export import main as export_main
 from rh_dataset.export.common import rodrigues
 
 
+def _export(tmp_path_factory, ds, protocol):
+    out = tmp_path_factory.mktemp(f"rh_{protocol}") / "out"
+    assert export_main(["--dataset", str(ds), "--protocol", protocol, "--format", "relighting-humans",
+                        "--out", str(out), "--no-progress"]) == 0
+    return ds, out
+
+
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
-    ds = tiny_dataset(tmp_path_factory)
-    out = tmp_path_factory.mktemp("rh") / "out"
-    assert export_main(["--dataset", str(ds), "--protocol", "a", "--format", "relighting-humans", "--out", str(out),
-                        "--no-progress"]) == 0
-    return ds, out
+    return _export(tmp_path_factory, tiny_dataset(tmp_path_factory), "a")
 
 
 @pytest.fixture(scope="module")
 def published(tmp_path_factory):
-    ds = published_dataset(tmp_path_factory)
-    out = tmp_path_factory.mktemp("rh_pub") / "out"
-    assert export_main(["--dataset", str(ds), "--protocol", "b", "--format", "relighting-humans", "--out", str(out),
-                        "--no-progress"]) == 0
-    return ds, out
+    return _export(tmp_path_factory, published_dataset(tmp_path_factory), "b")
 
 
 FIVE = (".png", ".json", "_albedo.png", "_normals.png", "_semantic.png")
