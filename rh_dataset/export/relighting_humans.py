@@ -24,11 +24,10 @@ from rh_common.colourspace import quantize8
 from rh_common.imageio import atomic_path, read_exr, read_png, write_json, write_png
 from rh_dataset.poses import ANNY_BONE_LABELS
 
-from .common import FrameRef, axis_angle, root_motion, subject_index
+from .common import FrameRef, axis_angle, client_K, root_motion, subject_index
 from .rh_light import bake_frame_light
 
-__all__ = ["export_frame", "split_folder", "subject_folder", "rh_json", "client_K", "write_readme",
-           "PUBLISHED_SIZE"]
+__all__ = ["export_frame", "split_folder", "subject_folder", "rh_json", "write_readme", "PUBLISHED_SIZE"]
 
 PUBLISHED_SIZE = (1280, 720)
 """Width, height of the published frames: IntrinsicAvatar's test camera and Gaussian Shadow Casting assume it."""
@@ -43,15 +42,6 @@ def split_folder(protocol: str, split: str) -> str:
     if split == "train":
         return {"a": "train_p1", "b": "train_p2_p3"}[protocol]
     return f"{split}_p{protocol}"
-
-
-def client_K(K: np.ndarray) -> np.ndarray:
-    """Our K (pixel (u, v) covers [u, u+1), ARCHITECTURE.md) in the loaders' convention, whose rays go through
-    integer pixel coordinates: the same camera has its principal point half a pixel up and left."""
-    K = np.array(K, dtype=np.float64)
-    K[0, 2] -= 0.5
-    K[1, 2] -= 0.5
-    return K
 
 
 def subject_folder(subject: str) -> str:
