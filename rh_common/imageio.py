@@ -1,4 +1,4 @@
-"""The one image and file I/O module: float32 EXR, 8-bit PNG, JSON, all written atomically.
+"""The one image and file I/O module: float32 EXR, 8-bit PNG, Radiance RGBE .hdr, JSON, all written atomically.
 
 Atomic means: write to a temporary file in the destination folder, flush and fsync it, then rename it over the
 destination. A reader (or a rerun after `kill -9`) therefore sees either the old file, the complete new file, or
@@ -25,6 +25,8 @@ __all__ = [
     "write_exr",
     "read_png",
     "write_png",
+    "write_hdr",
+    "read_hdr",
     "read_json",
     "write_json",
     "dumps_json",
@@ -161,6 +163,61 @@ def read_png(path: str | os.PathLike, *, allow_16bit: bool = False) -> np.ndarra
         raise
     except Exception as exc:
         raise ImageFileError(f"{path}: not a readable PNG file ({exc})") from exc
+
+
+_HDR_MAGIC = b"#?RADIANCE"
+
+
+def write_hdr(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write (H, W, 3) linear RGB as a Radiance RGBE `.hdr` (flat scanlines, top row first), atomically.
+
+    For readers without EXR support (OpenCV builds leave EXR off by default; loaders written for Poly Haven's `.hdr`
+    maps). RGBE keeps a shared 8-bit exponent, so each channel is exact to 1/256 of the pixel's largest channel (rounded: readers such as OpenCV decode
+    `byte · 2**(e − 136)` with no half-step);
+    negative values cannot be stored and are written as 0. Flat (not run-length encoded) scanlines are part of the
+    format every reader accepts. Non-finite input is refused: it has no RGBE encoding.
+    """
+    arr = np.asarray(image, dtype=np.float64)
+    if arr.ndim != 3 or arr.shape[2] != 3:
+        raise ValueError(f"write_hdr {path}: expected (H, W, 3), got shape {np.shape(image)}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"write_hdr {path}: image contains NaN or Inf")
+    arr = np.maximum(arr, 0.0)
+    H, W, _ = arr.shape
+    v = arr.max(axis=-1)
+    mant, exp = np.frexp(v)  # v = mant * 2**exp, mant in [0.5, 1)
+    rgbe = np.zeros((H, W, 4), np.uint8)
+    ok = v >= 1e-32
+    scale = np.where(ok, mant * 256.0 / np.where(ok, v, 1.0), 0.0)
+    rgbe[..., :3] = np.clip(np.rint(arr * scale[..., None]), 0, 255).astype(np.uint8)
+    rgbe[..., 3] = np.where(ok, np.clip(exp + 128, 0, 255), 0).astype(np.uint8)
+    head = _HDR_MAGIC + b"\nFORMAT=32-bit_rle_rgbe\n\n" + f"-Y {H} +X {W}\n".encode()
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(head + rgbe.tobytes())
+
+
+def read_hdr(path: str | os.PathLike) -> np.ndarray:
+    """Read a `.hdr` written by `write_hdr` (flat RGBE, `-Y H +X W`) as float32 (H, W, 3); other layouts raise."""
+    path = Path(path)
+    if not path.is_file():
+        raise ImageFileError(f"{path}: no such file")
+    data = path.read_bytes()
+    if not data.startswith(_HDR_MAGIC) and not data.startswith(b"#?RGBE"):
+        raise ImageFileError(f"{path}: not a Radiance .hdr file")
+    end = data.find(b"\n\n")
+    nl = data.find(b"\n", end + 2) if end >= 0 else -1
+    try:
+        ydir, H, xdir, W = data[end + 2:nl].decode().split()
+        H, W = int(H), int(W)
+    except ValueError:
+        raise ImageFileError(f"{path}: unreadable .hdr resolution line") from None
+    body = np.frombuffer(data, np.uint8, offset=nl + 1)
+    if (ydir, xdir) != ("-Y", "+X") or body.size != H * W * 4:
+        raise ImageFileError(f"{path}: only flat '-Y H +X W' RGBE .hdr files are read here (write them with "
+                             f"rh_common.imageio.write_hdr)")
+    rgbe = body.reshape(H, W, 4).astype(np.float64)
+    f = np.where(rgbe[..., 3] > 0, np.ldexp(1.0, rgbe[..., 3].astype(np.int64) - (128 + 8)), 0.0)
+    return (rgbe[..., :3] * f[..., None]).astype(np.float32)
 
 
 def _json_default(obj: Any) -> Any:

@@ -30,7 +30,9 @@ def test_annots_cameras_and_images_as_neuralbody_reads_them(exported, split):
     w2c = np.array(meta["camera"]["world_to_camera"])
     np.testing.assert_allclose(np.array(cams["R"][0]), w2c[:3, :3])
     np.testing.assert_allclose(np.array(cams["T"][0]) / 1000.0, w2c[:3, 3:4])  # NeuralBody: T / 1000
-    np.testing.assert_array_equal(np.array(cams["K"][0]), meta["camera"]["K"])
+    # The same camera for code that casts rays through integer pixel coordinates (NeuralBody): c moves by −0.5 px.
+    np.testing.assert_array_equal(np.array(cams["K"][0]), np.array(meta["camera"]["K"]) - [[0, 0, .5], [0, 0, .5],
+                                                                                             [0, 0, 0]])
     ims = [np.array(d["ims"])[0] for d in annots["ims"]]
     assert ims == ["Camera_B1/000000.png", "Camera_B1/000001.png"]
     for i, rel in enumerate(ims):
@@ -53,7 +55,7 @@ def test_vertices_project_onto_the_mask_and_params_rebuild_them(exported):
     for i in range(2):
         xyz = np.load(root / "vertices" / f"{i}.npy")
         p = (xyz @ R.T + (T / 1000.0).T) @ K.T
-        uv = np.floor(p[:, :2] / p[:, 2:]).astype(int)
+        uv = np.rint(p[:, :2] / p[:, 2:]).astype(int)  # integer pixel centres
         msk = read_png(root / "mask" / "Camera_B1" / f"{i:06d}.png") > 0
         ok = (uv[:, 0] >= 0) & (uv[:, 0] < msk.shape[1]) & (uv[:, 1] >= 0) & (uv[:, 1] < msk.shape[0])
         assert ok.all()

@@ -25,6 +25,10 @@ def _prepare_out(out: Path, fmt: str, dataset: Path, protocol: str) -> None:
         rec = read_json(rec_path)
         if rec.get("format") != fmt:
             raise ExportError(f"{out} holds a {rec.get('format')!r} export; choose another --out for {fmt!r}")
+        if fmt == "relighting-humans" and rec.get("protocol") not in (None, protocol):
+            # The published layout has one test/ for every protocol: two protocols in one folder would mix.
+            raise ExportError(f"{out} holds protocol {rec.get('protocol')!r}; the Relighting Humans layout shares "
+                              f"test/ between protocols, so export protocol {protocol!r} to another --out")
     elif out.is_dir() and any(p for p in out.iterdir() if not p.name.startswith(".")):
         raise ExportError(f"{out} is not empty and holds no export.json; choose an empty or new --out folder")
     manifest = layout.read_manifest(dataset)
@@ -56,11 +60,14 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
     t0 = time.perf_counter()
     files = 0
     sequences: dict[tuple[str, str], list] = defaultdict(list)
+    baked: dict[str, dict] = {}  # relighting-humans: each distinct light is baked once per export
+    limits: list[str] = []
     for f in tqdm(frames, disable=not progress, unit="frame", desc=f"export {fmt}"):
         if fmt == "relighting-humans":
             from .relighting_humans import export_frame
 
-            files += len(export_frame(f, out, protocol))
+            files += len(export_frame(f, out, layout.protocol_dir(protocol)[len("protocol_"):],
+                                      hdri_folder=hdri_folder, baked=baked))
         elif fmt == "zju-mocap":
             from .zju_mocap import export_frame
 
@@ -76,7 +83,12 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
         for seq in sequences.values():
             write_annots(sequence_dir(out, seq[0]), seq)
             files += 1
-    return {"frames": len(frames), "files": files, "seconds": time.perf_counter() - t0}
+    if fmt == "relighting-humans":
+        from .relighting_humans import write_readme
+
+        limits = write_readme(out, layout.protocol_dir(protocol)[len("protocol_"):], frames, baked)
+        files += 1 + 2 * len(baked)
+    return {"frames": len(frames), "files": files, "seconds": time.perf_counter() - t0, "limits": limits}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -111,6 +123,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(f"rh-export: {counts['frames']} frames, {counts['files']} files written in {counts['seconds']:.1f} s; "
           f"{args.format} export in {args.out}")
+    for line in counts["limits"]:
+        print(f"rh-export: note: {line}")
     return 0
 
 

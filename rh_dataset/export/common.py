@@ -17,7 +17,7 @@ from rh_common import layout
 from rh_common.imageio import atomic_path, read_json
 
 __all__ = ["ExportError", "FrameRef", "iter_frames", "check_dataset", "save_npy", "rodrigues", "axis_angle",
-           "root_motion", "hdri_path", "subject_index"]
+           "root_motion", "hdri_path", "subject_index", "client_K"]
 
 
 class ExportError(RuntimeError):
@@ -82,6 +82,15 @@ def iter_frames(root: Path, protocol: str, splits: tuple[str, ...] | None = None
                     continue
                 record = layout.read_frame_record(fj)
                 yield FrameRef(sd.name, split, record.index, split_dir, record.to_json())
+
+
+def client_K(K: np.ndarray) -> np.ndarray:
+    """Our K (pixel (u, v) covers [u, u+1), ARCHITECTURE.md) in the loaders' convention, whose rays go through
+    integer pixel coordinates: the same camera has its principal point half a pixel up and left."""
+    K = np.array(K, dtype=np.float64)
+    K[0, 2] -= 0.5
+    K[1, 2] -= 0.5
+    return K
 
 
 def save_npy(path: Path, obj) -> None:

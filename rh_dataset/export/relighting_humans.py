@@ -1,13 +1,17 @@
 """Export to the published Relighting Humans (RANA) layout, so code written for that dataset reads ours.
 
-    <out>/train_p1/subject_01/frame_000000.png            display-space sRGB render (our _image.png)
-                              frame_000000_semantic.png   RGBA; alpha = coverage (alpha > 0.5 is the mask)
-                              frame_000000.json           camera K, body parameters ('skeleton_0.smpl_data')
-    <out>/test/subject_01/    ... the same, plus _albedo.png (linear, 8-bit), _normals.png (OpenGL camera space),
-                              and the HDRI name ('bg_file') and camera fov in the JSON
+In: the frames of one protocol of a finished dataset. Out (docs/INTEROP.md "Relighting Humans" has every field):
 
-Protocol b maps to train_p2/ and test_p2/. Everything that differs from the published data is listed in
-docs/INTEROP.md ("Relighting Humans layout").
+    <out>/train_p1/subject_01/frame_000000.png            display-space sRGB render (our _image.png)
+                              frame_000000_semantic.png   RGBA; alpha 0/255 = our mask (coverage >= 0.5)
+                              frame_000000_albedo.png     linear 8-bit   } when the source split has the layer
+                              frame_000000_normals.png    OpenGL camera  } (scenes published_a/b: every split)
+                              frame_000000.json           K, fov, yaw, bg_file, body parameters, our record
+    <out>/test/subject_01/    ... the same
+    <out>/hdri/rh_<light>_<hash>.hdr|.exr                 each frame's light, baked (export/rh_light.py)
+    <out>/README.md                                       what this export can and cannot serve
+
+Protocol a maps to train_p1/ + test/, protocol b to train_p2_p3/ + test/, as the published folders are named.
 """
 from __future__ import annotations
 
@@ -20,17 +24,24 @@ from rh_common.colourspace import quantize8
 from rh_common.imageio import atomic_path, read_exr, read_png, write_json, write_png
 from rh_dataset.poses import ANNY_BONE_LABELS
 
-from .common import FrameRef, axis_angle, root_motion, subject_index
+from .common import FrameRef, axis_angle, client_K, root_motion, subject_index
+from .rh_light import bake_frame_light
 
-__all__ = ["export_frame", "split_folder", "subject_folder", "rh_json"]
+__all__ = ["export_frame", "split_folder", "subject_folder", "rh_json", "write_readme", "PUBLISHED_SIZE"]
+
+PUBLISHED_SIZE = (1280, 720)
+"""Width, height of the published frames: IntrinsicAvatar's test camera and Gaussian Shadow Casting assume it."""
 
 PHENOTYPE_ORDER = ("gender", "age", "muscle", "weight", "height", "proportions")
 
 
 def split_folder(protocol: str, split: str) -> str:
-    if protocol == "a":
-        return {"train": "train_p1", "test": "test"}[split]
-    return f"{split}_p2" if protocol == "b" else f"{split}_{protocol}"
+    """The published folder names: `test/` is shared by every protocol there, so one protocol goes to one --out."""
+    if split == "test":
+        return "test"
+    if split == "train":
+        return {"a": "train_p1", "b": "train_p2_p3"}[protocol]
+    return f"{split}_p{protocol}"
 
 
 def subject_folder(subject: str) -> str:
@@ -44,10 +55,11 @@ def _copy(src: Path, dst: Path) -> None:
         tmp.write_bytes(data)
 
 
-def rh_json(f: FrameRef) -> dict:
-    """The frame JSON in the published key layout (anny in place of SMPL), plus our full record under 'rh'."""
+def rh_json(f: FrameRef, bake: dict) -> dict:
+    """The frame JSON in the published key layout (anny in place of SMPL), plus our full record under 'rh'.
+    `bake` is the frame's baked light (`rh_light.bake_frame_light`)."""
     m = f.meta
-    K = np.array(m["camera"]["K"], dtype=np.float64)
+    K = client_K(m["camera"]["K"])
     w2c = np.array(m["camera"]["world_to_camera"], dtype=np.float64)
     pose = m["body"]["pose"]
     G = root_motion(pose)  # world motion of the pelvis
@@ -76,33 +88,38 @@ def rh_json(f: FrameRef) -> dict:
         "format": "rh-export/relighting-humans/1",
         "skeleton_0": {"smpl_data": smpl_data},
         "camera": {
-            "fov": 2.0 * math.atan(0.5 * m["height"] / K[1, 1]),
-            "fov_axis": "vertical",
-            "fov_x": 2.0 * math.atan(0.5 * m["width"] / K[0, 0]),
+            # The loaders build the test camera as f = 0.5 · width / tan(fov / 2): the horizontal fov, radians.
+            "fov": 2.0 * math.atan(0.5 * m["width"] / K[0, 0]),
+            "fov_axis": "horizontal",
+            "fov_y": 2.0 * math.atan(0.5 * m["height"] / K[1, 1]),
             "yaw": 0.0,
             "width": m["width"],
             "height": m["height"],
             "K": K.tolist(),
+            "pixel_centres": "integer (K's cx, cy = ours - 0.5)",
             "extrinsic": np.eye(4).tolist(),
         },
+        "bg_file": bake["file"],
+        "hdri_name": m["light"]["name"],
+        "rh_bake": bake,
         "rh": rec,
     }
-    if f.split == "test":
-        out["bg_file"] = m["light"]["source"] if m["light"]["kind"] == "envmap" else ""
-        out["hdri_name"] = m["light"]["name"]
     return out
 
 
-def export_frame(f: FrameRef, out: Path, protocol: str) -> list[Path]:
+def export_frame(f: FrameRef, out: Path, protocol: str, *, hdri_folder: str | None = None,
+                 baked: dict | None = None) -> list[Path]:
+    """Write one frame; `baked` (stem → record) is shared by the frames of one export so each light bakes once."""
     d = Path(out) / split_folder(protocol, f.split) / subject_folder(f.subject)
     stem = f"frame_{f.index:06d}"
     written = []
     _copy(f.layer("image.png"), d / f"{stem}.png")
     written.append(d / f"{stem}.png")
     cov = read_png(f.layer("mask.png"))
-    rgba = np.zeros(cov.shape + (4,), np.uint8)
-    rgba[..., :3] = np.where(cov[..., None] > 0, 255, 0)
-    rgba[..., 3] = cov
+    # Binary alpha: one loader reads alpha > 0.5 as the person, another keeps an alpha of exactly 128 as 128;
+    # 0/255 at our mask rule (coverage >= 128) reads the same in both. The coverage stays in the source dataset.
+    person = np.where(cov >= 128, 255, 0).astype(np.uint8)
+    rgba = np.repeat(person[..., None], 4, axis=-1)
     write_png(d / f"{stem}_semantic.png", rgba)
     written.append(d / f"{stem}_semantic.png")
     if f.layer("albedo.exr").is_file():
@@ -112,6 +129,40 @@ def export_frame(f: FrameRef, out: Path, protocol: str) -> list[Path]:
     if f.layer("normal.png").is_file():
         _copy(f.layer("normal.png"), d / f"{stem}_normals.png")  # same encoding: (n + 1) / 2 * 255, OpenGL axes
         written.append(d / f"{stem}_normals.png")
-    write_json(d / f"{stem}.json", rh_json(f))
+    bake = bake_frame_light(f.meta, hdri_folder, Path(out), {} if baked is None else baked)
+    write_json(d / f"{stem}.json", rh_json(f, bake))
     written.append(d / f"{stem}.json")
     return written
+
+
+_CLIENTS = "IntrinsicAvatar and DNF-Avatar (scripts/preprocess_RANA.py), Gaussian Shadow Casting (rana_to_h5.ipynb)"
+
+
+def write_readme(out: Path, protocol: str, frames: list[FrameRef], baked: dict) -> list[str]:
+    """`<out>/README.md`: the layout, and plainly which published clients this export cannot serve and why.
+    Returns those limits (one line each), which the CLI also prints."""
+    limits = ["no SMPL parameters: `skeleton_0.smpl_data` holds anny's body (6 phenotype values, 309 pose values), "
+              f"so {_CLIENTS} stop where they evaluate SMPL (the SMPL fit, issue #15 part 1, is not written yet); "
+              "`joints` and `vertices` are absent"]
+    no_gt = sorted({split_folder(protocol, f.split) for f in frames
+                    if not (f.layer("albedo.exr").is_file() and f.layer("normal.png").is_file())})
+    if no_gt:
+        limits.append(f"{', '.join(no_gt)} has no _albedo.png / _normals.png (the source split does not render them): "
+                      "IntrinsicAvatar and DNF-Avatar preprocessing copy both for every split and stop there; "
+                      "generate with --protocol published_a / published_b, whose train split renders them")
+    sizes = sorted({(f.meta["width"], f.meta["height"]) for f in frames})
+    if sizes != [PUBLISHED_SIZE]:
+        limits.append(f"frames are {', '.join(f'{w}x{h}' for w, h in sizes)}, not 1280x720: IntrinsicAvatar's test "
+                      "camera and Gaussian Shadow Casting's reshape assume 1280x720 (generate with "
+                      "--resolution 1280x720, the published_a / published_b default)")
+    splits = sorted({split_folder(protocol, f.split) for f in frames})
+    text = ["# Relighting Humans layout (rh-export --format relighting-humans)", "",
+            f"Protocol {protocol}: {', '.join(f'`{s}/`' for s in splits)}; {len(frames)} frames; "
+            f"{len(baked)} baked lights in `hdri/` (copy `hdri/*.hdr` into IntrinsicAvatar's `<out-dir>/hdri/`, "
+            "`hdri/*.exr` into Gaussian Shadow Casting's `./data/HDRis/`).", "",
+            "The fields and what still differs from the published data: docs/INTEROP.md, \"Relighting Humans\".", "",
+            "## What this export cannot serve", ""]
+    text += [f"- {x}" for x in limits] or ["- nothing known"]
+    with atomic_path(Path(out) / "README.md") as tmp:
+        tmp.write_text("\n".join(text) + "\n", encoding="utf-8")
+    return limits

@@ -22,7 +22,7 @@ from rh_common import layout
 from rh_common.imageio import atomic_path, read_png, write_json, write_png
 from rh_dataset.poses import ANNY_BONE_LABELS, BodyPose
 
-from .common import FrameRef, axis_angle, root_motion, save_npy
+from .common import FrameRef, axis_angle, client_K, root_motion, save_npy
 
 __all__ = ["CAMERA", "export_frame", "write_annots", "read_annots", "frame_params", "posed_body_vertices"]
 
@@ -102,7 +102,7 @@ def write_annots(seq_dir: Path, frames: list[FrameRef]) -> Path:
             raise ValueError(f"{f.split_dir}: frames of one sequence must share the camera")
     annots = {
         "cams": {
-            "K": [np.array(cam["K"], dtype=np.float64)],
+            "K": [client_K(cam["K"])],  # NeuralBody casts rays through integer pixel coordinates
             "R": [w2c[:3, :3].copy()],
             "T": [w2c[:3, 3:4] * 1000.0],  # millimetres, as ZJU-MoCap stores it
             "D": [np.zeros((5, 1))],
