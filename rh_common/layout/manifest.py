@@ -22,7 +22,7 @@ from rh_common.imageio import read_json, sha256_file, write_json
 from .paths import MANIFEST_JSON, iter_frame_jsons, protocol_dir
 
 __all__ = ["MANIFEST_FORMAT", "ManifestEntry", "write_manifest", "read_manifest", "read_identity", "content_identity",
-           "split_key", "unlisted_files", "check_entry"]
+           "split_key", "split_identity", "unlisted_files", "check_entry"]
 
 MANIFEST_FORMAT = "rh-manifest/2"
 _READABLE = ("rh-manifest/1", MANIFEST_FORMAT)
@@ -84,6 +84,13 @@ def _read(root: str | os.PathLike) -> dict:
 def read_identity(root: str | os.PathLike) -> dict | None:
     """The manifest's content identity, or None for a format-1 manifest (written before identities existed)."""
     return _read(root).get("identity")
+
+
+def split_identity(root: str | os.PathLike, protocol: str, split: str) -> str | None:
+    """The recorded content identity of one split (what rh-eval scored), or None (format-1 manifest, or no such
+    split)."""
+    ident = read_identity(root)
+    return ((ident or {}).get("splits", {}).get(split_key(protocol, split)) or {}).get("digest")
 
 
 def read_manifest(root: str | os.PathLike) -> dict[str, ManifestEntry]:
