@@ -44,14 +44,18 @@ def split_key(protocol: str, split: str) -> str:
 
 
 def content_identity(root: str | os.PathLike) -> dict:
-    """The content identity of every frame under `root` (decodes every layer file: seconds per hundred frames)."""
+    """The content identity of every frame under `root` (decodes every layer file: seconds per hundred frames).
+    A frame that cannot be read is left out (`rh-verify` names it)."""
     root = Path(root)
     frames: dict[str, str] = {}
     by_split: dict[str, dict[str, str]] = {}
     for fj in iter_frame_jsons(root):
         rel = fj.relative_to(root).as_posix()
         subject, pdir, split = rel.split("/")[:3]
-        frames[rel] = digest = content.frame_digest(fj)
+        try:
+            frames[rel] = digest = content.frame_digest(fj)
+        except (ValueError, KeyError, TypeError, OSError):  # not a frame record, or a layer missing or unreadable:
+            continue                                       # rh-verify reports it; it is in no split's identity
         by_split.setdefault(f"{pdir}/{split}", {})[f"{subject}/{fj.stem}"] = digest
     splits = {k: {"digest": content.combine(v), "frames": len(v)} for k, v in sorted(by_split.items())}
     return {"format": content.IDENTITY_FORMAT, "dataset": content.combine({k: v["digest"] for k, v in splits.items()}),
