@@ -14,16 +14,7 @@ from PIL import Image
 from rh_common import identity, layout
 from rh_common.imageio import read_exr, read_json, write_json
 from rh_dataset.verify import main as verify_main, verify
-
-
-def _layers(rng, h=6, w=8):
-    n = rng.normal(size=(h, w, 3))
-    n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    mask = np.clip(rng.random((h, w)) * 1.5 - 0.25, 0, 1).astype(np.float32)
-    n[mask == 0] = 0
-    return {"image": rng.random((h, w, 3)).astype(np.float32), "mask": mask,
-            "albedo": rng.random((h, w, 3)).astype(np.float32), "normal": n.astype(np.float32),
-            "depth": rng.random((h, w)).astype(np.float32)}
+from test_layout import _layers
 
 
 def _meta(split="test", **kw):
