@@ -71,4 +71,5 @@ def frame_digest(json_path: str | os.PathLike) -> str:
 
 def combine(digests: Mapping[str, str]) -> str:
     """One digest of named digests (frames of a split, splits of a dataset), independent of mapping order."""
-    return hashlib.sha256(canonical_json({"format": IDENTITY_FORMAT, "parts": dict(sorted(digests.items()))})).hexdigest()
+    doc = {"format": IDENTITY_FORMAT, "parts": dict(sorted(digests.items()))}
+    return hashlib.sha256(canonical_json(doc)).hexdigest()

@@ -5,8 +5,9 @@ Only result files scored on the same benchmark split, protocol and convention ar
 overrides, with a warning in both outputs). The same split = the same content identity (docs/ARCHITECTURE.md,
 "Content identity"), or two identities that an `rh-verify A --against B --record FILE` comparison, given with
 `--comparison FILE`, found within tolerance: those rows are marked ≈ and the tables say so. Results of rh-eval
-versions that recorded no identity are matched on the manifest sha256 as before. Rows with `"kind": "bound"` (oracles) are listed in their own table, never ranked;
-incomplete submissions in another, never ranked as complete. Bold marks the best complete method per column.
+versions that recorded no identity are matched on the manifest sha256 as before. Rows with `"kind": "bound"`
+(oracles) are listed in their own table, never ranked; incomplete submissions in another, never ranked as
+complete. Bold marks the best complete method per column.
 """
 from __future__ import annotations
 

@@ -42,7 +42,8 @@ def _closure() -> dict[str, str]:
             continue
         dist = md.distribution(req.name)
         seen[key] = dist.version
-        todo += [q for q in map(Requirement, dist.requires or []) if q.marker is None or q.marker.evaluate({"extra": ""})]
+        todo += [q for q in map(Requirement, dist.requires or [])
+                 if q.marker is None or q.marker.evaluate({"extra": ""})]
     return seen
 
 
