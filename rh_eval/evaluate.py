@@ -25,6 +25,7 @@ from typing import Any, Callable
 import numpy as np
 import torch
 
+from rh_common import layout
 from rh_common.imageio import ImageFileError, sha256_file
 from rh_common.weights import WEIGHTS, weights_record
 
@@ -361,6 +362,7 @@ class Evaluator:
             "predictions": str(pred.root),
             "dataset": {"root": str(ds.root), "protocol": ds.protocol, "split": "test",
                         "manifest_sha256": ds.manifest_sha256, "n_frames": len(ds.frames),
+                        "content_identity": layout.split_identity(ds.root, ds.protocol, layout.TEST_SPLIT),
                         "subjects": ds.subjects},
             "n_frames_evaluated": len(rows),
             "n_frames_empty_mask": sum(1 for r in rows if r.get("empty_mask")),

@@ -1,9 +1,13 @@
 """`rh-leaderboard`: several `rh-eval` result files -> `leaderboard.md` (laid out like the paper's Table 2) and a
 self-contained `index.html` (sortable tables, per-subject plots as inline SVG).
 
-Only result files with the same dataset manifest, protocol and convention are combined (`--allow-mixed` overrides,
-with a warning in both outputs). Rows with `"kind": "bound"` (oracles) are listed in their own table, never ranked;
-incomplete submissions in another, never ranked as complete. Bold marks the best complete method per column.
+Only result files scored on the same benchmark split, protocol and convention are combined (`--allow-mixed`
+overrides, with a warning in both outputs). The same split = the same content identity (docs/ARCHITECTURE.md,
+"Content identity"), or two identities that an `rh-verify A --against B --record FILE` comparison, given with
+`--comparison FILE`, found within tolerance: those rows are marked ≈ and the tables say so. Results of rh-eval
+versions that recorded no identity are matched on the manifest sha256 as before. Rows with `"kind": "bound"`
+(oracles) are listed in their own table, never ranked; incomplete submissions in another, never ranked as
+complete. Bold marks the best complete method per column.
 """
 from __future__ import annotations
 
@@ -16,6 +20,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from rh_common import layout
 from rh_common.imageio import atomic_path
 
 __all__ = ["main", "load_results", "build_markdown", "build_html", "COLUMNS", "Entry"]
@@ -47,6 +52,11 @@ class Entry:
     path: Path
     result: dict
     display: str | None = None
+    within_tolerance: str | None = None  # its split's identity differs from the first result's, within tolerance
+
+    @property
+    def row_name(self) -> str:
+        return self.name + (" ≈" if self.within_tolerance else "")
 
     @property
     def name(self) -> str:
@@ -83,9 +93,45 @@ class Entry:
         return math.inf if m == "inf" else (float(m) if isinstance(m, (int, float)) else None)
 
 
-def load_results(paths: list[Path], *, allow_mixed: bool = False) -> tuple[list[Entry], list[str]]:
-    """Read result files; refuse (ValueError) files that are not rh-eval results or that disagree on dataset,
-    protocol or convention (unless `allow_mixed`, which returns the disagreements as warnings)."""
+def _identity(e: Entry) -> str | None:
+    return e.result.get("dataset", {}).get("content_identity")
+
+
+def _same_split(ref: Entry, e: Entry, comparisons: list[dict]) -> str | None:
+    """None if `e` was scored on `ref`'s benchmark split (setting `e.within_tolerance` when only a comparison
+    record says so), else what differs."""
+    a, b = _identity(ref), _identity(e)
+    if a is None or b is None:  # a result from before content identities: the manifest bytes decide
+        ma, mb = (x.result["dataset"].get("manifest_sha256") for x in (ref, e))
+        return None if ma == mb else f"dataset manifest sha256 {mb!r} differs from {ref.path}'s {ma!r}"
+    if a == b:
+        return None
+    key = layout.split_key(str(ref.result["dataset"].get("protocol")), layout.TEST_SPLIT)
+    for c in comparisons:
+        pair = {((c.get(side) or {}).get("identity") or {}).get("splits", {}).get(key, {}).get("digest")
+                for side in ("a", "b")}
+        if pair != {a, b}:
+            continue
+        if not c.get("within_tolerance"):
+            return (f"content identity {b[:16]}… differs from {ref.path}'s {a[:16]}…, and rh-verify --against "
+                    f"found them NOT the same benchmark ({c['a'].get('root')} vs {c['b'].get('root')})")
+        layers = {k: v for k, v in c.get("layers", {}).items() if k.startswith(key + "/")}
+        psnrs = [v["min_psnr_db"] for v in layers.values() if not v.get("is_8bit") and v["min_psnr_db"] != "inf"]
+        worst = f"lowest layer PSNR {min(psnrs):.1f} dB" if psnrs else "float layers equal"
+        levels = max([v["max_abs"] for v in layers.values() if v.get("is_8bit")] or [0])
+        e.within_tolerance = (f"{e.row_name}: scored on content identity `{b[:16]}…`, which agrees with "
+                              f"`{a[:16]}…` only within tolerance (rh-verify --against: {worst}, 8-bit layers "
+                              f"within {levels:g} level; tolerance {c.get('tolerance')})")
+        return None
+    return (f"content identity {b[:16]}… differs from {ref.path}'s {a[:16]}… (if the datasets agree within "
+            f"tolerance, give rh-verify A --against B --record FILE's record as --comparison FILE)")
+
+
+def load_results(paths: list[Path], *, allow_mixed: bool = False,
+                 comparisons: list[dict] | None = None) -> tuple[list[Entry], list[str]]:
+    """Read result files; refuse (ValueError) files that are not rh-eval results or that disagree on the benchmark
+    split (content identity, unless a `comparisons` record finds the two within tolerance), protocol or
+    convention (unless `allow_mixed`, which returns the disagreements as warnings)."""
     entries = []
     for p in paths:
         try:
@@ -104,13 +150,11 @@ def load_results(paths: list[Path], *, allow_mixed: bool = False) -> tuple[list[
     problems = []
     ref = entries[0]
     for e in entries[1:]:
-        for label, a, b in (
-            ("dataset manifest sha256", ref.result["dataset"].get("manifest_sha256"),
-             e.result["dataset"].get("manifest_sha256")),
-            ("protocol", ref.result["dataset"].get("protocol"), e.result["dataset"].get("protocol")),
-        ):
-            if a != b:
-                problems.append(f"{e.path}: {label} {b!r} differs from {ref.path}'s {a!r}")
+        a, b = ref.result["dataset"].get("protocol"), e.result["dataset"].get("protocol")
+        if a != b:
+            problems.append(f"{e.path}: protocol {b!r} differs from {ref.path}'s {a!r}")
+        elif (why := _same_split(ref, e, comparisons or [])) is not None:
+            problems.append(f"{e.path}: {why}")
         ca = {k: v for k, v in ref.result.get("convention", {}).items() if k != "align_albedo"}
         cb = {k: v for k, v in e.result.get("convention", {}).items() if k != "align_albedo"}
         if not (_has_flip(ref) and _has_flip(e)):  # pixels per degree only matter where both carry FLIP
@@ -197,7 +241,9 @@ def _ppd_text(entries: list[Entry]) -> str:
 def _convention_line(entries: list[Entry]) -> str:
     c = entries[0].result.get("convention", {})
     d = entries[0].result.get("dataset", {})
-    return (f"Protocol {d.get('protocol')}, dataset manifest sha256 `{str(d.get('manifest_sha256'))[:16]}…`; "
+    ident = (f"test split content identity `{d['content_identity'][:16]}…`" if d.get("content_identity")
+             else f"dataset manifest sha256 `{str(d.get('manifest_sha256'))[:16]}…`")
+    return (f"Protocol {d.get('protocol')}, {ident}; "
             f"region `{c.get('region')}` over {c.get('background')}, LPIPS backbone `{c.get('backbone')}` (v0.1), "
             f"albedo in {c.get('albedo_space')}, {_ppd_text(entries)}. "
             f"↓ lower is better, ↑ higher is better; **bold** = best complete method; ∞ = identical to the "
@@ -218,7 +264,8 @@ def _md_table(rows: list[Entry], cols, best, mixed: bool = False, mixed_ppd: boo
             cells.append(s)
         n = e.result.get("n_frames_evaluated")
         tot = e.result.get("dataset", {}).get("n_frames")
-        out.append(f"| {e.label if mixed else e.name} | " + " | ".join(cells) + f" | {n}/{tot} |")
+        name = e.label + (" ≈" if e.within_tolerance else "") if mixed else e.row_name
+        out.append(f"| {name} | " + " | ".join(cells) + f" | {n}/{tot} |")
     return out
 
 
@@ -227,6 +274,9 @@ def build_markdown(entries: list[Entry], warnings: list[str] | None = None) -> s
     mixed_ppd = any(g.startswith("FLIP (different") for _, g, *_ in cols)
     best = _best(entries, cols) if not mixed_ppd else _best(entries, COLUMNS)
     lines = ["# Relighting Humans leaderboard", "", _convention_line(entries), ""]
+    lines += [f"> ≈ {x.within_tolerance}" for x in entries if x.within_tolerance]
+    if any(x.within_tolerance for x in entries):
+        lines.append("")
     for w in warnings or []:
         lines.append(f"> **Warning:** {w}")
     if warnings:
@@ -314,7 +364,8 @@ def _html_table(rows: list[Entry], cols, best, table_id: str, mixed_ppd: bool = 
     out.append(f'<th data-col="{len(cols) + 1}" data-key="frames" data-default="-1">Frames</th></tr></thead><tbody>')
     for ent in rows:
         cls = ' class="bound"' if ent.group == "bound" else ""
-        cells = [f'<td data-value="{e(ent.label)}">{e(ent.label)}</td>']
+        label = ent.label + (" ≈" if ent.within_tolerance else "")
+        cells = [f'<td data-value="{e(label)}">{e(label)}</td>']
         for key, _, _, _, dec in cols:
             v = ent.value(key)
             dv = "" if v is None else ("inf" if math.isinf(v) else repr(v))
@@ -385,6 +436,9 @@ def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
              "<h1>Relighting Humans leaderboard</h1>",
              f'<p class="note">{e(_convention_line(entries)).replace("**bold**", "<b>bold</b>").replace("`", "")}'
              " Click a column header to sort.</p>"]
+    for x in entries:
+        if x.within_tolerance:
+            parts.append(f'<p class="note">≈ {e(x.within_tolerance).replace("`", "")}</p>')
     for w in warnings or []:
         parts.append(f'<p class="warn">Warning: {e(w)}</p>')
     ids = {"method": "methods", "bound": "bounds", "incomplete": "incomplete"}
@@ -424,10 +478,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, required=True, help="output folder (index.html, leaderboard.md)")
     p.add_argument("--allow-mixed", action="store_true",
                    help="combine results computed on different datasets/protocols/conventions (warned in output)")
+    p.add_argument("--comparison", type=Path, action="append", default=[], metavar="FILE",
+                   help="a record of `rh-verify A --against B --record FILE`: results scored on A and on B are "
+                        "combined if it found them the same benchmark within tolerance (rows marked ≈); repeatable")
     args = p.parse_args(argv)
     try:
-        entries, warnings = load_results(args.results, allow_mixed=args.allow_mixed)
-    except ValueError as exc:
+        comparisons = [layout.read_comparison(c) for c in args.comparison]
+        entries, warnings = load_results(args.results, allow_mixed=args.allow_mixed, comparisons=comparisons)
+    except (ValueError, OSError) as exc:
         print(f"rh-leaderboard: error: {exc}", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)

@@ -165,7 +165,7 @@ def test_paths_agree_with_the_documented_layout(tmp_path):
     assert documented <= written | {"frame_000000_image.png"}
     for name in (layout.DATASET_JSON, layout.MANIFEST_JSON, layout.CHARACTER_JSON, layout.CONTACT_SHEET):
         assert name in block
-    assert '{"format": "rh-manifest/1", "files"' in block and "rh_common.layout" in doc
+    assert '{"format": "rh-manifest/2", "files"' in block and "rh_common.layout" in doc
     assert layout.split_dir(tmp_path, 0, "a", "test") == tmp_path / "subject_000" / "protocol_a" / "test"
     assert layout.split_dir(tmp_path, "subject_012", "protocol_b", "train") == \
         tmp_path / "subject_012" / "protocol_b" / "train"

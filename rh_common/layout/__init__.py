@@ -2,12 +2,15 @@
 "Predictions layout").
 
 In: folders, frame coordinates, layers and frame metadata. Out: names and paths (`paths`), the typed frame JSON
-(`record`), frame files written and checked (`frames`), the manifest (`manifest`), the body-pose reader (`pose`).
+(`record`), frame files written and checked (`frames`), the manifest and content identity (`manifest`), two
+datasets compared (`compare`), the body-pose reader (`pose`).
 Everything that writes or reads a dataset — rh-generate's writer, rh-verify, rana, rh-eval, the exporters, the
 bench and the test fakes — goes through here, so the format exists once.
 """
+from .compare import COMPARISON_FORMAT, TOLERANCE, Comparison, compare_datasets, read_comparison
 from .frames import LAYERS, frame_is_complete, layer_files, write_frame
-from .manifest import MANIFEST_FORMAT, ManifestEntry, check_entry, read_manifest, unlisted_files, write_manifest
+from .manifest import (MANIFEST_FORMAT, ManifestEntry, check_entry, content_identity, read_identity, read_manifest,
+                       split_identity, split_key, unlisted_files, write_manifest)
 from .paths import (CHARACTER_JSON, CONTACT_SHEET, DATASET_JSON, MANIFEST_JSON, METHOD_JSON, PREDICTION_FILE_RE,
                     PREDICTION_LAYERS, TEST_SPLIT, frame_index_of, frame_json_name, frame_json_path, frame_stem,
                     iter_frame_jsons, layer_file_name, prediction_dir, prediction_file, protocol_dir, protocol_of,
@@ -23,5 +26,7 @@ __all__ = [
     "FRAME_FORMAT", "FileEntry", "FrameRecord", "read_frame_record", "write_frame_record",
     "LAYERS", "layer_files", "write_frame", "frame_is_complete",
     "MANIFEST_FORMAT", "ManifestEntry", "write_manifest", "read_manifest", "unlisted_files", "check_entry",
+    "read_identity", "content_identity", "split_key", "split_identity",
     "PoseArrays", "read_body_pose",
+    "COMPARISON_FORMAT", "TOLERANCE", "Comparison", "compare_datasets", "read_comparison",
 ]

@@ -72,9 +72,20 @@ def exposure_for(light) -> float:
     return 1.0 / mean if mean > 1e-12 else 1.0
 
 
+# Every pinned package (constraints.txt) whose version can change a pixel, a pose or a light of a frame: the
+# renderer, the body model and what it computes with, the samplers' numpy, the denoiser, the image codecs.
+PIXEL_PACKAGES = ("mitsuba", "drjit", "anny", "warp-lang", "roma", "torch", "numpy", "scipy", "pyoidn", "openexr",
+                  "pillow", "colour-science")
+
+
 def versions() -> dict[str, str]:
-    out = {"rh": __version__, "python": platform.python_version()}
-    for pkg in ("mitsuba", "drjit", "anny", "numpy", "torch"):
+    """What computed a frame: the packages above and the LLVM that Dr.Jit compiles its kernels with (a system
+    library, not a pip package). Recorded in the frame JSON; not part of the content identity."""
+    import drjit.detail
+
+    out = {"rh": __version__, "python": platform.python_version(),
+           "llvm": ".".join(map(str, drjit.detail.llvm_version()))}
+    for pkg in PIXEL_PACKAGES:
         try:
             out[pkg] = md.version(pkg)
         except md.PackageNotFoundError:
