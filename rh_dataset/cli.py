@@ -116,7 +116,8 @@ def options_from_args(args: argparse.Namespace):
     character = None
     subjects = args.subjects
     if args.character is not None:
-        from rh_dataset.characters.imported import CharacterImportError, character_digest
+        from rh_dataset.characters.imported_model import CharacterImportError
+        from rh_dataset.characters.imported_reader import character_digest
         from rh_dataset.spec import CharacterSource
 
         if not args.character.is_file():

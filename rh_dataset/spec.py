@@ -147,7 +147,7 @@ class CharacterSource:
     file: str
     """The file's name (.glb, .gltf or .fbx), without its folder."""
     sha256: str
-    """`rh_dataset.characters.imported.character_digest` of the file (a .gltf's external buffers and images too)."""
+    """`rh_dataset.characters.imported_reader.character_digest` of the file (a .gltf's external buffers, images too)."""
     scale: float | None = None
     """Multiplier on the imported metres; None = detect metres or centimetres from the character's height."""
 

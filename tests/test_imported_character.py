@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rh_dataset.characters.imported import CharacterImportError, _build, pose_imported, read_character_file
+from rh_dataset.characters.imported_model import CharacterImportError, pose_imported
+from rh_dataset.characters.imported_reader import _build, read_character_file
 
 MAKE_LIMB = r"""
 # Blender side: build a two-bone skinned, UV-mapped, textured tube limb and export it (glb, fbx, gltf).
@@ -156,7 +157,7 @@ def test_motion_retargets_onto_an_imported_rig(limb_files, tmp_path):
     rest, same bones: every rotation copies over), and `rh-generate --character --motion` renders those poses."""
     import json
 
-    from rh_dataset.characters.imported import load_character_file
+    from rh_dataset.characters.imported_reader import load_character_file
     from rh_dataset.cli import main
     from rh_dataset.generate.subjects import imported_bone_map
     from rh_dataset.poses.motion import read_motion

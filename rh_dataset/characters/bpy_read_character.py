@@ -5,7 +5,7 @@ pins numpy 1.26, we need numpy 2). Usage:
 
     python bpy_read_character.py MODEL.glb|.gltf|.fbx OUT_DIR [--deformed]
 
-Writes into OUT_DIR (the main side, `rh_dataset.characters.imported`, validates everything):
+Writes into OUT_DIR (the main side, `rh_dataset.characters.imported_reader`, validates everything):
   character.npz   plain arrays, no pickles:
       skeleton_heads, skeleton_tails (J, 3) rest bone heads/tails in world metres; skeleton_parents (J,)
       part{i}_positions, part{i}_normals (V, 3) rest pose, world; part{i}_uvs (V, 2) v up; part{i}_faces (F, 3);

@@ -158,7 +158,7 @@ class ImportedSubjects:
     def character(self):
         """The imported character, checked against the description (its name and sha256); read once."""
         if self._character is None:
-            from rh_dataset.characters.imported import character_digest, load_character_file
+            from rh_dataset.characters.imported_reader import character_digest, load_character_file
 
             src, path = self.plan.spec.character, self.plan.character_path
             if path is None:
@@ -185,7 +185,7 @@ class ImportedSubjects:
                   f"'rest (no motion source)'); use a file with an animation clip for novel poses", file=sys.stderr)
 
     def subject(self, s: int) -> Subject:
-        from rh_dataset.characters.imported import imported_bounds
+        from rh_dataset.characters.imported_model import imported_bounds
 
         character = self.character()
         spec = self.plan.spec
@@ -205,7 +205,7 @@ class ImportedSubjects:
         return self._pose(subject.character, split, i)
 
     def _pose(self, character, split: SplitSpec, i: int):
-        from rh_dataset.characters.imported import ImportedPose, motion_frames, split_pose
+        from rh_dataset.characters.imported_model import ImportedPose, motion_frames, split_pose
 
         spec = self.plan.spec
         source = pose_source(spec, split)
@@ -224,7 +224,7 @@ class ImportedSubjects:
         return split_pose(split.poses, n, i, motion_frames(character))
 
     def meshes(self, subject: Subject, pose) -> list:
-        from rh_dataset.characters.imported import pose_imported
+        from rh_dataset.characters.imported_model import pose_imported
 
         return pose_imported(subject.character, pose.pose, pose.root_transform)
 
