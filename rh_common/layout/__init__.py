@@ -15,7 +15,7 @@ from .paths import (CHARACTER_JSON, CONTACT_SHEET, DATASET_JSON, MANIFEST_JSON, 
                     PREDICTION_LAYERS, TEST_SPLIT, frame_index_of, frame_json_name, frame_json_path, frame_stem,
                     iter_frame_jsons, layer_file_name, prediction_dir, prediction_file, protocol_dir, protocol_of,
                     split_dir, subject_index, subject_name)
-from .pose import PoseArrays, read_body_pose
+from .pose import PoseArrays, read_body_pose, rigid_matrix
 from .record import FRAME_FORMAT, FileEntry, FrameRecord, read_frame_record, write_frame_record
 
 __all__ = [
@@ -27,6 +27,6 @@ __all__ = [
     "LAYERS", "layer_files", "write_frame", "frame_is_complete",
     "MANIFEST_FORMAT", "ManifestEntry", "write_manifest", "read_manifest", "unlisted_files", "check_entry",
     "read_identity", "content_identity", "split_key", "split_identity",
-    "PoseArrays", "read_body_pose",
+    "PoseArrays", "read_body_pose", "rigid_matrix",
     "COMPARISON_FORMAT", "TOLERANCE", "Comparison", "compare_datasets", "read_comparison",
 ]

@@ -14,10 +14,10 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["PoseArrays", "read_body_pose"]
+__all__ = ["PoseArrays", "read_body_pose", "rigid_matrix", "ORTHO_TOL"]
 
 _KEYS = {"bones", "label", "parameterization", "root_transform", "turntable_deg"}
-_ORTHO_TOL = 1e-6  # as rh_dataset.poses.BodyPose: float64 products of a few rotations stay ~1e-15 off
+ORTHO_TOL = 1e-6  # |R^T R - I| and |det R - 1|: float64 products of a few rotations stay ~1e-15 off
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,18 +38,25 @@ class PoseArrays:
         return D
 
 
-def _matrix(name: str, value: Any) -> np.ndarray:
+def rigid_matrix(name: str, value: Any, *, translation_allowed: bool = True) -> np.ndarray:
+    """`value` as a read-only float64 4x4 rigid transform (a proper rotation, bottom row [0, 0, 0, 1]), or a
+    ValueError naming `name` and what is wrong. The generator's `BodyPose` checks the poses it builds with this too,
+    so a pose it writes is exactly a pose this reader accepts."""
     try:
         M = np.array(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"pose: {name} is not a numeric 4x4 matrix") from exc
-    if M.shape != (4, 4) or not np.all(np.isfinite(M)):
-        raise ValueError(f"pose: {name} must be a finite 4x4 matrix, got shape {M.shape}")
+        raise ValueError(f"{name}: not a numeric 4x4 matrix") from exc
+    if M.shape != (4, 4):
+        raise ValueError(f"{name}: expected shape (4, 4), got {M.shape}")
+    if not np.all(np.isfinite(M)):
+        raise ValueError(f"{name}: non-finite values")
     if np.any(M[3] != (0.0, 0.0, 0.0, 1.0)):
-        raise ValueError(f"pose: {name} bottom row must be exactly [0, 0, 0, 1]")
+        raise ValueError(f"{name}: bottom row must be exactly [0, 0, 0, 1]")
     R = M[:3, :3]
-    if np.abs(R.T @ R - np.eye(3)).max() > _ORTHO_TOL or abs(np.linalg.det(R) - 1.0) > _ORTHO_TOL:
-        raise ValueError(f"pose: {name} rotation block is not a proper rotation")
+    if np.abs(R.T @ R - np.eye(3)).max() > ORTHO_TOL or abs(np.linalg.det(R) - 1.0) > ORTHO_TOL:
+        raise ValueError(f"{name}: rotation block is not a proper rotation (orthonormal, det +1)")
+    if not translation_allowed and np.any(M[:3, 3] != 0.0):
+        raise ValueError(f"{name}: only the root may carry a translation in a local-ref delta")
     M.setflags(write=False)
     return M
 
@@ -60,6 +67,6 @@ def read_body_pose(pose_json: Mapping[str, Any]) -> PoseArrays:
         raise ValueError(f"pose: unknown keys {sorted(unknown)}")
     if pose_json.get("parameterization", "local-ref") != "local-ref":
         raise ValueError(f"pose: only 'local-ref' is supported, got {pose_json['parameterization']!r}")
-    bones = {str(k): _matrix(f"bone {k!r}", v) for k, v in pose_json.get("bones", {}).items()}
-    root = _matrix("root_transform", pose_json.get("root_transform", np.eye(4)))
+    bones = {str(k): rigid_matrix(f"pose: bone {k!r}", v) for k, v in pose_json.get("bones", {}).items()}
+    root = rigid_matrix("pose: root_transform", pose_json.get("root_transform", np.eye(4)))
     return PoseArrays(bones, root, float(pose_json.get("turntable_deg", 0.0)), str(pose_json.get("label", "a-pose")))

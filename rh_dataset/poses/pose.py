@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from rh_common.layout import rigid_matrix
+
 __all__ = ["BodyPose", "ANNY_BONE_LABELS", "POSE_LABELS", "turntable", "rotation_about_z"]
 
 # anny's default rig ('anny', 104 bones), in model order; a test checks it against the installed model. Kept here
@@ -46,8 +48,6 @@ _BONE_SET = frozenset(ANNY_BONE_LABELS)
 
 POSE_LABELS = ("a-pose", "stand", "walk", "reach", "bend", "sit", "arms-crossed", "random")
 
-_ORTHO_TOL = 1e-6  # |R^T R - I| and |det R - 1|: float64 products of a few rotations stay ~1e-15
-
 
 def rotation_about_z(deg: float, pivot: np.ndarray | None = None) -> np.ndarray:
     """4x4 rigid transform: rotation of `deg` degrees about +Z (counter-clockwise seen from above) through
@@ -60,26 +60,6 @@ def rotation_about_z(deg: float, pivot: np.ndarray | None = None) -> np.ndarray:
         p = np.asarray(pivot, dtype=np.float64)
         T[:3, 3] = p - T[:3, :3] @ p
     return T
-
-
-def _check_rigid(name: str, M: Any, *, translation_allowed: bool) -> np.ndarray:
-    try:
-        M = np.array(M, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: not a numeric 4x4 matrix") from exc
-    if M.shape != (4, 4):
-        raise ValueError(f"{name}: expected shape (4, 4), got {M.shape}")
-    if not np.all(np.isfinite(M)):
-        raise ValueError(f"{name}: non-finite values")
-    if np.any(M[3] != (0.0, 0.0, 0.0, 1.0)):
-        raise ValueError(f"{name}: bottom row must be exactly [0, 0, 0, 1]")
-    R = M[:3, :3]
-    if np.abs(R.T @ R - np.eye(3)).max() > _ORTHO_TOL or abs(np.linalg.det(R) - 1.0) > _ORTHO_TOL:
-        raise ValueError(f"{name}: rotation block is not a proper rotation (orthonormal, det +1)")
-    if not translation_allowed and np.any(M[:3, 3] != 0.0):
-        raise ValueError(f"{name}: only the root may carry a translation in a local-ref delta")
-    M.setflags(write=False)
-    return M
 
 
 @dataclasses.dataclass(frozen=True)
@@ -106,12 +86,12 @@ class BodyPose:
         for name in sorted(self.bones):
             if name not in _BONE_SET:
                 raise ValueError(f"unknown bone label {name!r} (not one of anny's 104 bones)")
-            M = _check_rigid(f"bone {name!r}", self.bones[name], translation_allowed=name == "root")
+            M = rigid_matrix(f"bone {name!r}", self.bones[name], translation_allowed=name == "root")
             if not np.array_equal(M, np.eye(4)):  # identity bones are implied; dropping them keeps JSON canonical
                 bones[name] = M
         object.__setattr__(self, "bones", MappingProxyType(bones))
         object.__setattr__(self, "root_transform",
-                           _check_rigid("root_transform", self.root_transform, translation_allowed=True))
+                           rigid_matrix("root_transform", self.root_transform, translation_allowed=True))
         if isinstance(self.turntable_deg, bool) or not isinstance(self.turntable_deg, (int, float)) \
                 or not math.isfinite(self.turntable_deg):
             raise ValueError(f"turntable_deg must be a finite number, got {self.turntable_deg!r}")
