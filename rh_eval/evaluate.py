@@ -78,8 +78,10 @@ class EvalOptions:
             raise ValueError(f"preload_mb must be >= 0, got {self.preload_mb}")
 
 
-def metric_columns(metrics, *, albedo: bool, aligned: bool, normal: bool) -> list[str]:
+def metric_columns(metrics, *, albedo: bool, aligned: bool, normal: bool, image_aligned: bool = False) -> list[str]:
     cols = [f"image_{m}" for m in IMAGE_METRICS if m in metrics]
+    if image_aligned:
+        cols += [f"image_aligned_{m}" for m in IMAGE_METRICS if m in metrics]
     if normal and "normal" in metrics:
         cols.append("normal_deg")
     if albedo:
@@ -287,6 +289,13 @@ class Evaluator:
         returned (or written by the CLI) unless every frame was evaluated."""
         ds = dataset if isinstance(dataset, DatasetIndex) else load_dataset(dataset, protocol)
         pred = scan_predictions(pred_root, ds, allow_incomplete=self.options.allow_incomplete)
+        conv = self.options.convention
+        if conv.relit_with_aligned_albedo and not pred.has_albedo and \
+                any(m in self.options.metrics for m in IMAGE_METRICS):
+            raise PredictionError(pred.root, [f"convention {conv.name!r} needs the albedo layer "
+                                              f"(frame_NNNNNN_albedo.exr or .png): its relit images are rendered "
+                                              f"with the albedo aligned to the ground truth, and that albedo is "
+                                              f"scored with them"])
         stored = self.check_predictions(pred)
         self._cache_start = {k: getattr(self.cache, k) for k in ("hits", "disk_hits", "misses")}
         opts = self.options
@@ -328,7 +337,8 @@ class Evaluator:
             pool.shutdown(wait=True, cancel_futures=True)
             if bar is not None:
                 bar.close()
-        cols = metric_columns(opts.metrics, albedo=pred.has_albedo, aligned=conv.align_albedo,
+        cols = metric_columns(opts.metrics, albedo=pred.has_albedo, aligned=conv.align_albedo != "none",
+                              image_aligned=conv.align_image != "none",
                               normal=pred.has_normal)
         rows = []
         for pf, scores in zip(pred.frames, frames):
