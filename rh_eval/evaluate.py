@@ -35,8 +35,8 @@ from .feature_cache import FeatureCache
 from .metrics.dists import get_dists_net
 from .metrics.lpips import get_lpips_net
 from .report import summarise
-from .scoring import (ALL_METRICS, IMAGE_METRICS, FrameScores, NetworkPair, check_metrics, prepare_frame,
-                      read_frame, record_pair_scores, score_pairs)
+from .scoring import (ALL_METRICS, IMAGE_METRICS, CropTooSmallError, FrameScores, NetworkPair, check_metrics,
+                      prepare_frame, read_frame, record_pair_scores, score_pairs)
 from .weights import WEIGHTS, weights_record
 
 __all__ = ["ALL_METRICS", "EvalOptions", "Evaluator", "FeatureCache", "summarise", "metric_columns",
@@ -214,8 +214,11 @@ class Evaluator:
         thread; returns the frame's scores so far and its network inputs."""
         conv = self.options.convention
         gt = pf.gt
-        scores, pairs = prepare_frame(*read_frame(pf, self.options.metrics, stored=stored), conv,
-                                      self.options.metrics)
+        try:
+            scores, pairs = prepare_frame(*read_frame(pf, self.options.metrics, stored=stored), conv,
+                                          self.options.metrics)
+        except CropTooSmallError as exc:
+            raise CropTooSmallError(f"{pf.gt.json_path}: {exc}") from None
         items = []
         if pairs:
             frame_id = "|".join([self._file_sha(gt.json_path), self._file_sha(gt.layer("mask.png"))])

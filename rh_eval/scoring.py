@@ -37,6 +37,11 @@ IMAGE_METRICS = ("lpips", "dists", "ssim", "psnr", "flip")
 NETWORK_METRICS = ("lpips", "dists")
 LAYERS = ("image", "image_aligned", "albedo", "albedo_aligned")
 _CPU_METRICS = ("psnr", "ssim", "flip")
+LPIPS_MIN_SIDE = {"alex": 31, "vgg": 16}  # smaller crops leave no pixel at the backbone's last tap
+
+
+class CropTooSmallError(ValueError):
+    """A crop the LPIPS backbone cannot take (a convention that does not grow crops, on a small person)."""
 
 
 def check_metrics(metrics) -> tuple[str, ...]:
@@ -198,6 +203,12 @@ def _score_layer(pairs: list[NetworkPair], layer: str, pred_crop: np.ndarray, gt
     if "flip" in metrics:
         scores.flip = _defined(flip(p, g, data_range=1.0, mask=mm, ppd=conv.flip_ppd))
     if net:
+        need = LPIPS_MIN_SIDE[conv.backbone]
+        if "lpips" in metrics and min(region.shape) < need:
+            raise CropTooSmallError(
+                f"the {layer} region is {region.shape[1]}x{region.shape[0]} px, smaller than the {need} px LPIPS-"
+                f"{conv.backbone} needs (convention {conv.name!r} uses min_crop {conv.min_crop}); evaluate at a "
+                f"higher resolution or leave lpips out of --metrics")
         if p is None:  # nothing to composite: the crop itself, the same float32 values as via float64
             p, g = pred_crop, gt_crop
         # float32, the networks' input type: half the memory while rh-eval queues pairs for a batch

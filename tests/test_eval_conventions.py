@@ -246,3 +246,16 @@ def test_leaderboard_one_table_per_convention_and_side_by_side(tmp_path):
     files.append(_result(tmp_path / "c.json", "C", named_convention("rana", region="full").to_json(), 0.4))
     with pytest.raises(ValueError, match="region"):
         load_results(files)
+
+
+def test_a_crop_too_small_for_the_backbone_is_one_line(tmp_path):
+    from rh_eval.scoring import CropTooSmallError
+    s = synthetic_frame(h=120, w=120)
+    m = np.zeros((120, 120), np.uint8)
+    m[50:70, 50:70] = 255  # 20 px: enough for VGG (16), not for AlexNet (31); relightableavatar never grows crops
+    pred = FramePrediction(image=s["pred_image"], albedo=s["pred_albedo"])
+    gt = FrameGroundTruth(mask=m, exposure=1.0, image=s["gt_image"], albedo=s["gt_albedo"])
+    with pytest.raises(CropTooSmallError, match="albedo region is 20x20 px, smaller than the 31 px LPIPS-alex"):
+        score_frame(pred, gt, named_convention("relightableavatar"), ("lpips",))
+    assert score_frame(pred, gt, named_convention("intrinsicavatar"), ("lpips",)).albedo.lpips > 0
+    assert score_frame(pred, gt, named_convention("relightableavatar"), ("psnr",)).albedo.psnr > 0
