@@ -41,6 +41,8 @@ FLIP_COLUMNS = [
 ]
 ALIGNED_COLUMNS = [(f"albedo_aligned_{k.split('_', 1)[1]}", "Albedo (scale-aligned)", lab, low, dec)
                    for k, _, lab, low, dec in COLUMNS if k.startswith("albedo_")]
+IMAGE_ALIGNED_COLUMNS = [(f"image_aligned_{k.split('_', 1)[1]}", "Image (median-aligned)", lab, low, dec)
+                         for k, _, lab, low, dec in COLUMNS if k.startswith("image_")]
 _CONSISTENT = ("convention",)
 
 
@@ -317,6 +319,11 @@ def _markdown_one(entries: list[Entry], warnings: list[str] | None = None) -> st
         lines += [f"## Albedo after per-channel {_align_text(entries)} scale (reported separately from the raw "
                   f"scores)", ""]
         lines += _md_table(rows, ALIGNED_COLUMNS, best_a, mixed=True) + [""]
+    rows = [e for _, _, rs in _groups(entries) for e in rs if any(e.value(k) is not None
+                                                                   for k, *_ in IMAGE_ALIGNED_COLUMNS)]
+    if rows:  # --align-image (relightableavatar)
+        lines += ["## Relit images after per-channel median scale (reported separately from the raw scores)", ""]
+        lines += _md_table(rows, IMAGE_ALIGNED_COLUMNS, _best(entries, IMAGE_ALIGNED_COLUMNS), mixed=True) + [""]
     return "\n".join(lines)
 
 
@@ -503,6 +510,12 @@ def _html_one(entries: list[Entry], warnings: list[str] | None = None, prefix: s
     if aligned_rows:
         parts += [f"<{h}>Albedo after per-channel {_align_text(entries)} scale (separate from the raw scores)</{h}>",
                   _html_table(aligned_rows, ALIGNED_COLUMNS, _best(entries, ALIGNED_COLUMNS), prefix + "aligned")]
+    rows = [x for _, _, rs in _groups(entries) for x in rs
+            if any(x.value(k) is not None for k, *_ in IMAGE_ALIGNED_COLUMNS)]
+    if rows:  # --align-image (relightableavatar)
+        parts += [f"<{h}>Relit images after per-channel median scale (separate from the raw scores)</{h}>",
+                  _html_table(rows, IMAGE_ALIGNED_COLUMNS, _best(entries, IMAGE_ALIGNED_COLUMNS),
+                              prefix + "image-aligned")]
     plots = _plots([x for _, _, rs in _groups(entries) for x in rs])
     if plots:
         parts.append(f"<{h}>Per subject</{h}><div class=\"plots\">")
@@ -518,7 +531,9 @@ def main(argv: list[str] | None = None) -> int:
         description="Combine rh-eval result files into leaderboard.md (Table 2 layout: Image LPIPS/DISTS/SSIM/PSNR "
                     "| Normal degrees | Albedo LPIPS/DISTS/SSIM/PSNR, best in bold) and a self-contained "
                     "index.html (sortable tables, per-subject plots). Bounds (kind=bound) and incomplete "
-                    "submissions are listed separately, never ranked.")
+                    "submissions are listed separately, never ranked. Results under different named conventions "
+                    "(rh-eval --convention) get their own tables, and a side-by-side table shows each method under "
+                    "every convention.")
     p.add_argument("results", nargs="+", type=Path, help="rh-eval result JSON files")
     p.add_argument("--out", type=Path, required=True, help="output folder (index.html, leaderboard.md)")
     p.add_argument("--allow-mixed", action="store_true",

@@ -240,7 +240,16 @@ def test_leaderboard_one_table_per_convention_and_side_by_side(tmp_path):
     row = next(line for line in side.splitlines() if line.startswith("| A |"))
     assert "0.1000" in row and "0.3000" in row  # A under both conventions, one row
     assert "(a.json)" not in md  # the same name under two conventions is not a name clash
+    ra = json.loads(files[1].read_text())
+    ra["convention"] = named_convention("relightableavatar").to_json()
+    ra["overall"]["image_aligned_psnr"] = {"mean": 21.5}
+    (tmp_path / "b_ra.json").write_text(json.dumps(ra))
+    entries, _ = load_results(files + [tmp_path / "b_ra.json"])
+    md = build_markdown(entries)
+    assert "### Relit images after per-channel median scale" in md.split("## Convention `relightableavatar`")[1]
+    assert "21.50" in md
     page = build_html(entries)
+    assert 'id="relightableavatar-image-aligned"' in page
     assert 'id="rana-methods"' in page and 'id="intrinsicavatar-methods"' in page and 'id="side-by-side"' in page
     # within one named convention a different setting is still refused
     files.append(_result(tmp_path / "c.json", "C", named_convention("rana", region="full").to_json(), 0.4))
