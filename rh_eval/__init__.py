@@ -11,5 +11,6 @@ from .metrics import dists, flip, lpips, normal_angular_error, psnr, ssim  # noq
 from .scoring import (FrameGroundTruth, FramePrediction, FrameScores, LayerScores, read_frame,  # noqa: E402
                       score_frame)
 
-__all__ = ["__version__", "Convention", "CONVENTIONS", "named_convention", "psnr", "ssim", "lpips", "dists", "flip", "normal_angular_error",
-           "score_frame", "read_frame", "FramePrediction", "FrameGroundTruth", "FrameScores", "LayerScores"]
+__all__ = ["__version__", "Convention", "CONVENTIONS", "named_convention", "psnr", "ssim", "lpips", "dists", "flip",
+           "normal_angular_error", "score_frame", "read_frame", "FramePrediction", "FrameGroundTruth", "FrameScores",
+           "LayerScores"]
