@@ -27,7 +27,7 @@ def _ppd(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .conventions import BACKGROUNDS, REGIONS
+    from .conventions import ALIGNMENTS, BACKGROUNDS, CONVENTIONS, REGIONS
     from .evaluate import ALL_METRICS
     from .metrics.flip import FLIP_PPD
 
@@ -43,20 +43,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--protocol", default="a", help="protocol to evaluate: 'a' or 'protocol_a' (default: a)")
     p.add_argument("--out", type=Path, required=True, help="result JSON to write (folders are created)")
     p.add_argument("--csv", type=Path, default=None, help="per-frame CSV path (default: <out stem>.frames.csv)")
-    p.add_argument("--backbone", choices=("alex", "vgg"), default="alex",
-                   help="LPIPS backbone (default alex, the official default; recorded in the output)")
-    p.add_argument("--region", choices=REGIONS, default="default",
-                   help="default: GT-mask bounding box dilated by round(50*min(H,W)/720) px, prediction and GT "
-                        "composited over --background (the published protocol); full: whole frame, no "
-                        "compositing; mask: tight box, PSNR/SSIM/FLIP averaged inside the mask only")
-    p.add_argument("--background", choices=sorted(BACKGROUNDS), default="white",
-                   help="background for compositing in the default and mask regions (default white)")
-    p.add_argument("--albedo-space", choices=("srgb", "linear"), default="srgb",
-                   help="space albedo is compared in (default srgb: linear albedo sRGB-encoded)")
-    p.add_argument("--align-albedo", action="store_true",
-                   help="also report albedo after a per-channel least-squares scale onto the GT (linear, inside "
-                        "the mask, then clipped to [0,1]); reported as albedo_aligned_* beside the raw scores")
-    p.add_argument("--flip-ppd", type=_ppd, default=FLIP_PPD, metavar="PPD",
+    p.add_argument("--convention", choices=tuple(CONVENTIONS), default="rana",
+                   help="the bundle of evaluation choices: rana (default: region, compositing, Wang SSIM, LPIPS as "
+                        "published for this dataset), intrinsicavatar or relightableavatar (as those methods' own "
+                        "evaluation code scores; docs/EVALUATION.md lists every choice); the flags below override "
+                        "single choices, and the result records them all")
+    p.add_argument("--backbone", choices=("alex", "vgg"), default=None,
+                   help="LPIPS backbone (rana: alex, the official default; recorded in the output)")
+    p.add_argument("--region", choices=REGIONS, default=None,
+                   help="default (rana): GT-mask bounding box dilated by round(50*min(H,W)/720) px, prediction and "
+                        "GT composited over --background (the published protocol); full: whole frame, no "
+                        "compositing; mask: tight box, PSNR/SSIM/FLIP averaged inside the mask only; box100: the "
+                        "box of the mask dilated by a 100x100 kernel (intrinsicavatar)")
+    p.add_argument("--background", choices=sorted(BACKGROUNDS), default=None,
+                   help="background for compositing (rana: white)")
+    p.add_argument("--albedo-space", choices=("srgb", "linear"), default=None,
+                   help="space albedo is compared in (rana: srgb, linear albedo sRGB-encoded)")
+    p.add_argument("--align-albedo", nargs="?", const="lsq", choices=ALIGNMENTS, default=None,
+                   help="also report albedo after a per-channel scale onto the GT (linear, inside the mask, then "
+                        "clipped to [0,1]): lsq (least squares; the value when the flag is given alone) or median "
+                        "(of GT / prediction); none turns it off; reported as albedo_aligned_* beside the raw "
+                        "scores (rana: none, intrinsicavatar: lsq, relightableavatar: median)")
+    p.add_argument("--align-image", nargs="?", const="median", choices=("none", "median"), default=None,
+                   help="also report the relit image scaled per channel by the median of GT / prediction over the "
+                        "mask (display space, clipped to [0,1]) as image_aligned_* (relightableavatar: median)")
+    p.add_argument("--flip-ppd", type=_ppd, default=None, metavar="PPD",
                    help=f"FLIP pixels per degree of the assumed viewing condition (default {FLIP_PPD:.4f}, FLIP's "
                         f"default: 0.7 m from a 0.7 m wide 3840-px monitor); recorded in the result, and results "
                         f"with different values are not combined by rh-leaderboard")
@@ -87,7 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from .conventions import Convention
+    from .conventions import named_convention
     from .dataset_io import PredictionError
     from .evaluate import EvalOptions, Evaluator
     from .report import write_result
@@ -97,8 +108,9 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         metrics = tuple(m.strip() for m in args.metrics.split(",") if m.strip())
-        conv = Convention(region=args.region, background=args.background, albedo_space=args.albedo_space,
-                          align_albedo=args.align_albedo, backbone=args.backbone, flip_ppd=args.flip_ppd)
+        conv = named_convention(args.convention, region=args.region, background=args.background,
+                                albedo_space=args.albedo_space, align_albedo=args.align_albedo,
+                                align_image=args.align_image, backbone=args.backbone, flip_ppd=args.flip_ppd)
         opts = EvalOptions(convention=conv, metrics=metrics, batch_size=args.batch_size, cache_dir=args.cache_dir,
                            cache_mb=args.cache_mb, allow_incomplete=args.allow_incomplete,
                            progress=False if args.no_progress else None, threads=args.threads,
@@ -117,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     ov = result["overall"]
     status = "complete" if result["complete"] else f"INCOMPLETE ({len(result['missing'])} missing)"
     print(f"rh-eval: {result['method'].get('name')}: {result['n_frames_evaluated']} frames, {status}; "
-          f"backbone={conv.backbone} region={conv.region} flip_ppd={conv.flip_ppd:.6g}")
+          f"convention={conv.name} backbone={conv.backbone} region={conv.region} flip_ppd={conv.flip_ppd:.6g}")
     for c in cols:
         s = ov[c]
         extra = f" (+{s['n_infinite']} inf)" if s.get("n_infinite") else ""

@@ -37,8 +37,8 @@ from .feature_cache import FeatureCache
 from .metrics.dists import get_dists_net
 from .metrics.lpips import get_lpips_net
 from .report import summarise
-from .scoring import (ALL_METRICS, IMAGE_METRICS, FrameScores, NetworkPair, check_metrics, prepare_frame,
-                      read_frame, record_pair_scores, score_pairs)
+from .scoring import (ALL_METRICS, IMAGE_METRICS, CropTooSmallError, FrameScores, NetworkPair, check_metrics,
+                      prepare_frame, read_frame, record_pair_scores, score_pairs)
 
 __all__ = ["ALL_METRICS", "EvalOptions", "Evaluator", "FeatureCache", "summarise", "metric_columns",
            "RESULT_FORMAT"]
@@ -79,8 +79,10 @@ class EvalOptions:
             raise ValueError(f"preload_mb must be >= 0, got {self.preload_mb}")
 
 
-def metric_columns(metrics, *, albedo: bool, aligned: bool, normal: bool) -> list[str]:
+def metric_columns(metrics, *, albedo: bool, aligned: bool, normal: bool, image_aligned: bool = False) -> list[str]:
     cols = [f"image_{m}" for m in IMAGE_METRICS if m in metrics]
+    if image_aligned:
+        cols += [f"image_aligned_{m}" for m in IMAGE_METRICS if m in metrics]
     if normal and "normal" in metrics:
         cols.append("normal_deg")
     if albedo:
@@ -211,8 +213,11 @@ class Evaluator:
         thread; returns the frame's scores so far and its network inputs."""
         conv = self.options.convention
         gt = pf.gt
-        scores, pairs = prepare_frame(*read_frame(pf, self.options.metrics, stored=stored), conv,
-                                      self.options.metrics)
+        try:
+            scores, pairs = prepare_frame(*read_frame(pf, self.options.metrics, stored=stored), conv,
+                                          self.options.metrics)
+        except CropTooSmallError as exc:
+            raise CropTooSmallError(f"{pf.gt.json_path}: {exc}") from None
         items = []
         if pairs:
             frame_id = "|".join([self._file_sha(gt.json_path), self._file_sha(gt.layer("mask.png"))])
@@ -286,6 +291,13 @@ class Evaluator:
         returned (or written by the CLI) unless every frame was evaluated."""
         ds = dataset if isinstance(dataset, DatasetIndex) else load_dataset(dataset, protocol)
         pred = scan_predictions(pred_root, ds, allow_incomplete=self.options.allow_incomplete)
+        conv = self.options.convention
+        if conv.relit_with_aligned_albedo and not pred.has_albedo and \
+                any(m in self.options.metrics for m in IMAGE_METRICS):
+            raise PredictionError(pred.root, [f"convention {conv.name!r} needs the albedo layer "
+                                              f"(frame_NNNNNN_albedo.exr or .png): its relit images are rendered "
+                                              f"with the albedo aligned to the ground truth, and that albedo is "
+                                              f"scored with them"])
         stored = self.check_predictions(pred)
         self._cache_start = {k: getattr(self.cache, k) for k in ("hits", "disk_hits", "misses")}
         opts = self.options
@@ -327,7 +339,8 @@ class Evaluator:
             pool.shutdown(wait=True, cancel_futures=True)
             if bar is not None:
                 bar.close()
-        cols = metric_columns(opts.metrics, albedo=pred.has_albedo, aligned=conv.align_albedo,
+        cols = metric_columns(opts.metrics, albedo=pred.has_albedo, aligned=conv.align_albedo != "none",
+                              image_aligned=conv.align_image != "none",
                               normal=pred.has_normal)
         rows = []
         for pf, scores in zip(pred.frames, frames):

@@ -5,9 +5,11 @@ Only result files scored on the same benchmark split, protocol and convention ar
 overrides, with a warning in both outputs). The same split = the same content identity (docs/ARCHITECTURE.md,
 "Content identity"), or two identities that an `rh-verify A --against B --record FILE` comparison, given with
 `--comparison FILE`, found within tolerance: those rows are marked ≈ and the tables say so. Results of rh-eval
-versions that recorded no identity are matched on the manifest sha256 as before. Rows with `"kind": "bound"`
-(oracles) are listed in their own table, never ranked; incomplete submissions in another, never ranked as
-complete. Bold marks the best complete method per column.
+versions that recorded no identity are matched on the manifest sha256 as before. Results under different named
+conventions (`rh-eval --convention`) get one set of tables each, and a side-by-side table shows each method under
+every convention it was scored with. Rows with `"kind": "bound"` (oracles) are listed in their own table, never
+ranked; incomplete submissions in another, never ranked as complete. Bold marks the best complete method per
+column.
 """
 from __future__ import annotations
 
@@ -44,6 +46,8 @@ FLIP_COLUMNS = [
 ]
 ALIGNED_COLUMNS = [(f"albedo_aligned_{k.split('_', 1)[1]}", "Albedo (scale-aligned)", lab, low, dec)
                    for k, _, lab, low, dec in COLUMNS if k.startswith("albedo_")]
+IMAGE_ALIGNED_COLUMNS = [(f"image_aligned_{k.split('_', 1)[1]}", "Image (median-aligned)", lab, low, dec)
+                         for k, _, lab, low, dec in COLUMNS if k.startswith("image_")]
 _CONSISTENT = ("convention",)
 
 
@@ -143,35 +147,87 @@ def load_results(paths: list[Path], *, allow_mixed: bool = False,
         entries.append(Entry(Path(p), r))
     if not entries:
         raise ValueError("no result files given")
-    names = [e.name for e in entries]
-    for e in entries:  # two results of the same name: tell them apart by file name
-        if names.count(e.name) > 1:
+    names = [(e.name, _conv_name(e)) for e in entries]
+    for e in entries:  # two results of the same name under one convention: tell them apart by file name
+        if names.count((e.name, _conv_name(e))) > 1:
             e.display = f"{e.name} ({e.path.name})"
     problems = []
     ref = entries[0]
+    first: dict[str, Entry] = {}  # conventions are compared with the first result of the same named convention
+    for e in entries:
+        first.setdefault(_conv_name(e), e)
     for e in entries[1:]:
         a, b = ref.result["dataset"].get("protocol"), e.result["dataset"].get("protocol")
         if a != b:
             problems.append(f"{e.path}: protocol {b!r} differs from {ref.path}'s {a!r}")
         elif (why := _same_split(ref, e, comparisons or [])) is not None:
             problems.append(f"{e.path}: {why}")
-        ca = {k: v for k, v in ref.result.get("convention", {}).items() if k != "align_albedo"}
-        cb = {k: v for k, v in e.result.get("convention", {}).items() if k != "align_albedo"}
-        if not (_has_flip(ref) and _has_flip(e)):  # pixels per degree only matter where both carry FLIP
+        cref = first[_conv_name(e)]
+        if cref is e:
+            continue
+        ca = {k: v for k, v in _conv_fields(cref).items() if k not in ("align_albedo", "align_image")}
+        cb = {k: v for k, v in _conv_fields(e).items() if k not in ("align_albedo", "align_image")}
+        if not (_has_flip(cref) and _has_flip(e)):  # pixels per degree only matter where both carry FLIP
             ca.pop("flip_ppd", None)
             cb.pop("flip_ppd", None)
         diff = sorted(k for k in set(ca) | set(cb) if ca.get(k) != cb.get(k))
         if "flip_ppd" in diff:
-            problems.append(f"{e.path}: FLIP computed at {_ppd(e)} pixels per degree, {ref.path} at {_ppd(ref)}: "
+            problems.append(f"{e.path}: FLIP computed at {_ppd(e)} pixels per degree, {cref.path} at {_ppd(cref)}: "
                             f"their FLIP values are not comparable (rerun rh-eval with the same --flip-ppd)")
             diff.remove("flip_ppd")
         if diff:
-            problems.append(f"{e.path}: convention differs from {ref.path}'s in "
+            problems.append(f"{e.path}: convention differs from {cref.path}'s in "
                             + ", ".join(f"{k} ({cb.get(k)!r} vs {ca.get(k)!r})" for k in diff))
     if problems and not allow_mixed:
         raise ValueError("results are not comparable (use --allow-mixed to combine anyway):\n  - "
                          + "\n  - ".join(problems))
     return entries, problems
+
+
+def _conv_name(e: Entry) -> str:
+    return str(e.result.get("convention", {}).get("name", "rana"))
+
+
+def _conv_fields(e: Entry) -> dict:
+    """The result's convention with the fields it predates filled in (they were computed with the defaults)."""
+    from .conventions import Convention  # light: numpy and the colour transform only
+    c = e.result.get("convention", {})
+    try:
+        return Convention.from_json(c).to_json()
+    except (TypeError, ValueError):
+        return dict(c)
+
+
+def _align_text(entries: list[Entry]) -> str:
+    ways = {str(e.result.get("convention", {}).get("align_albedo")) for e in entries}
+    return "median" if ways == {"median"} else "least-squares" if ways <= {"lsq", "True"} else "least-squares or median"
+
+
+def _by_convention(entries: list[Entry]) -> list[tuple[str, list[Entry]]]:
+    out: dict[str, list[Entry]] = {}
+    for e in entries:
+        out.setdefault(_conv_name(e), []).append(e)
+    return list(out.items())
+
+
+SIDE_BY_SIDE = ("image_lpips", "image_ssim", "image_psnr", "normal_deg", "albedo_aligned_psnr")
+
+
+def _side_by_side(convs: list[tuple[str, list[Entry]]]) -> tuple[list[str], list[tuple[str, list[str]]]]:
+    """Header cells and (method, cells) rows: each method under every convention, the main columns."""
+    labels = {k: f"{g} {lab} {'↓' if low else '↑'}" for k, g, lab, low, _ in COLUMNS + ALIGNED_COLUMNS}
+    dec = {k: d for k, *_, d in COLUMNS + ALIGNED_COLUMNS}
+    cols = [(name, k) for name, es in convs for k in SIDE_BY_SIDE if any(e.value(k) is not None for e in es)]
+    methods = list(dict.fromkeys(e.label for _, es in convs for e in es))
+    rows = []
+    for m in methods:
+        cells = []
+        for name, k in cols:
+            e = next((x for x in dict(convs)[name] if x.label == m), None)
+            v = e.value(k) if e is not None else None
+            cells.append("—" if v is None else "∞" if v == math.inf else f"{v:.{dec[k]}f}")
+        rows.append((m, cells))
+    return [f"{labels[k]} ({name})" for name, k in cols], rows
 
 
 def _has_flip(e: Entry) -> bool:
@@ -270,6 +326,26 @@ def _md_table(rows: list[Entry], cols, best, mixed: bool = False, mixed_ppd: boo
 
 
 def build_markdown(entries: list[Entry], warnings: list[str] | None = None) -> str:
+    convs = _by_convention(entries)
+    if len(convs) == 1:
+        return _markdown_one(entries, warnings)
+    lines = ["# Relighting Humans leaderboard", "",
+             f"One set of tables per evaluation convention ({', '.join(f'`{n}`' for n, _ in convs)}): numbers of "
+             f"different conventions are not comparable with each other.", ""]
+    for w in warnings or []:
+        lines.append(f"> **Warning:** {w}")
+    if warnings:
+        lines.append("")
+    for name, es in convs:
+        body = _markdown_one(es).split("\n")[2:]  # without the page title
+        lines += [f"## Convention `{name}`", ""] + ["#" + x if x.startswith("## ") else x for x in body]
+    head, rows = _side_by_side(convs)
+    lines += ["## Side by side", "", "| Method | " + " | ".join(head) + " |", "|---|" + "---:|" * len(head)]
+    lines += [f"| {m} | " + " | ".join(cells) + " |" for m, cells in rows] + [""]
+    return "\n".join(lines)
+
+
+def _markdown_one(entries: list[Entry], warnings: list[str] | None = None) -> str:
     cols = _columns(entries)
     mixed_ppd = any(g.startswith("FLIP (different") for _, g, *_ in cols)
     best = _best(entries, cols) if not mixed_ppd else _best(entries, COLUMNS)
@@ -290,8 +366,14 @@ def build_markdown(entries: list[Entry], warnings: list[str] | None = None) -> s
         best_a = _best(entries, ALIGNED_COLUMNS)
         rows = [e for _, _, rs in _groups(entries) for e in rs if any(e.value(k) is not None
                                                                        for k, *_ in ALIGNED_COLUMNS)]
-        lines += ["## Albedo after per-channel least-squares scale (reported separately from the raw scores)", ""]
+        lines += [f"## Albedo after per-channel {_align_text(entries)} scale (reported separately from the raw "
+                  f"scores)", ""]
         lines += _md_table(rows, ALIGNED_COLUMNS, best_a, mixed=True) + [""]
+    rows = [e for _, _, rs in _groups(entries) for e in rs if any(e.value(k) is not None
+                                                                   for k, *_ in IMAGE_ALIGNED_COLUMNS)]
+    if rows:  # --align-image (relightableavatar)
+        lines += ["## Relit images after per-channel median scale (reported separately from the raw scores)", ""]
+        lines += _md_table(rows, IMAGE_ALIGNED_COLUMNS, _best(entries, IMAGE_ALIGNED_COLUMNS), mixed=True) + [""]
     return "\n".join(lines)
 
 
@@ -428,43 +510,71 @@ def _plots(entries: list[Entry]) -> list[tuple[str, str]]:
 
 def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
     e = html.escape
-    cols = _columns(entries)
-    mixed_ppd = any(g.startswith("FLIP (different") for _, g, *_ in cols)
-    best = _best(entries, cols) if not mixed_ppd else _best(entries, COLUMNS)
+    convs = _by_convention(entries)
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
              "<title>Relighting Humans leaderboard</title>", f"<style>{_CSS}</style></head><body>",
-             "<h1>Relighting Humans leaderboard</h1>",
-             f'<p class="note">{e(_convention_line(entries)).replace("**bold**", "<b>bold</b>").replace("`", "")}'
-             " Click a column header to sort.</p>"]
-    for x in entries:
-        if x.within_tolerance:
-            parts.append(f'<p class="note">≈ {e(x.within_tolerance).replace("`", "")}</p>')
-    for w in warnings or []:
-        parts.append(f'<p class="warn">Warning: {e(w)}</p>')
-    ids = {"method": "methods", "bound": "bounds", "incomplete": "incomplete"}
-    for title, group, rows in _groups(entries):
-        if rows:
-            parts += [f"<h2>{e(title)}</h2>", _html_table(rows, cols, best, ids[group], mixed_ppd)]
-    aligned_rows = [x for _, _, rs in _groups(entries) for x in rs
-                    if any(x.value(k) is not None for k, *_ in ALIGNED_COLUMNS)]
-    if aligned_rows:
-        parts += ["<h2>Albedo after per-channel least-squares scale (separate from the raw scores)</h2>",
-                  _html_table(aligned_rows, ALIGNED_COLUMNS, _best(entries, ALIGNED_COLUMNS), "aligned")]
-    plots = _plots([x for _, _, rs in _groups(entries) for x in rs])
-    if plots:
-        parts.append("<h2>Per subject</h2><div class=\"plots\">")
-        for title, svg in plots:
-            parts.append(f'<figure aria-label="{e(title)}">{svg}</figure>')
-        parts.append("</div>")
+             "<h1>Relighting Humans leaderboard</h1>"]
+    if len(convs) > 1:
+        parts.append(f'<p class="note">One set of tables per evaluation convention '
+                     f'({e(", ".join(n for n, _ in convs))}): numbers of different conventions are not comparable '
+                     f'with each other.</p>')
+    if len(convs) == 1:
+        parts += _html_one(entries, warnings)
+    else:
+        parts += [f'<p class="warn">Warning: {e(w)}</p>' for w in warnings or []]
+        for name, es in convs:
+            parts.append(f'<h2 id="convention-{e(name)}">Convention {e(name)}</h2>')
+            parts += _html_one(es, prefix=f"{name}-", h="h3")
+    if len(convs) > 1:
+        head, rows = _side_by_side(convs)
+        parts.append('<h2>Side by side</h2><table id="side-by-side"><thead><tr><th>Method</th>'
+                     + "".join(f"<th>{e(h)}</th>" for h in head) + "</tr></thead><tbody>")
+        parts += [f"<tr><td>{e(m)}</td>" + "".join(f"<td>{e(c)}</td>" for c in cells) + "</tr>" for m, cells in rows]
+        parts.append("</tbody></table>")
     parts.append("<h2>Result files</h2><ul>")
     for x in entries:
         r = x.result
         ws = ", ".join(f"{k} {v['sha256'][:12]}…" for k, v in sorted(r.get("weights", {}).items()))
-        parts.append(f"<li><code>{e(x.path.name)}</code>: {e(x.name)} ({e(x.group)}), "
+        conv = f", convention {e(_conv_name(x))}" if len(convs) > 1 else ""
+        parts.append(f"<li><code>{e(x.path.name)}</code>: {e(x.name)} ({e(x.group)}{conv}), "
                      f"{r.get('n_frames_evaluated')} frames; weights {e(ws)}</li>")
     parts.append("</ul>")
     parts.append(f"<script>{_JS}</script></body></html>")
     return "\n".join(parts) + "\n"
+
+
+def _html_one(entries: list[Entry], warnings: list[str] | None = None, prefix: str = "", h: str = "h2") -> list[str]:
+    """One convention's tables and plots (after its note, `warnings`); table ids start with `prefix`."""
+    e = html.escape
+    cols = _columns(entries)
+    mixed_ppd = any(g.startswith("FLIP (different") for _, g, *_ in cols)
+    best = _best(entries, cols) if not mixed_ppd else _best(entries, COLUMNS)
+    parts = [f'<p class="note">{e(_convention_line(entries)).replace("**bold**", "<b>bold</b>").replace("`", "")}'
+             " Click a column header to sort.</p>"]
+    parts += [f'<p class="note">≈ {e(x.within_tolerance).replace("`", "")}</p>' for x in entries if x.within_tolerance]
+    parts += [f'<p class="warn">Warning: {e(w)}</p>' for w in warnings or []]
+    ids = {"method": "methods", "bound": "bounds", "incomplete": "incomplete"}
+    for title, group, rows in _groups(entries):
+        if rows:
+            parts += [f"<{h}>{e(title)}</{h}>", _html_table(rows, cols, best, prefix + ids[group], mixed_ppd)]
+    aligned_rows = [x for _, _, rs in _groups(entries) for x in rs
+                    if any(x.value(k) is not None for k, *_ in ALIGNED_COLUMNS)]
+    if aligned_rows:
+        parts += [f"<{h}>Albedo after per-channel {_align_text(entries)} scale (separate from the raw scores)</{h}>",
+                  _html_table(aligned_rows, ALIGNED_COLUMNS, _best(entries, ALIGNED_COLUMNS), prefix + "aligned")]
+    rows = [x for _, _, rs in _groups(entries) for x in rs
+            if any(x.value(k) is not None for k, *_ in IMAGE_ALIGNED_COLUMNS)]
+    if rows:  # --align-image (relightableavatar)
+        parts += [f"<{h}>Relit images after per-channel median scale (separate from the raw scores)</{h}>",
+                  _html_table(rows, IMAGE_ALIGNED_COLUMNS, _best(entries, IMAGE_ALIGNED_COLUMNS),
+                              prefix + "image-aligned")]
+    plots = _plots([x for _, _, rs in _groups(entries) for x in rs])
+    if plots:
+        parts.append(f"<{h}>Per subject</{h}><div class=\"plots\">")
+        for title, svg in plots:
+            parts.append(f'<figure aria-label="{e(title)}">{svg}</figure>')
+        parts.append("</div>")
+    return parts
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -473,7 +583,9 @@ def main(argv: list[str] | None = None) -> int:
         description="Combine rh-eval result files into leaderboard.md (Table 2 layout: Image LPIPS/DISTS/SSIM/PSNR "
                     "| Normal degrees | Albedo LPIPS/DISTS/SSIM/PSNR, best in bold) and a self-contained "
                     "index.html (sortable tables, per-subject plots). Bounds (kind=bound) and incomplete "
-                    "submissions are listed separately, never ranked.")
+                    "submissions are listed separately, never ranked. Results under different named conventions "
+                    "(rh-eval --convention) get their own tables, and a side-by-side table shows each method under "
+                    "every convention.")
     p.add_argument("results", nargs="+", type=Path, help="rh-eval result JSON files")
     p.add_argument("--out", type=Path, required=True, help="output folder (index.html, leaderboard.md)")
     p.add_argument("--allow-mixed", action="store_true",

@@ -2,8 +2,9 @@
 
 In:  a `FramePrediction` and a `FrameGroundTruth` (numpy arrays as the dataset's and the method's files hold them;
      `read_frame` reads them from a predictions folder), a `Convention` and the metric names.
-Out: `FrameScores`: a `LayerScores` per compared layer (image, albedo, albedo_aligned), the normal error, the albedo
-     alignment scales, whether the ground-truth mask is empty; `columns()` is the frame's row of rh-eval's CSV.
+Out: `FrameScores`: a `LayerScores` per compared layer (image, image_aligned, albedo, albedo_aligned), the normal
+     error, the alignment scales, whether the ground-truth mask is empty; `columns()` is the frame's row of
+     rh-eval's CSV.
 
 `score_frame` runs two halves, and rh-eval runs the same two: `prepare_frame` (the region, the crops, the colour
 conversion, PSNR/SSIM/FLIP and the normal error, and each layer's network inputs as a `NetworkPair`) and
@@ -21,7 +22,8 @@ from typing import Callable
 
 import numpy as np
 
-from .conventions import Convention, Region, align_albedo, albedo_to_space, composite, compute_region
+from .conventions import (Convention, Region, align_albedo, albedo_to_space, composite, compute_region,
+                          gt_albedo_values)
 from .dataset_io import (PredFrame, albedo_from_stored, decode_layer, display_from_stored, normal_from_stored,
                          read_gt_albedo, read_gt_image_stored, read_gt_mask, read_gt_normal)
 from .metrics import dists, dists_features, flip, lpips, lpips_features, normal_angular_error, psnr, ssim
@@ -33,8 +35,13 @@ __all__ = ["ALL_METRICS", "IMAGE_METRICS", "NETWORK_METRICS", "LAYERS", "check_m
 ALL_METRICS = ("lpips", "dists", "ssim", "psnr", "flip", "normal")
 IMAGE_METRICS = ("lpips", "dists", "ssim", "psnr", "flip")
 NETWORK_METRICS = ("lpips", "dists")
-LAYERS = ("image", "albedo", "albedo_aligned")
+LAYERS = ("image", "image_aligned", "albedo", "albedo_aligned")
 _CPU_METRICS = ("psnr", "ssim", "flip")
+LPIPS_MIN_SIDE = {"alex": 31, "vgg": 16}  # smaller crops leave no pixel at the backbone's last tap
+
+
+class CropTooSmallError(ValueError):
+    """A crop the LPIPS backbone cannot take (a convention that does not grow crops, on a small person)."""
 
 
 def check_metrics(metrics) -> tuple[str, ...]:
@@ -127,10 +134,13 @@ class FrameScores:
     empty_mask: bool
     compared: tuple[str, ...] = ()
     image: LayerScores | None = None
+    image_aligned: LayerScores | None = None
     albedo: LayerScores | None = None
     albedo_aligned: LayerScores | None = None
     albedo_scale: list[float] | None = None
-    """The per-channel least-squares scales of the aligned albedo (Convention.align_albedo)."""
+    """The per-channel scales of the aligned albedo (Convention.align_albedo)."""
+    image_scale: list[float] | None = None
+    """The per-channel scales of the aligned image (Convention.align_image)."""
     normal_deg: float | None = None
 
     def columns(self) -> dict:
@@ -142,6 +152,8 @@ class FrameScores:
                 row.update({f"{layer}_{m}": getattr(scores, m) for m in IMAGE_METRICS if m in self.metrics})
         if self.albedo_scale is not None:
             row["albedo_scale"] = self.albedo_scale
+        if self.image_scale is not None:
+            row["image_scale"] = self.image_scale
         if "normal" in self.compared:
             row["normal_deg"] = self.normal_deg
         return row
@@ -151,15 +163,15 @@ class FrameScores:
 class NetworkPair:
     """One layer's LPIPS/DISTS inputs: the (h, w, 3) float32 crops in [0, 1] the networks see, and the region."""
 
-    layer: str  # image | albedo | albedo_aligned: where the scores go
+    layer: str  # image | image_aligned | albedo | albedo_aligned: where the scores go
     pred: np.ndarray
     target: np.ndarray
     region: Region
 
     @property
     def source(self) -> str:
-        """The ground-truth layer compared against (the aligned albedo is compared with the albedo)."""
-        return "albedo" if self.layer == "albedo_aligned" else self.layer
+        """The ground-truth layer compared against (an aligned layer is compared with the layer)."""
+        return self.layer.removesuffix("_aligned")
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -181,16 +193,22 @@ def _score_layer(pairs: list[NetworkPair], layer: str, pred_crop: np.ndarray, gt
     net = any(m in metrics for m in NETWORK_METRICS)
     p = g = None
     if cpu or (net and region.alpha is not None):
-        p = composite(pred_crop, region, conv)
-        g = composite(gt_crop, region, conv)
+        p = composite(pred_crop, region, conv, "pred")
+        g = composite(gt_crop, region, conv, "gt")
     mm = region.metric_mask
     if "psnr" in metrics:
-        scores.psnr = _defined(psnr(p, g, data_range=1.0, mask=mm))
+        scores.psnr = _defined(psnr(p, g, data_range=1.0, mask=mm if region.psnr_mask is None else region.psnr_mask))
     if "ssim" in metrics:
-        scores.ssim = _defined(ssim(p, g, data_range=1.0, mask=mm))
+        scores.ssim = _defined(ssim(p, g, data_range=conv.ssim_data_range, mask=mm, window=conv.ssim_window))
     if "flip" in metrics:
         scores.flip = _defined(flip(p, g, data_range=1.0, mask=mm, ppd=conv.flip_ppd))
     if net:
+        need = LPIPS_MIN_SIDE[conv.backbone]
+        if "lpips" in metrics and min(region.shape) < need:
+            raise CropTooSmallError(
+                f"the {layer} region is {region.shape[1]}x{region.shape[0]} px, smaller than the {need} px LPIPS-"
+                f"{conv.backbone} needs (convention {conv.name!r} uses min_crop {conv.min_crop}); evaluate at a "
+                f"higher resolution or leave lpips out of --metrics")
         if p is None:  # nothing to composite: the crop itself, the same float32 values as via float64
             p, g = pred_crop, gt_crop
         # float32, the networks' input type: half the memory while rh-eval queues pairs for a batch
@@ -217,25 +235,35 @@ def prepare_frame(pred: FramePrediction, gt: FrameGroundTruth, convention: Conve
     image_metrics = any(m in metrics for m in IMAGE_METRICS)
     if image_metrics and pred.image is not None:
         # per-pixel conversions: only the evaluated region is brought to display space (`gt` gives the exposure)
-        scores.image = _score_layer(pairs, "image", display_from_stored(pred.image[crop], gt),
-                                    display_from_stored(gt.need("image")[crop], gt), region, conv, metrics)
+        p_img = display_from_stored(pred.image[crop], gt)
+        g_img = display_from_stored(gt.need("image")[crop], gt)
+        scores.image = _score_layer(pairs, "image", p_img, g_img, region, conv, metrics)
         compared.append("image")
+        if conv.align_image != "none":
+            # the region holds the whole mask, so the scales over the crop are the scales over the frame
+            aligned, scales = align_albedo(p_img, g_img, inside[crop], conv.align_image)
+            scores.image_scale = scales
+            scores.image_aligned = _score_layer(pairs, "image_aligned", aligned, g_img, region, conv, metrics)
+            compared.append("image_aligned")
     if image_metrics and pred.albedo is not None:
-        gt_lin = albedo_from_stored(gt.need("albedo"))
+        a_region = compute_region(gt.mask, conv, "albedo") if conv.albedo_region != "same" else region
+        a_crop = (slice(a_region.y0, a_region.y1), slice(a_region.x0, a_region.x1))
+        gt_lin = gt_albedo_values(albedo_from_stored(gt.need("albedo")), conv)
         pr_lin = albedo_from_stored(pred.albedo)
-        g_sp = albedo_to_space(gt_lin[crop], conv)
-        scores.albedo = _score_layer(pairs, "albedo", albedo_to_space(pr_lin[crop], conv), g_sp, region, conv,
+        g_sp = albedo_to_space(gt_lin[a_crop], conv)
+        scores.albedo = _score_layer(pairs, "albedo", albedo_to_space(pr_lin[a_crop], conv), g_sp, a_region, conv,
                                      metrics)
         compared.append("albedo")
-        if conv.align_albedo:
-            aligned, scales = align_albedo(pr_lin, gt_lin, inside)  # scales from the whole mask
+        if conv.align_albedo != "none":
+            aligned, scales = align_albedo(pr_lin, gt_lin, inside, conv.align_albedo)  # scales from the whole mask
             scores.albedo_scale = scales
-            scores.albedo_aligned = _score_layer(pairs, "albedo_aligned", albedo_to_space(aligned[crop], conv), g_sp,
-                                                 region, conv, metrics)
+            scores.albedo_aligned = _score_layer(pairs, "albedo_aligned", albedo_to_space(aligned[a_crop], conv),
+                                                 g_sp, a_region, conv, metrics)
             compared.append("albedo_aligned")
     if "normal" in metrics and pred.normal is not None:
-        scores.normal_deg = _defined(normal_angular_error(normal_from_stored(pred.normal),
-                                                          normal_from_stored(gt.need("normal")), mask=inside))
+        p_n = normal_from_stored(pred.normal)
+        n_mask = inside if conv.normal_mask == "gt" else inside & np.any(p_n != 0, axis=-1)
+        scores.normal_deg = _defined(normal_angular_error(p_n, normal_from_stored(gt.need("normal")), mask=n_mask))
         compared.append("normal")
     scores.compared = tuple(compared)
     return scores, pairs
@@ -258,7 +286,7 @@ def score_pairs(pairs: list[NetworkPair], convention: Convention | None = None, 
         if metric not in metrics:
             continue
         fn, features = (lpips, lpips_features) if metric == "lpips" else (dists, dists_features)
-        kw = {"backbone": conv.backbone} if metric == "lpips" else {}
+        kw = {"backbone": conv.backbone, "normalize": conv.lpips_normalize} if metric == "lpips" else {}
 
         def compute(features=features, kw=kw):
             return features([p.target for p in pairs], data_range=1.0, **kw)

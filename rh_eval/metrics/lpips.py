@@ -9,6 +9,10 @@ No resizing (the official default). AlexNet is the default backbone. The public 
 images in [0, data_range] (converted here to [-1, 1]). The squared difference of normalised features is symmetric,
 so lpips(a, b) == lpips(b, a) up to round-off.
 
+`normalize=False` feeds the [0, 1] values to the network as they are, as code that calls the official
+`lpips.LPIPS()(a, b)` on [0, 1] images without `normalize=True` does (rh_eval.conventions: relightableavatar); it
+departs from LPIPS's documented [-1, 1] input range, and its numbers are not LPIPS's usual scale.
+
 A `mask` is refused: LPIPS is defined on a rectangle; the region convention (`rh_eval.conventions`) crops and
 composites before the network runs.
 
@@ -46,14 +50,15 @@ class LPIPSNet:
         self.heads = [h.view(1, -1, 1, 1) for h in load_lpips_heads(BACKBONES[backbone])]
 
     @torch.inference_mode()
-    def backbone_forward(self, x01: torch.Tensor) -> list[torch.Tensor]:
-        """Raw taps for (N, 3, H, W) images in [0, 1] (used by the bench as the bare cost)."""
-        x = x01 * 2.0 - 1.0
+    def backbone_forward(self, x01: torch.Tensor, normalize: bool = True) -> list[torch.Tensor]:
+        """Raw taps for (N, 3, H, W) images in [0, 1] (used by the bench as the bare cost); `normalize=False`:
+        the values taken as already in [-1, 1]."""
+        x = x01 * 2.0 - 1.0 if normalize else x01
         return self.net((x - _SHIFT) / _SCALE)
 
     @torch.inference_mode()
-    def features(self, x01: torch.Tensor) -> list[torch.Tensor]:
-        taps = self.backbone_forward(x01)
+    def features(self, x01: torch.Tensor, normalize: bool = True) -> list[torch.Tensor]:
+        taps = self.backbone_forward(x01, normalize)
         # In place: the taps are fresh ReLU outputs nobody else holds, and these heads cost a quarter of AlexNet
         # at 512x512 when every step allocates. Same operations in the same order: the same bits as
         # f / (sqrt(sum(f * f)) + eps).
@@ -100,25 +105,28 @@ def check_same_features(name: str, got: list, want: list) -> None:
                          f"{[tuple(t.shape) for t in want]}): compute them from targets shaped like pred")
 
 
-def lpips_features(target, *, data_range: float = 1.0, backbone: str = "alex") -> list[torch.Tensor]:
+def lpips_features(target, *, data_range: float = 1.0, backbone: str = "alex",
+                   normalize: bool = True) -> list[torch.Tensor]:
     """LPIPS's normalised features of reference images ((H, W, 3), (N, H, W, 3) or a list of equal-shape (H, W, 3)
     in [0, data_range]): one (N, C, h, w) tensor per tap, batch first. `lpips(pred, target_features=...)` takes
     them instead of the target images, so a reference scored many times (rh-eval's ground truth) runs once."""
     _check_backbone(backbone)
     t, _ = _validate(_stack(target, name="lpips", label="target"), None, data_range=data_range, name="lpips",
                      batch=True)
-    return _features(t, data_range, backbone)
+    return _features(t, data_range, backbone, normalize)
 
 
-def _features(checked: np.ndarray, data_range: float, backbone: str) -> list[torch.Tensor]:
-    return get_lpips_net(backbone).features(to_tensor01(checked, data_range))
+def _features(checked: np.ndarray, data_range: float, backbone: str, normalize: bool = True) -> list[torch.Tensor]:
+    net, x = get_lpips_net(backbone), to_tensor01(checked, data_range)
+    return net.features(x) if normalize else net.features(x, normalize=False)
 
 
 def lpips(pred, target=None, *, data_range: float = 1.0, mask=None, backbone: str = "alex",
-          target_features: list[torch.Tensor] | None = None) -> float | np.ndarray:
+          target_features: list[torch.Tensor] | None = None, normalize: bool = True) -> float | np.ndarray:
     """LPIPS v0.1 distance; (H, W, 3) -> float, (N, H, W, 3) or a list of equal-shape (H, W, 3) -> (N,) array. 0 for
     identical inputs. One image is the batch of one. Give the reference as `target` images or as their
-    `lpips_features` (same backbone and data range), not both."""
+    `lpips_features` (same backbone, data range and `normalize`), not both. `normalize=False`: see the module
+    docstring."""
     _check_backbone(backbone)
     if mask is not None:
         raise ValueError("lpips: a mask is not supported (LPIPS is defined on a rectangle); crop and composite "
@@ -130,11 +138,11 @@ def lpips(pred, target=None, *, data_range: float = 1.0, mask=None, backbone: st
     if target_features is None:
         p, t = _validate(pred, _stack(target, name="lpips", label="target"), data_range=data_range, name="lpips",
                          batch=True)
-        target_features = _features(t, data_range, backbone)
+        target_features = _features(t, data_range, backbone, normalize)
     else:
         p, _ = _validate(pred, None, data_range=data_range, name="lpips", batch=True)
     net = get_lpips_net(backbone)
-    fp = _features(p, data_range, backbone)
+    fp = _features(p, data_range, backbone, normalize)
     check_same_features("lpips", target_features, fp)
     out = net.distance(fp, target_features).numpy()
     return float(out[0]) if single else out
