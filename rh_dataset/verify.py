@@ -14,6 +14,7 @@ import numpy as np
 
 from rh_common import layout
 from rh_common.imageio import ImageFileError, read_exr, read_json, read_png
+from rh_common.interrupt import add_debug_flag, command, on_stop
 
 __all__ = ["Problem", "verify", "main"]
 
@@ -89,6 +90,7 @@ def verify(root: str | Path, *, check_content: bool = True, progress: bool = Fal
     return rep
 
 
+@command("rh-verify")
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="rh-verify",
                                 description="Check a dataset against its manifest: every file present, with the "
@@ -97,7 +99,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("root", type=Path, help="dataset folder (the one holding manifest.json)")
     p.add_argument("--no-content", action="store_true", help="checksums only; skip decoding images for NaN/Inf")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_debug_flag(p)
     args = p.parse_args(argv)
+    on_stop(lambda: "rh-verify only reads, the dataset is unchanged")
     rep = verify(args.root, check_content=not args.no_content, progress=not args.no_progress)
     for prob in rep.problems:
         print(prob)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rh_common.imageio import atomic_path
+from rh_common.interrupt import add_debug_flag, command, on_stop
 
 __all__ = ["main", "load_results", "build_markdown", "build_html", "COLUMNS", "Entry"]
 
@@ -413,6 +414,7 @@ def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
     return "\n".join(parts) + "\n"
 
 
+@command("rh-leaderboard")
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="rh-leaderboard",
@@ -424,7 +426,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, required=True, help="output folder (index.html, leaderboard.md)")
     p.add_argument("--allow-mixed", action="store_true",
                    help="combine results computed on different datasets/protocols/conventions (warned in output)")
+    add_debug_flag(p)
     args = p.parse_args(argv)
+    on_stop(lambda: f"the tables in {args.out} are each whole (old or new)")
     try:
         entries, warnings = load_results(args.results, allow_mixed=args.allow_mixed)
     except ValueError as exc:
