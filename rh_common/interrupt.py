@@ -169,8 +169,9 @@ def command(prog: str, *, not_on_resume: tuple[str, ...] = ()
                 _say(f"{prog}: stopped by {signal.Signals(signum).name}: {_finished(cmd)}no partial file was kept; "
                      f"resume with: {resume_command(prog, cmd.argv)}")
                 return 128 + int(signum)
-            except OSError as exc:
-                if debug or not outer or exc.errno not in DISK_ERRNOS:
+            except OSError as raised:
+                exc = _disk_error(raised)
+                if debug or not outer or exc is None:
                     raise
                 _say(disk_error_line(prog, exc, resume=resume_command(prog, cmd.argv), finished=_finished(cmd, ""),
                                      remaining_bytes=_call(cmd.remaining_bytes)))
@@ -184,6 +185,18 @@ def command(prog: str, *, not_on_resume: tuple[str, ...] = ()
         return run
 
     return decorate
+
+
+def _disk_error(exc: BaseException) -> OSError | None:
+    """The disk error behind `exc`: itself, or the error a worker raised (a Ray task's error carries it as `cause`,
+    re-raised errors as `__cause__`)."""
+    seen = 0
+    while exc is not None and seen < 8:
+        if isinstance(exc, OSError) and exc.errno in DISK_ERRNOS:
+            return exc
+        exc = getattr(exc, "cause", None) or exc.__cause__
+        seen += 1
+    return None
 
 
 def _call(fn):
