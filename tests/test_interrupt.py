@@ -194,6 +194,13 @@ def _wait_for_first_frame(proc: subprocess.Popen, out: Path) -> None:
         time.sleep(0.05)
 
 
+def _alive(pid: str) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split()[2] not in ("Z", "X")
+    except OSError:
+        return False
+
+
 def _resume(line: str) -> int:
     """Run the command the stop line prints, as `python -m rh_dataset.cli` (the console script is /work/main's)."""
     argv = shlex.split(line.split("resume with: ", 1)[1])
@@ -228,8 +235,11 @@ def test_sigterm_stops_rh_generate_workers_and_resumes(tmp_path, reference):
     assert proc.returncode == 143 and "Traceback" not in err
     [line] = _lines(err, "rh-generate: ")
     assert line.startswith("rh-generate: stopped by SIGTERM: ")
-    for pid in children:
-        assert not Path(f"/proc/{pid}").exists() or "Z" in Path(f"/proc/{pid}/stat").read_text().split()[2]
+    assert children  # the worker (and multiprocessing's resource tracker, which ends once its parent has)
+    deadline = time.time() + 30
+    while any(_alive(pid) for pid in children) and time.time() < deadline:
+        time.sleep(0.1)
+    assert not any(_alive(pid) for pid in children)
     assert not list(out.rglob("*.tmp"))
     assert _resume(line) == 0
     assert read_json(out / "manifest.json")["files"] == reference
@@ -318,3 +328,19 @@ def test_the_estimate_counts_only_what_is_left(tmp_path, reference):
     want = 2 * (train + test) + 4 * space.FIXED_BYTES["json"] + 2 * space.FIXED_BYTES["contact_sheet"]
     assert abs(est - want) <= 4  # whole bytes per frame
     assert space.frames_finished(plan) == (0, 4)
+
+
+def test_a_read_only_out_is_one_line_before_any_render(tmp_path, capsys):
+    from rh_dataset.cli import main as generate_main
+
+    mnt = tmp_path / "ro"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=1m", "tmpfs", str(mnt)], capture_output=True).returncode:
+        pytest.skip("cannot mount a tmpfs here (needs root)")
+    try:
+        assert generate_main(["--protocol", "a", "--out", str(mnt / "ds"), *TINY]) == interrupt.EXIT_DISK
+        [line] = capsys.readouterr().err.strip().splitlines()
+        assert line.startswith(f"rh-generate: error: read-only file system: {mnt / 'ds'}")
+        assert "0 of 4 frames finished and kept" in line and "resume with: rh-generate " in line
+    finally:
+        subprocess.run(["umount", str(mnt)])
