@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Callable
 
 __all__ = ["command", "on_stop", "Stopped", "worker_signals", "add_debug_flag", "resume_command", "disk_error_line",
-           "human_bytes", "EXIT_DISK", "DISK_ERRNOS"]
+           "human_bytes", "nearest_folder", "EXIT_DISK", "DISK_ERRNOS"]
 
 EXIT_DISK = 1
 DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS}
@@ -103,8 +103,9 @@ def human_bytes(n: float) -> str:
     return f"{n:.1f} TB"
 
 
-def _existing_folder(path: Path) -> Path:
-    p = path
+def nearest_folder(path: str | Path) -> Path:
+    """`path` if it is a folder, else its nearest existing ancestor folder (where free space is measured)."""
+    p = Path(path).absolute()
     while not p.exists() and p != p.parent:
         p = p.parent
     return p if p.is_dir() else p.parent
@@ -114,7 +115,7 @@ def disk_error_line(prog: str, exc: OSError, *, resume: str, finished: str = "",
                     remaining_bytes: int | None = None) -> str:
     """The one line for a full disk, a quota, a forbidden or a read-only folder."""
     target = Path(exc.filename) if exc.filename else None
-    folder = _existing_folder(target.parent if target is not None else Path.cwd())
+    folder = nearest_folder(target.parent if target is not None else Path.cwd())
     named = str(target) if target is not None else f"a file in {folder}"
     done = f"{finished}; " if finished else ""
     if exc.errno in (errno.ENOSPC, errno.EDQUOT):

@@ -14,10 +14,9 @@ compress), so the figures hold for every preset.
 from __future__ import annotations
 
 import shutil
-from pathlib import Path
 
 from rh_common import layout
-from rh_common.interrupt import human_bytes
+from rh_common.interrupt import human_bytes, nearest_folder
 
 __all__ = ["BYTES_PER_PIXEL", "FIXED_BYTES", "frame_bytes", "remaining_bytes", "frames_finished", "check_space",
            "SpaceError"]
@@ -79,18 +78,11 @@ def remaining_bytes(plan) -> int:
     return int(total * MARGIN)
 
 
-def _existing(path: Path) -> Path:
-    path = Path(path).absolute()
-    while not path.exists() and path != path.parent:
-        path = path.parent
-    return path
-
-
 def check_space(plan) -> int:
     """Refuse (SpaceError) a run whose remaining bytes exceed the free space of --out's file system; returns the
     estimate."""
     need = remaining_bytes(plan)
-    where = _existing(plan.out)
+    where = nearest_folder(plan.out)
     free = shutil.disk_usage(where).free
     if need > free:
         raise SpaceError(
