@@ -28,11 +28,12 @@ import shutil
 import signal
 import sys
 import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
-__all__ = ["command", "on_stop", "Stopped", "worker_signals", "add_debug_flag", "resume_command", "disk_error_line",
+__all__ = ["command", "on_stop", "Stopped", "worker_signals", "signals_kept", "add_debug_flag", "resume_command", "disk_error_line",
            "human_bytes", "nearest_folder", "EXIT_DISK", "DISK_ERRNOS"]
 
 EXIT_DISK = 1
@@ -59,12 +60,16 @@ class _Command:
 
 
 _active: list[_Command] = []
+# The signal that stopped us: a library may catch our `Stopped` and raise a plain KeyboardInterrupt in its place
+# (Ray's blocking calls do), and the line and the exit code must still name SIGTERM.
+_received: list[int] = []
 
 
 def _raise_stopped(signum: int, frame) -> None:
     # The first signal stops the command; later ones are ignored so that no `finally` is interrupted half-way.
     for s in _SIGNALS:
         signal.signal(s, signal.SIG_IGN)
+    _received.append(signum)
     raise Stopped(signum)
 
 
@@ -73,6 +78,20 @@ def worker_signals() -> None:
     files) instead of dying mid-write."""
     for s in _SIGNALS:
         signal.signal(s, _raise_stopped)
+
+
+@contextmanager
+def signals_kept() -> Iterator[None]:
+    """Around a library's start-up that takes over SIGINT/SIGTERM (ray.init sets a Python SIGTERM handler that
+    exits, and its core worker a native one that aborts): the handlers in place before are put back after, at the
+    OS level too. Main thread only (elsewhere nothing is changed)."""
+    before = {s: signal.getsignal(s) for s in _SIGNALS} if _is_main_thread() else {}
+    try:
+        yield
+    finally:
+        for s, handler in before.items():
+            if handler is not None:
+                signal.signal(s, handler)
 
 
 def add_debug_flag(parser) -> None:
@@ -154,6 +173,8 @@ def command(prog: str, *, not_on_resume: tuple[str, ...] = ()
             cmd = _Command(prog, [a for a in args if a not in not_on_resume and a != "--debug"])
             _active.append(cmd)
             previous = None
+            if outer:
+                _received.clear()
             if outer and _is_main_thread():
                 previous = {s: signal.signal(s, _raise_stopped) for s in _SIGNALS}
             try:
@@ -161,7 +182,7 @@ def command(prog: str, *, not_on_resume: tuple[str, ...] = ()
             except KeyboardInterrupt as exc:
                 if debug or not outer:
                     raise
-                signum = getattr(exc, "signum", signal.SIGINT)
+                signum = getattr(exc, "signum", None) or (_received[-1] if _received else signal.SIGINT)
                 if argv is None:
                     # A console script: the process ends next. Keep further signals ignored, or a second Ctrl-C
                     # during the interpreter's teardown (which restores the default handlers) would replace the

@@ -344,3 +344,19 @@ def test_a_read_only_out_is_one_line_before_any_render(tmp_path, capsys):
         assert "0 of 4 frames finished and kept" in line and "resume with: rh-generate " in line
     finally:
         subprocess.run(["umount", str(mnt)])
+
+
+@pytest.mark.slow
+def test_sigterm_stops_the_ray_driver_and_its_tasks_and_resumes(tmp_path, reference):
+    pytest.importorskip("ray")
+    out = tmp_path / "ds"
+    proc = _generate(out, "--backend", "ray", "--ray-frames-per-task", "1")
+    _wait_for_first_frame(proc, out)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 143 and "Traceback" not in err
+    [line] = _lines(err, "rh-generate: ")
+    assert line.startswith("rh-generate: stopped by SIGTERM: ") and "--backend ray" in line
+    assert not list(out.rglob("*.tmp"))
+    assert _resume(line) == 0
+    assert read_json(out / "manifest.json")["files"] == reference

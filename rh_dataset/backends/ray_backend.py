@@ -151,8 +151,13 @@ def _run_ray(backend: RayBackend, plan: DatasetPlan, on_frame: OnFrame) -> None:
     plan = dataclasses.replace(plan, out=Path(plan.out).resolve(), spec=spec)
     started = False
     if not ray.is_initialized():
-        ray.init(address=backend.address, include_dashboard=False, log_to_driver=False,
-                 logging_level=logging.WARNING)
+        # ray.init replaces the SIGTERM handler (with one that exits, and a native one that aborts): keep ours, so
+        # that SIGTERM stops the driver the way Ctrl-C does (rh_common.interrupt) and the tasks are cancelled below.
+        from rh_common.interrupt import signals_kept
+
+        with signals_kept():
+            ray.init(address=backend.address, include_dashboard=False, log_to_driver=False,
+                     logging_level=logging.WARNING)
         started = True
     try:
         progress = _progress_actor(ray)
