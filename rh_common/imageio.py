@@ -54,9 +54,10 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     path.parent.mkdir(parents=True, exist_ok=True)
     # SIGINT/SIGTERM are held while the temporary file is created and named, so that an interruption
     # (rh_common.interrupt) always lands where the `finally` below knows the file and removes it.
-    held = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, ())  # the mask as it is (nothing blocked yet), to restore
     tmp_path = None
     try:
+        signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
         os.close(fd)
         tmp_path = Path(tmp)
@@ -73,9 +74,9 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
             raise OSError(exc.errno, exc.strerror or os.strerror(exc.errno), str(path)) from exc
         raise
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, held)
         if tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)  # after the unlink: a signal it releases cannot skip it
 
 
 def _umask() -> int:
