@@ -86,10 +86,10 @@ def test_a_second_ctrl_c_while_stopping_leaves_no_temporary_file(tmp_path):
             except ProcessLookupError:
                 break
             time.sleep(0.001)
-        out, err = proc.communicate(timeout=60)
-        assert proc.returncode == 130 and "Traceback" not in err
-        assert len(_lines(err, "toy: stopped by SIGINT")) == 1
-        assert not list(tmp_path.glob(".*.tmp"))
+        out, err = proc.communicate(timeout=120)
+        assert proc.returncode == 130 and "Traceback" not in err, (proc.returncode, err)
+        assert len(_lines(err, "toy: stopped by SIGINT")) == 1, err
+        assert not list(tmp_path.glob(".*.tmp")), (list(tmp_path.iterdir()), err)
 
 
 def test_debug_shows_the_traceback(tmp_path):
