@@ -18,6 +18,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from rh_common.interrupt import add_debug_flag, command, on_stop
+
 from .config import PRESETS, get_preset
 from .config_flags import add_config_flags, apply_config_flags
 
@@ -119,6 +121,8 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--resolution", type=int, default=128, help="image size in pixels (square)")
     sy.add_argument("--seed", type=int, default=0, help="seed of shapes, poses and lights")
     sy.add_argument("--aov-only-train", action="store_true", help="pretraining-style train split")
+    for sp in (t, *[sub.choices[n] for n in ("predict", "smpld", "plot", "synth")]):
+        add_debug_flag(sp)
     return p
 
 
@@ -133,6 +137,7 @@ def _subjects(arg: str, dataset: Path, protocol: str, split: str) -> list[str]:
     return [s.strip() for s in arg.split(",") if s.strip()]
 
 
+@command("rana", not_on_resume=("--force",))
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["pretrain"]:
@@ -140,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
 
         return pretrain_main(argv[1:])
     args = build_parser().parse_args(argv)
+    if args.cmd in ("predict", "smpld", "synth"):
+        on_stop(lambda: f"the files already in {args.out} are whole; a rerun writes them again")
     try:
         if args.cmd == "train":
             from rh_common.threads import torch_threads
@@ -147,10 +154,16 @@ def main(argv: list[str] | None = None) -> int:
             from .train import personalize
 
             cfg = apply_config_flags(get_preset(args.preset), args)
+            subjects = _subjects(args.subject, args.dataset, args.protocol, "train")
+            trained: list[str] = []
+            # Checkpoints are written atomically; a rerun with the same flags resumes from each subject's newest.
+            on_stop(lambda: f"{len(trained)} of {len(subjects)} subjects trained, the others' newest checkpoints "
+                            f"kept in {args.runs}")
             with torch_threads(cfg.threads):  # the command's own count, restored when it returns
-                for s in _subjects(args.subject, args.dataset, args.protocol, "train"):
-                    run = personalize(args.dataset, s, args.protocol, args.runs / s, cfg,
-                                      pretrained=args.pretrained, progress=not args.no_progress, force=args.force)
+                for s in subjects:
+                    run = personalize(args.dataset, s, args.protocol, args.runs / s, cfg, pretrained=args.pretrained,
+                                      progress=not args.no_progress, force=args.force)
+                    trained.append(s)
                     print(f"rana train: {s} done → {run.path}")
         elif args.cmd == "predict":
             from .predict import predict_rana

@@ -15,6 +15,7 @@ import numpy as np
 
 from rh_common import sh
 from rh_common.imageio import read_exr
+from rh_common.interrupt import add_debug_flag, command, on_stop
 
 from .predictions import PredictionWriter, iter_test_frames
 
@@ -46,12 +47,15 @@ def predict_oracle(dataset: str | Path, protocol: str, out: str | Path) -> int:
     return n
 
 
+@command("rana-oracle")
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="rana-oracle", description=__doc__.strip().splitlines()[0])
     p.add_argument("--dataset", required=True, type=Path, help="dataset folder made by rh-generate")
     p.add_argument("--protocol", default="a", choices=["a", "b"], help="which protocol's test split")
     p.add_argument("--out", required=True, type=Path, help="predictions folder to write")
+    add_debug_flag(p)
     args = p.parse_args(argv)
+    on_stop(lambda: f"the predictions already in {args.out} are whole; a rerun writes them all again")
     try:
         n = predict_oracle(args.dataset, args.protocol, args.out)
     except (FileNotFoundError, ValueError) as exc:

@@ -33,6 +33,7 @@ from rh_common import sh
 from rh_common.colourspace import luminance
 from rh_common.imageio import atomic_path
 from rh_common.threads import torch_threads
+from rh_common.interrupt import add_debug_flag, command, on_stop
 
 from .body import body_topology
 from .config import RanaConfig, get_preset, PRESETS
@@ -276,11 +277,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="restart instead of resuming")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_config_flags(p)
+    add_debug_flag(p)
     return p
 
 
+@command("rana-pretrain", not_on_resume=("--force",))
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    on_stop(lambda: f"the checkpoints in {args.out} are kept; a rerun resumes from the newest")
     try:
         cfg = apply_config_flags(get_preset(args.preset), args)
         with torch_threads(cfg.threads):  # the command's own count, restored when it returns

@@ -6,9 +6,11 @@ no file, never a truncated one.
 """
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
+import signal
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -34,6 +36,9 @@ __all__ = [
 ]
 
 
+_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
 class ImageFileError(ValueError):
     """A file that cannot be read as the image the caller expects; the message names the file."""
 
@@ -49,18 +54,31 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
+    # SIGINT/SIGTERM are held while the temporary file is created and named, so that an interruption
+    # (rh_common.interrupt) always lands where the `finally` below knows the file and removes it.
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, ())  # the mask as it is (nothing blocked yet), to restore
+    tmp_path = None
     try:
+        signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.close(fd)
+        tmp_path = Path(tmp)
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
         yield tmp_path
         with open(tmp_path, "rb+") as f:
             os.fchmod(f.fileno(), 0o666 & ~_umask())
             os.fsync(f.fileno())
         os.replace(tmp_path, path)
+    except OSError as exc:
+        # A full disk inside an encoder (PIL, OpenEXR) names no file, or names the temporary one: name the file
+        # being written, which is what the user knows (rh_common.interrupt turns this into one line).
+        if exc.errno is not None and (exc.filename is None or (tmp_path and str(exc.filename) == str(tmp_path))):
+            raise OSError(exc.errno, exc.strerror or os.strerror(exc.errno), str(path)) from exc
+        raise
     finally:
-        if tmp_path.exists():
+        if tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)  # after the unlink: a signal it releases cannot skip it
 
 
 def _umask() -> int:
@@ -98,7 +116,19 @@ def write_exr(path: str | os.PathLike, image: np.ndarray) -> None:
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     with atomic_path(path) as tmp:
         with OpenEXR.File(header, channels) as f:
-            f.write(str(tmp))
+            try:
+                f.write(str(tmp))
+            except RuntimeError as exc:
+                raise _exr_os_error(exc, path) from exc
+
+
+def _exr_os_error(exc: RuntimeError, path) -> Exception:
+    """OpenEXR reports a full disk as a RuntimeError whose text carries strerror: give it back its errno, so that a
+    full disk reads the same whichever encoder hit it."""
+    for code in (errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EROFS, errno.EIO):
+        if os.strerror(code) in str(exc):
+            return OSError(code, os.strerror(code), str(path))
+    return exc
 
 
 def read_exr(path: str | os.PathLike) -> np.ndarray:

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from rh_common.cli_help import HelpFormatter
+from rh_common.interrupt import add_debug_flag, command, on_stop
 
 __all__ = ["main", "build_parser", "options_from_args", "render_settings", "backend_from_args"]
 
@@ -99,6 +100,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true",
                    help="replace this protocol's frames in --out if they were made with other settings")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (for logs)")
+    p.add_argument("--no-space-check", action="store_true",
+                   help="start even if the estimated size of the frames still to render (rh_dataset/space.py, "
+                        "measured per layer by bench/bench_sizes.py) exceeds the free space of --out")
+    add_debug_flag(p)
     return p
 
 
@@ -173,16 +178,23 @@ def backend_from_args(args: argparse.Namespace):
     return LocalBackend(workers=args.workers)
 
 
+@command("rh-generate")
 def main(argv: list[str] | None = None) -> int:
     from rh_dataset.generate import GenerateError, generate
     from rh_common.blender import BlenderError
+    from rh_dataset import space
     from rh_dataset.variant import VariantError
 
     args = build_parser().parse_args(argv)
     try:
         plan, backend = options_from_args(args)
+        # What a stop says: the frames on disk (a frame's JSON is written last), and the bytes still to write.
+        on_stop(lambda: "{} of {} frames finished and kept".format(*space.frames_finished(plan)),
+                lambda: space.remaining_bytes(plan))
+        if not args.no_space_check:
+            space.check_space(plan)
         counts = generate(plan, backend, progress=not args.no_progress)
-    except (ValueError, GenerateError, VariantError, FileNotFoundError, BlenderError) as exc:
+    except (ValueError, GenerateError, VariantError, FileNotFoundError, BlenderError, space.SpaceError) as exc:
         print(f"rh-generate: error: {exc}", file=sys.stderr)
         return 2
     print(f"rh-generate: {counts['rendered']} frames rendered, {counts['skipped']} already complete, "

@@ -17,6 +17,7 @@ import numpy as np
 
 from rh_common import layout
 from rh_common.imageio import ImageFileError, read_exr, read_json, read_png
+from rh_common.interrupt import add_debug_flag, command, on_stop
 
 __all__ = ["Problem", "verify", "main"]
 
@@ -119,6 +120,7 @@ def _print_comparison(cmp: layout.Comparison, shown: int = 20) -> None:
         print(f"... and {more} more (all of them: --record FILE)")
 
 
+@command("rh-verify")
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="rh-verify",
                                 description="Check a dataset against its manifest: every file present, with the "
@@ -135,7 +137,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--record", type=Path, metavar="FILE",
                    help="with --against: write the comparison as JSON (rh-comparison/1), every differing frame "
                         "listed; rh-leaderboard --comparison FILE reads it to rank results of both datasets together")
+    add_debug_flag(p)
     args = p.parse_args(argv)
+    on_stop(lambda: "rh-verify only reads, the datasets are unchanged")
     if args.record and not args.against:
         p.error("--record needs --against OTHER")
     bad = False

@@ -11,16 +11,19 @@ import time
 from pathlib import Path
 
 from rh_common.cli_help import HelpFormatter
+from rh_common.interrupt import add_debug_flag, command, on_stop
 
 __all__ = ["main"]
 
 
+@command("rh-demo")
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="rh-demo", description=__doc__.strip().splitlines()[0],
                                 formatter_class=HelpFormatter)
     p.add_argument("--out", type=Path, default=Path("demo_out"), help="folder for the dataset, predictions, results")
     p.add_argument("--preset", default="draft", help="render preset (rh_dataset/scenes/presets.json)")
     p.add_argument("--seed", type=int, default=0, help="dataset seed")
+    add_debug_flag(p)
     args = p.parse_args(argv)
 
     from rana import cli as rana_cli
@@ -49,6 +52,9 @@ def main(argv: list[str] | None = None) -> int:
         ("leaderboard", lambda: leaderboard.main([str(results / "oracle.json"), str(results / "smpld.json"),
                                                   "--out", str(board)])),
     ]
+    finished: list[str] = []
+    # Each step resumes or redoes its own work, so rerunning rh-demo continues where it stopped.
+    on_stop(lambda: f"steps finished: {', '.join(finished) or 'none'}")
     for name, step in steps:
         t = time.perf_counter()
         print(f"== rh-demo: {name}", flush=True)
@@ -57,6 +63,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"rh-demo: step {name!r} failed (exit {rc})", file=sys.stderr)
             return rc
         print(f"== rh-demo: {name} done in {time.perf_counter() - t:.1f} s", flush=True)
+        finished.append(name)
     print("rh-demo: done. Look at:")
     from rh_common.layout import CONTACT_SHEET
 

@@ -6,6 +6,8 @@ import math
 import sys
 from pathlib import Path
 
+from rh_common.interrupt import add_debug_flag, command, on_stop
+
 __all__ = ["main", "build_parser"]
 
 _EPILOG = """\
@@ -93,11 +95,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="prediction pixels decoded by the up-front check are kept up to this many MB instead of "
                         "decoded a second time (default 1024; 0 = always decode again)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_debug_flag(p)
     return p
 
 
+@command("rh-eval")
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    on_stop(lambda: f"no result was written ({args.out} is written whole at the end)")
     from .conventions import named_convention
     from .dataset_io import PredictionError
     from .evaluate import EvalOptions, Evaluator

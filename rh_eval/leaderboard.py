@@ -24,6 +24,7 @@ from pathlib import Path
 
 from rh_common import layout
 from rh_common.imageio import atomic_path
+from rh_common.interrupt import add_debug_flag, command, on_stop
 
 __all__ = ["main", "load_results", "build_markdown", "build_html", "COLUMNS", "Entry"]
 
@@ -577,6 +578,7 @@ def _html_one(entries: list[Entry], warnings: list[str] | None = None, prefix: s
     return parts
 
 
+@command("rh-leaderboard")
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="rh-leaderboard",
@@ -593,7 +595,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--comparison", type=Path, action="append", default=[], metavar="FILE",
                    help="a record of `rh-verify A --against B --record FILE`: results scored on A and on B are "
                         "combined if it found them the same benchmark within tolerance (rows marked ≈); repeatable")
+    add_debug_flag(p)
     args = p.parse_args(argv)
+    on_stop(lambda: f"the tables in {args.out} are each whole (old or new)")
     try:
         comparisons = [layout.read_comparison(c) for c in args.comparison]
         entries, warnings = load_results(args.results, allow_mixed=args.allow_mixed, comparisons=comparisons)

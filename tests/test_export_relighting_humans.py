@@ -143,7 +143,7 @@ def test_the_clients_test_camera_projects_the_body_into_the_mask(published):
     """IntrinsicAvatar builds the test camera from `fov` and the image size: f = 0.5·W / tan(fov/2),
     c = ((W−1)/2, (H−1)/2), rays through integer pixel coordinates. On a non-square export it must equal
     `smpl_data.K`, and the body's joints must land inside the mask."""
-    from rh_dataset.characters.body import load_anny
+    from rh_common.body_model import load_anny
 
     ds, out = published
     labels = list(load_anny().bone_labels)

@@ -1,11 +1,13 @@
 """`rh-generate --backend local`: a `DatasetPlan` in, its frames rendered on this machine out.
 
 One subject at a time in this process (`workers=1`), or one process per subject, `workers` at once, frames
-reporting back through a queue.
+reporting back through a queue. Stopping the run (Ctrl-C, SIGTERM, an error) stops every worker first.
 """
 from __future__ import annotations
 
 import os
+import pickle
+import sys
 from dataclasses import dataclass
 
 from rh_dataset.generate import DatasetPlan, GenerateError, OnFrame, run_subject, subject_source
@@ -31,32 +33,76 @@ class LocalBackend:
             self._run_parallel(plan, on_frame)
 
     def _run_parallel(self, plan: DatasetPlan, on_frame: OnFrame) -> None:
+        """One spawned process per subject, `workers` at a time; frames and each worker's end come back on a
+        queue. On an interruption (or another worker's error) the workers still running are sent SIGTERM, which
+        unwinds them like Ctrl-C (rh_common.interrupt.worker_signals: no temporary file is left), then killed if
+        they have not ended within `_STOP_GRACE_S`."""
         import multiprocessing as mp
         import queue as queue_mod
-        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-
-        def drain(q) -> None:
-            while True:
-                try:
-                    on_frame(*q.get_nowait())
-                except queue_mod.Empty:
-                    return
 
         ctx = mp.get_context("spawn")  # drjit's JIT state must not be forked
-        with ctx.Manager() as manager:
-            q = manager.Queue()
-            with ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx) as pool:
-                pending = {pool.submit(_worker, plan, self.workers, s, q) for s in range(plan.spec.subjects)}
-                while pending:
-                    done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
-                    for f in done:
-                        f.result()  # re-raise a worker's error here
-                    drain(q)
-                drain(q)
+        q = ctx.Queue()
+        waiting = list(range(plan.spec.subjects))
+        running: dict[int, object] = {}
+        try:
+            while waiting or running:
+                while waiting and len(running) < self.workers:
+                    s = waiting.pop(0)
+                    running[s] = ctx.Process(target=_worker, args=(plan, self.workers, s, q), daemon=True)
+                    running[s].start()
+                try:
+                    kind, *rest = q.get(timeout=0.2)
+                except queue_mod.Empty:
+                    for s, proc in list(running.items()):
+                        if not proc.is_alive() and proc.exitcode != 0:
+                            raise GenerateError(f"worker of subject {s} died (exit code {proc.exitcode}); rerun to "
+                                                "resume")
+                    continue
+                if kind == "frame":
+                    on_frame(*rest)
+                elif kind == "done":
+                    running.pop(rest[0]).join()
+                else:  # "error": a worker's exception, raised here as if the subject had run in this process
+                    raise rest[1]
+        finally:
+            _stop(running.values())
+            q.close()
+
+
+_STOP_GRACE_S = 30.0
+
+
+def _stop(procs) -> None:
+    import time
+
+    procs = [p for p in procs if p.is_alive()]
+    for p in procs:
+        p.terminate()  # SIGTERM: the worker unwinds through its atomic writes' clean-up
+    deadline = time.monotonic() + _STOP_GRACE_S
+    for p in procs:
+        p.join(max(0.0, deadline - time.monotonic()))
+        if p.is_alive():
+            p.kill()
+            p.join()
 
 
 def _worker(plan: DatasetPlan, workers: int, s: int, queue) -> None:
-    import drjit as dr
+    from rh_common.interrupt import Stopped, worker_signals
 
-    dr.set_thread_count(max(1, (os.cpu_count() or 1) // workers))
-    run_subject(plan, subject_source(plan), s, lambda task, skipped: queue.put((task, skipped)))
+    worker_signals()
+    try:
+        import drjit as dr
+
+        dr.set_thread_count(max(1, (os.cpu_count() or 1) // workers))
+        run_subject(plan, subject_source(plan), s, lambda task, skipped: queue.put(("frame", task, skipped)))
+    except Stopped as stop:
+        # Stopped by the parent or by the terminal's Ctrl-C: its files are clean and the parent says so.
+        sys.exit(128 + stop.signum)
+    except BaseException as exc:  # noqa: BLE001 (handed to the parent, which raises it)
+        try:
+            pickle.dumps(exc)  # the queue pickles in a thread of its own, where a failure would be lost
+        except Exception:
+            exc = GenerateError(f"subject {s}: {type(exc).__name__}: {exc}")
+        queue.put(("error", s, exc))
+        return
+    queue.put(("done", s))

@@ -118,6 +118,27 @@ def _progress_actor(ray):
     return Progress.remote()
 
 
+_CANCEL_GRACE_S = 30.0
+
+
+def _cancel(ray, pending: list) -> None:
+    """Stop the tasks still pending or running (the driver was interrupted, or a task failed for good).
+
+    A plain cancel raises KeyboardInterrupt inside a running task, which unwinds through its atomic writes and so
+    leaves no temporary file; a task that has not ended within `_CANCEL_GRACE_S` is then killed (`force`)."""
+    for ref in pending:
+        ray.cancel(ref, force=False)
+    try:
+        _, still = ray.wait(pending, num_returns=len(pending), timeout=_CANCEL_GRACE_S) if pending else ([], [])
+    except Exception:  # a task's cancellation error surfaces through wait on some Ray versions
+        still = pending
+    for ref in still:
+        try:
+            ray.cancel(ref, force=True)
+        except Exception:
+            pass
+
+
 def _run_ray(backend: RayBackend, plan: DatasetPlan, on_frame: OnFrame) -> None:
     import logging
 
@@ -130,8 +151,13 @@ def _run_ray(backend: RayBackend, plan: DatasetPlan, on_frame: OnFrame) -> None:
     plan = dataclasses.replace(plan, out=Path(plan.out).resolve(), spec=spec)
     started = False
     if not ray.is_initialized():
-        ray.init(address=backend.address, include_dashboard=False, log_to_driver=False,
-                 logging_level=logging.WARNING)
+        # ray.init replaces the SIGTERM handler (with one that exits, and a native one that aborts): keep ours, so
+        # that SIGTERM stops the driver the way Ctrl-C does (rh_common.interrupt) and the tasks are cancelled below.
+        from rh_common.interrupt import signals_kept
+
+        with signals_kept():
+            ray.init(address=backend.address, include_dashboard=False, log_to_driver=False,
+                     logging_level=logging.WARNING)
         started = True
     try:
         progress = _progress_actor(ray)
@@ -159,8 +185,7 @@ def _run_ray(backend: RayBackend, plan: DatasetPlan, on_frame: OnFrame) -> None:
                 for ref in done:
                     handle(ray.get(ref))  # re-raises a task's error once its retries are spent
         except BaseException:
-            for ref in pending:
-                ray.cancel(ref, force=True)
+            _cancel(ray, pending)
             raise
         handle(ray.get(progress.drain.remote()))
         expected = {(s, split, i) for s, split, a, b in tasks for i in range(a, b)}

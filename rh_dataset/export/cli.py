@@ -10,6 +10,7 @@ from pathlib import Path
 from rh_common import layout
 from rh_common.cli_help import HelpFormatter
 from rh_common.imageio import read_json, write_json
+from rh_common.interrupt import add_debug_flag, command, on_stop
 
 from .common import ExportError, check_dataset, iter_frames
 
@@ -109,11 +110,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="USD file type: usda (text) or usdc (binary crate, ~4x smaller)")
     p.add_argument("--no-vertices", action="store_true", help="zju-mocap: skip vertices/<i>.npy (posed body)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_debug_flag(p)
     return p
 
 
+@command("rh-export")
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    # Every export file is written atomically, and a rerun into the same --out replaces them all.
+    on_stop(lambda: f"the files already in {args.out} are whole; a rerun rewrites the export")
     try:
         counts = export_dataset(args.dataset, args.protocol, args.format, args.out, subjects=args.subjects,
                                 splits=tuple(args.split) if args.split else None, usd_ext=args.usd_ext,

@@ -173,64 +173,68 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, dataset: Path, hdri_f
     stage_dir.mkdir(parents=True, exist_ok=True)
     final = stage_dir / f"{layout.frame_stem(f.index)}.{ext}"
     tmp = stage_dir / f".{layout.frame_stem(f.index)}.tmp.{ext}"  # USD picks the file format from the extension
-    stage = Usd.Stage.CreateNew(str(tmp))
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-    world = UsdGeom.Xform.Define(stage, "/World")
-    stage.SetDefaultPrim(world.GetPrim())
-    m = f.meta
-    world.GetPrim().SetCustomDataByKey("rh", {
-        "subject": m["subject"], "protocol": m["protocol"], "split": m["split"], "index": int(m["index"]),
-        "width": int(m["width"]), "height": int(m["height"]), "exposure": float(m["exposure"]),
-        "K": Gf.Matrix3d(np.asarray(m["camera"]["K"]).tolist()),
-        "world_to_camera": Gf.Matrix4d(np.asarray(m["camera"]["world_to_camera"]).tolist()),
-        "world_to_camera_convention": "OpenCV, column vectors (x_cam = M @ x_world)",
-        "light_name": m["light"]["name"], "light_rotation_deg": float(m["light"]["rotation_deg"]),
-        "light_scale": float(m["light"]["scale"]),
-    })
+    try:
+        stage = Usd.Stage.CreateNew(str(tmp))
+        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+        UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+        world = UsdGeom.Xform.Define(stage, "/World")
+        stage.SetDefaultPrim(world.GetPrim())
+        m = f.meta
+        world.GetPrim().SetCustomDataByKey("rh", {
+            "subject": m["subject"], "protocol": m["protocol"], "split": m["split"], "index": int(m["index"]),
+            "width": int(m["width"]), "height": int(m["height"]), "exposure": float(m["exposure"]),
+            "K": Gf.Matrix3d(np.asarray(m["camera"]["K"]).tolist()),
+            "world_to_camera": Gf.Matrix4d(np.asarray(m["camera"]["world_to_camera"]).tolist()),
+            "world_to_camera_convention": "OpenCV, column vectors (x_cam = M @ x_world)",
+            "light_name": m["light"]["name"], "light_rotation_deg": float(m["light"]["rotation_deg"]),
+            "light_scale": float(m["light"]["scale"]),
+        })
 
-    UsdGeom.Scope.Define(stage, "/World/Looks")
-    UsdGeom.Xform.Define(stage, "/World/Character")
-    materials: dict[int, object] = {}
-    for mesh in meshes:
-        k = id(mesh.material.albedo)
-        if k not in materials:
-            materials[k] = _material(stage, f"/World/Looks/{mesh.name}_mat", mesh.material,
-                                     _rel(assets.texture_files[k], stage_dir))
-        prim = UsdGeom.Mesh.Define(stage, f"/World/Character/{mesh.name}")
-        V = np.asarray(mesh.vertices, dtype=np.float32)
-        prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(V))
-        prim.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(mesh.faces), 3, dtype=np.int32)))
-        prim.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(mesh.faces, np.int32).ravel()))
-        prim.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(np.asarray(mesh.normals, dtype=np.float32)))
-        prim.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
-        prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        prim.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
-        prim.CreateDoubleSidedAttr(bool(mesh.material.two_sided))
-        prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*V.min(0).tolist()), Gf.Vec3f(*V.max(0).tolist())]))
-        st = UsdGeom.PrimvarsAPI(prim).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
-                                                     UsdGeom.Tokens.vertex)
-        st.Set(Vt.Vec2fArray.FromNumpy(np.asarray(mesh.uvs, dtype=np.float32)))  # v up, as USD's st
-        UsdShade.MaterialBindingAPI.Apply(prim.GetPrim()).Bind(materials[k])
+        UsdGeom.Scope.Define(stage, "/World/Looks")
+        UsdGeom.Xform.Define(stage, "/World/Character")
+        materials: dict[int, object] = {}
+        for mesh in meshes:
+            k = id(mesh.material.albedo)
+            if k not in materials:
+                materials[k] = _material(stage, f"/World/Looks/{mesh.name}_mat", mesh.material,
+                                         _rel(assets.texture_files[k], stage_dir))
+            prim = UsdGeom.Mesh.Define(stage, f"/World/Character/{mesh.name}")
+            V = np.asarray(mesh.vertices, dtype=np.float32)
+            prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(V))
+            prim.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(mesh.faces), 3, dtype=np.int32)))
+            prim.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(mesh.faces, np.int32).ravel()))
+            prim.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(np.asarray(mesh.normals, dtype=np.float32)))
+            prim.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+            prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+            prim.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+            prim.CreateDoubleSidedAttr(bool(mesh.material.two_sided))
+            prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*V.min(0).tolist()), Gf.Vec3f(*V.max(0).tolist())]))
+            st = UsdGeom.PrimvarsAPI(prim).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                         UsdGeom.Tokens.vertex)
+            st.Set(Vt.Vec2fArray.FromNumpy(np.asarray(mesh.uvs, dtype=np.float32)))  # v up, as USD's st
+            UsdShade.MaterialBindingAPI.Apply(prim.GetPrim()).Bind(materials[k])
 
-    cam = UsdGeom.Camera.Define(stage, "/World/Camera")
-    for name, value in camera_attributes(m["camera"]["K"], m["width"], m["height"]).items():
-        cam.GetPrim().GetAttribute(name).Set(value)
-    cam.CreateProjectionAttr(UsdGeom.Tokens.perspective)
-    cam.CreateClippingRangeAttr(Gf.Vec2f(0.01, 1000.0))
-    cam.AddTransformOp().Set(_gf_matrix(camera_xform(m["camera"]["world_to_camera"])))
+        cam = UsdGeom.Camera.Define(stage, "/World/Camera")
+        for name, value in camera_attributes(m["camera"]["K"], m["width"], m["height"]).items():
+            cam.GetPrim().GetAttribute(name).Set(value)
+        cam.CreateProjectionAttr(UsdGeom.Tokens.perspective)
+        cam.CreateClippingRangeAttr(Gf.Vec2f(0.01, 1000.0))
+        cam.AddTransformOp().Set(_gf_matrix(camera_xform(m["camera"]["world_to_camera"])))
 
-    texture, intensity = _light_texture(f, stage_dir, hdri_folder)
-    dome = UsdLux.DomeLight.Define(stage, "/World/DomeLight")
-    dome.CreateTextureFileAttr(Sdf.AssetPath(texture))
-    dome.CreateTextureFormatAttr(UsdLux.Tokens.latlong)
-    dome.CreateIntensityAttr(intensity)
-    dome.AddTransformOp().Set(_gf_matrix(dome_xform(m["light"]["rotation_deg"])))
+        texture, intensity = _light_texture(f, stage_dir, hdri_folder)
+        dome = UsdLux.DomeLight.Define(stage, "/World/DomeLight")
+        dome.CreateTextureFileAttr(Sdf.AssetPath(texture))
+        dome.CreateTextureFormatAttr(UsdLux.Tokens.latlong)
+        dome.CreateIntensityAttr(intensity)
+        dome.AddTransformOp().Set(_gf_matrix(dome_xform(m["light"]["rotation_deg"])))
 
-    stage.GetRootLayer().Save()
-    del stage
-    tmp.replace(final)  # atomic; relative asset paths stay valid (same folder)
-    return [final]
+        stage.GetRootLayer().Save()
+        del stage
+        tmp.replace(final)  # atomic; relative asset paths stay valid (same folder)
+        return [final]
+    finally:
+        if tmp.exists():  # interrupted (rh_common.interrupt) or failed before the rename: keep no partial stage
+            tmp.unlink()
 
 
 def specular_to_ior(specular: float) -> float:
