@@ -90,6 +90,20 @@ def test_same_seed_is_bit_identical_and_a_rerun_renders_nothing(dataset_a, tmp_p
     assert "0 frames rendered, 4 already complete" in capsys.readouterr().out
 
 
+def test_each_run_appends_its_log_beside_the_dataset_outside_the_manifest(dataset_a, tmp_path):
+    """logs/rh-generate.log: start, the plan, each subject as it completes, the end; a rerun appends its own block.
+    The log is a record of runs, not data: the manifest (and so the identity) does not list it."""
+    out = tmp_path / "logged"
+    assert run(out) == 0 and run(out) == 0
+    lines = (out / "logs" / "rh-generate.log").read_text().splitlines()
+    words = [ln.split(" ", 2)[1] for ln in lines]  # after the UTC stamp
+    assert words == ["start:", "plan:", "render:", "subject_000:", "done:"] * 2
+    assert "4 frames (4 rendered, 0 already complete)" in lines[3]
+    assert "4 frames (0 rendered, 4 already complete)" in lines[8]
+    assert manifest(out) == manifest(dataset_a)
+    assert not any(k.startswith("logs/") for k in manifest(out))
+
+
 def test_a_run_killed_mid_way_resumes_to_the_same_files(dataset_a, tmp_path):
     out = tmp_path / "killed"
     cmd = [sys.executable, "-m", "rh_dataset.cli", "--protocol", "a", "--out", str(out), *TINY]

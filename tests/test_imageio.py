@@ -1,5 +1,6 @@
 """rh_common.imageio: files written atomically get the mode a plain open() gives (0666 less the umask), not
-mkstemp's 0600, so a dataset on a shared filesystem is readable by the group the umask allows."""
+mkstemp's 0600, and the folders made on the way mkdir's (0777 less the umask), so a dataset on a shared filesystem
+is readable by the group the umask allows."""
 import os
 import stat
 
@@ -16,13 +17,19 @@ def test_atomic_files_follow_the_umask(tmp_path, umask):
         write_exr(tmp_path / "a.exr", np.zeros((2, 2, 3), np.float32))
         write_png(tmp_path / "a.png", np.zeros((2, 2, 3), np.uint8))
         write_json(tmp_path / "a.json", {"k": 1})
+        write_json(tmp_path / "new" / "deeper" / "b.json", {"k": 1})  # folders made on the way
         with atomic_path(tmp_path / "a.bin") as tmp:
             tmp.write_bytes(b"x")
         reference = tmp_path / "plain.bin"
         reference.write_bytes(b"x")  # what open() gives under this umask
+        (tmp_path / "plain_dir").mkdir()  # what mkdir gives
     finally:
         os.umask(old)
     want = stat.S_IMODE(reference.stat().st_mode)
     assert want == 0o666 & ~umask
-    for name in ("a.exr", "a.png", "a.json", "a.bin"):
+    for name in ("a.exr", "a.png", "a.json", "a.bin", "new/deeper/b.json"):
         assert stat.S_IMODE((tmp_path / name).stat().st_mode) == want, name
+    want_dir = stat.S_IMODE((tmp_path / "plain_dir").stat().st_mode)
+    assert want_dir == 0o777 & ~umask
+    for name in ("new", "new/deeper"):
+        assert stat.S_IMODE((tmp_path / name).stat().st_mode) == want_dir, name

@@ -11,15 +11,15 @@ from .compare import COMPARISON_FORMAT, TOLERANCE, Comparison, compare_datasets,
 from .frames import LAYERS, frame_is_complete, layer_files, write_frame
 from .manifest import (MANIFEST_FORMAT, ManifestEntry, check_entry, content_identity, read_identity, read_manifest,
                        split_identity, split_key, unlisted_files, write_manifest)
-from .paths import (CHARACTER_JSON, CONTACT_SHEET, DATASET_JSON, MANIFEST_JSON, METHOD_JSON, PREDICTION_FILE_RE,
-                    PREDICTION_LAYERS, TEST_SPLIT, frame_index_of, frame_json_name, frame_json_path, frame_stem,
+from .paths import (CHARACTER_JSON, CONTACT_SHEET, DATASET_JSON, LOG_DIR, MANIFEST_JSON, METHOD_JSON,
+                    PREDICTION_FILE_RE, PREDICTION_LAYERS, TEST_SPLIT, frame_index_of, frame_json_name, frame_json_path, frame_stem,
                     iter_frame_jsons, layer_file_name, prediction_dir, prediction_file, protocol_dir, protocol_of,
                     split_dir, subject_index, subject_name)
 from .pose import PoseArrays, read_body_pose, rigid_matrix
 from .record import FRAME_FORMAT, FileEntry, FrameRecord, read_frame_record, write_frame_record
 
 __all__ = [
-    "CHARACTER_JSON", "CONTACT_SHEET", "DATASET_JSON", "MANIFEST_JSON", "METHOD_JSON", "TEST_SPLIT",
+    "CHARACTER_JSON", "CONTACT_SHEET", "DATASET_JSON", "LOG_DIR", "MANIFEST_JSON", "METHOD_JSON", "TEST_SPLIT",
     "subject_name", "subject_index", "protocol_dir", "protocol_of", "split_dir", "frame_stem", "frame_json_name",
     "frame_json_path", "layer_file_name", "frame_index_of", "iter_frame_jsons",
     "PREDICTION_LAYERS", "PREDICTION_FILE_RE", "prediction_dir", "prediction_file",

@@ -19,7 +19,7 @@ from pathlib import Path
 from rh_common import identity as content
 from rh_common.imageio import read_json, sha256_file, write_json
 
-from .paths import MANIFEST_JSON, iter_frame_jsons, protocol_dir
+from .paths import LOG_DIR, MANIFEST_JSON, iter_frame_jsons, protocol_dir
 
 __all__ = ["MANIFEST_FORMAT", "ManifestEntry", "write_manifest", "read_manifest", "read_identity", "content_identity",
            "split_key", "split_identity", "unlisted_files", "check_entry"]
@@ -34,8 +34,12 @@ class ManifestEntry:
     bytes: int
 
 
-def _is_listed(p: Path) -> bool:
-    return p.is_file() and p.name != MANIFEST_JSON and not p.name.endswith(".tmp")
+def _is_log(root: Path, p: Path) -> bool:
+    return p.relative_to(root).parts[0] == LOG_DIR
+
+
+def _is_listed(root: Path, p: Path) -> bool:
+    return p.is_file() and p.name != MANIFEST_JSON and not p.name.endswith(".tmp") and not _is_log(root, p)
 
 
 def split_key(protocol: str, split: str) -> str:
@@ -68,7 +72,7 @@ def write_manifest(root: str | os.PathLike) -> Path:
     root = Path(root)
     entries = {}
     for p in sorted(root.rglob("*")):
-        if _is_listed(p):
+        if _is_listed(root, p):
             entries[p.relative_to(root).as_posix()] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}
     out = root / MANIFEST_JSON
     write_json(out, {"format": MANIFEST_FORMAT, "files": entries, "identity": content_identity(root)})
@@ -111,7 +115,8 @@ def read_manifest(root: str | os.PathLike) -> dict[str, ManifestEntry]:
 def unlisted_files(root: str | os.PathLike, listed: dict[str, ManifestEntry]) -> list[str]:
     """Files on disk the manifest does not list (temporaries included: a finished dataset has none), sorted."""
     root = Path(root)
-    on_disk = {p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file() and p.name != MANIFEST_JSON}
+    on_disk = {p.relative_to(root).as_posix() for p in root.rglob("*")
+               if p.is_file() and p.name != MANIFEST_JSON and not _is_log(root, p)}
     return sorted(on_disk - set(listed))
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Iterator
 
 __all__ = [
-    "DATASET_JSON", "MANIFEST_JSON", "CHARACTER_JSON", "CONTACT_SHEET", "METHOD_JSON", "TEST_SPLIT",
+    "DATASET_JSON", "MANIFEST_JSON", "CHARACTER_JSON", "CONTACT_SHEET", "LOG_DIR", "METHOD_JSON", "TEST_SPLIT",
     "subject_name", "subject_index", "protocol_dir", "protocol_of", "split_dir", "frame_stem", "frame_json_name",
     "frame_json_path", "layer_file_name", "frame_index_of", "iter_frame_jsons",
     "PREDICTION_LAYERS", "PREDICTION_FILE_RE", "prediction_dir", "prediction_file",
@@ -21,6 +21,7 @@ DATASET_JSON = "dataset.json"
 MANIFEST_JSON = "manifest.json"
 CHARACTER_JSON = "character.json"
 CONTACT_SHEET = "contact_sheet.png"
+LOG_DIR = "logs"  # run logs beside a dataset (rh_common.runlog): a record of runs, not listed in the manifest
 METHOD_JSON = "method.json"
 TEST_SPLIT = "test"  # the split rh-eval scores and a method predicts
 
