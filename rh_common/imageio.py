@@ -1,4 +1,4 @@
-"""The one image and file I/O module: float32 EXR, 8-bit PNG, JSON, all written atomically.
+"""The one image and file I/O module: float32 EXR, 8-bit PNG, lossy WebP previews, JSON, all written atomically.
 
 Atomic means: write to a temporary file in the destination folder, flush and fsync it, then rename it over the
 destination. A reader (or a rerun after `kill -9`) therefore sees either the old file, the complete new file, or
@@ -25,6 +25,7 @@ __all__ = [
     "write_exr",
     "read_png",
     "write_png",
+    "write_webp",
     "read_json",
     "write_json",
     "dumps_json",
@@ -131,6 +132,17 @@ def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
         raise ValueError(f"write_png {path}: expected (H, W[, 3|4]), got shape {arr.shape}")
     with atomic_path(path) as tmp:
         Image.fromarray(arr).save(tmp, format="PNG", compress_level=6)
+
+
+def write_webp(path: str | os.PathLike, image: np.ndarray, *, quality: int = 80) -> None:
+    """Write a uint8 (H, W, 3) array as lossy WebP (libwebp, `quality` 0-100, slowest/smallest method 6),
+    atomically. For small previews only (rh-eval's thumbnails): lossy, never for data that is scored."""
+    arr = np.asarray(image)
+    if arr.dtype != np.uint8 or arr.ndim != 3 or arr.shape[2] != 3:
+        raise ValueError(f"write_webp {path}: expected uint8 (H, W, 3), got {arr.dtype} {arr.shape}; quantise with "
+                         f"colourspace.quantize8")
+    with atomic_path(path) as tmp:
+        Image.fromarray(np.ascontiguousarray(arr)).save(tmp, format="WEBP", quality=int(quality), method=6)
 
 
 def read_png(path: str | os.PathLike, *, allow_16bit: bool = False) -> np.ndarray:

@@ -1,7 +1,8 @@
 """The evaluation engine behind `rh-eval`: a predictions folder and a dataset -> per-frame rows -> the result JSON.
 
 In: `EvalOptions` (convention, metrics, batching, cache, threads), a predictions folder, a dataset and a protocol.
-Out: `Evaluator.evaluate` -> (result JSON dict, per-frame rows, CSV columns); `rh_eval.report` writes them.
+Out: `Evaluator.evaluate` -> (result JSON dict, per-frame rows, CSV columns), and `Evaluator.thumbnails` (the
+     tiles of the seeded frame selection, `rh_eval.thumbnails`); `rh_eval.report` writes them.
 
 Each frame is scored by `rh_eval.scoring` (the same code as the public `score_frame`): `prepare_frame` on worker
 threads, then LPIPS/DISTS through `score_pairs` on batches of equal-shape crops from many frames (`batch_size`).
@@ -25,7 +26,7 @@ from typing import Any, Callable
 import numpy as np
 import torch
 
-from rh_common.imageio import ImageFileError, sha256_file
+from rh_common.imageio import ImageFileError, read_json, sha256_file
 
 from . import __version__
 from .conventions import Convention
@@ -37,6 +38,8 @@ from .metrics.lpips import get_lpips_net
 from .report import summarise
 from .scoring import (ALL_METRICS, IMAGE_METRICS, FrameScores, NetworkPair, check_metrics, prepare_frame,
                       read_frame, record_pair_scores, score_pairs)
+from .thumbnails import (PER_SUBJECT, SELECTION_SEED, TILE_PX, ThumbnailSet, frame_tiles, headline_metric,
+                         light_summary, seeded_rank, select_extremes, select_fixed)
 from .weights import WEIGHTS, weights_record
 
 __all__ = ["ALL_METRICS", "EvalOptions", "Evaluator", "FeatureCache", "summarise", "metric_columns",
@@ -65,6 +68,8 @@ class EvalOptions:
     every operation, lose more to a busy core than overlapping gains (measured: docs/EVALUATION.md, Speed)."""
     preload_mb: int = 1024
     """Prediction pixels decoded by the up-front check are kept (up to this many MB) instead of decoded again."""
+    thumbnails: bool = True
+    """Keep display-space tiles of the seeded frame selection (`rh_eval.thumbnails`) in `Evaluator.thumbnails`."""
 
     def __post_init__(self) -> None:
         check_metrics(self.metrics)
@@ -126,6 +131,8 @@ class Evaluator:
         self.cache = FeatureCache(self.options.cache_mb << 20, self.options.cache_dir)
         self._hash_memo: dict[tuple[str, int, int], str] = {}
         self._queue: list[_NetItem] = []
+        self.thumbnails: ThumbnailSet | None = None
+        """The last `evaluate`'s tiles (None with `thumbnails=False`); `report.write_result` writes them."""
 
     # ---------------------------------------------------------------- bookkeeping
     def weight_names(self) -> list[str]:
@@ -207,13 +214,17 @@ class Evaluator:
         self._queue = keep
 
     # ---------------------------------------------------------------- per frame (worker threads)
-    def _prepare(self, pf, pred: PredictionIndex, stored: dict) -> tuple[FrameScores, list[_NetItem]]:
-        """Everything about one frame except the networks: read, crop, convert, CPU metrics. Runs in a worker
-        thread; returns the frame's scores so far and its network inputs."""
+    def _prepare(self, pf, pred: PredictionIndex, stored: dict, thumb_keys: set,
+                 tiles: dict) -> tuple[FrameScores, list[_NetItem]]:
+        """Everything about one frame except the networks: read, crop, convert, CPU metrics, and the tiles of a
+        frame in the fixed picture selection (`thumb_keys`, into `tiles`). Runs in a worker thread; returns the
+        frame's scores so far and its network inputs."""
         conv = self.options.convention
         gt = pf.gt
-        scores, pairs = prepare_frame(*read_frame(pf, self.options.metrics, stored=stored), conv,
-                                      self.options.metrics)
+        frame_pred, frame_gt = read_frame(pf, self.options.metrics, stored=stored)
+        scores, pairs = prepare_frame(frame_pred, frame_gt, conv, self.options.metrics)
+        if gt.key in thumb_keys:  # while the pixels are in memory
+            tiles[gt.key] = frame_tiles(frame_pred, frame_gt, conv)
         items = []
         if pairs:
             frame_id = "|".join([self._file_sha(gt.json_path), self._file_sha(gt.layer("mask.png"))])
@@ -288,6 +299,9 @@ class Evaluator:
         ds = dataset if isinstance(dataset, DatasetIndex) else load_dataset(dataset, protocol)
         pred = scan_predictions(pred_root, ds, allow_incomplete=self.options.allow_incomplete)
         stored = self.check_predictions(pred)
+        self.thumbnails = None
+        thumb_keys = select_fixed([pf.gt for pf in pred.frames]) if self.options.thumbnails else set()
+        tiles: dict[str, dict | None] = {}
         self._cache_start = {k: getattr(self.cache, k) for k in ("hits", "disk_hits", "misses")}
         opts = self.options
         conv = opts.convention
@@ -305,17 +319,17 @@ class Evaluator:
         try:
             # frames are prepared on the workers, in order, a bounded number ahead of the networks (memory)
             todo = iter(pred.frames)
-            pending = deque(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, ahead))
+            pending = deque(pool.submit(self._prepare, pf, pred, stored, thumb_keys, tiles) for pf in islice(todo, ahead))
             while pending:
                 scores, items = pending.popleft().result()
                 if overlap:
-                    pending.extend(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, 1))
+                    pending.extend(pool.submit(self._prepare, pf, pred, stored, thumb_keys, tiles) for pf in islice(todo, 1))
                 frames.append(scores)
                 self._queue.extend(items)
                 if len(self._queue) >= opts.batch_size:
                     self._flush_full_groups()
                 if not overlap and not pending:
-                    pending.extend(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, ahead))
+                    pending.extend(pool.submit(self._prepare, pf, pred, stored, thumb_keys, tiles) for pf in islice(todo, ahead))
                 if bar is not None:
                     bar.update(1)
                 if on_frame is not None:
@@ -337,7 +351,39 @@ class Evaluator:
                 row.setdefault(c, None)
             rows.append(row)
         result = self._result(ds, pred, rows, cols)
+        if self.options.thumbnails:
+            self.thumbnails = self._thumbnails(pred, rows, cols, thumb_keys, tiles)
         return result, rows, cols
+
+    def _thumbnails(self, pred: PredictionIndex, rows: list[dict], cols: list[str], fixed: set[str],
+                    tiles: dict) -> ThumbnailSet:
+        """The picture selection: the fixed frames (tiles made in the loop) and this method's best, median and
+        worst by its headline metric (read again here: which they are is known only now)."""
+        keys = [pf.gt.key for pf in pred.frames]
+        roles: dict[str, list[str]] = {k: ["fixed"] for k in fixed}
+        for role, k in select_extremes(rows, keys, cols).items():
+            roles.setdefault(k, []).append(role)
+        head = headline_metric(cols)
+        sel = {"seed": SELECTION_SEED, "per_subject": PER_SUBJECT, "tile_px": TILE_PX,
+               "headline": head[0] if head else None, "lower_is_better": head[1] if head else None,
+               "rule": f"per subject the {PER_SUBJECT} test frames first by sha256('{SELECTION_SEED}|<subject>|"
+                       f"<frame index>'), plus this method's best, median (lower middle) and worst frame by its "
+                       f"headline metric; frames with an empty ground-truth mask have no tiles"}
+        out = ThumbnailSet(sel)
+        for pf, row, k in zip(pred.frames, rows, keys):
+            if k not in roles:
+                continue
+            t = tiles[k] if k in tiles else frame_tiles(*read_frame(pf, self.options.metrics),
+                                                        self.options.convention)
+            if t is None:
+                continue
+            scores = {c: ("inf" if isinstance(row.get(c), float) and row[c] == float("inf") else row.get(c))
+                      for c in cols}
+            out.tiles[k] = t
+            out.frames.append({"name": k, "subject": pf.gt.subject, "frame": pf.gt.index, "roles": roles[k],
+                               "seeded_rank": seeded_rank(pf.gt.subject, pf.gt.index), "scores": scores,
+                               "light": light_summary(read_json(pf.gt.json_path).get("light"))})
+        return out
 
     def _result(self, ds: DatasetIndex, pred: PredictionIndex, rows: list[dict], cols: list[str]) -> dict:
         import flip_evaluator  # noqa: F401  (version only)

@@ -1,5 +1,6 @@
 """`rh-leaderboard`: several `rh-eval` result files -> `leaderboard.md` (laid out like the paper's Table 2) and a
-self-contained `index.html` (sortable tables, per-subject plots as inline SVG).
+self-contained folder: `index.html` (sortable tables, pictures of frames and error maps from the tiles rh-eval wrote
+beside each result, copied into `pictures/`: `rh_eval.leaderboard_pictures`; per-subject plots as inline SVG).
 
 Only result files with the same dataset manifest, protocol and convention are combined (`--allow-mixed` overrides,
 with a warning in both outputs). Rows with `"kind": "bound"` (oracles) are listed in their own table, never ranked;
@@ -375,13 +376,17 @@ def _plots(entries: list[Entry]) -> list[tuple[str, str]]:
     return figs
 
 
-def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
+def build_html(entries: list[Entry], warnings: list[str] | None = None, pictures=None) -> str:
+    """The page. `pictures`: a `leaderboard_pictures.Pictures` (its HTML goes after the tables; its tiles are
+    copied by `main`), or None for none."""
+    from .leaderboard_pictures import PICTURES_CSS, PICTURES_JS
+
     e = html.escape
     cols = _columns(entries)
     mixed_ppd = any(g.startswith("FLIP (different") for _, g, *_ in cols)
     best = _best(entries, cols) if not mixed_ppd else _best(entries, COLUMNS)
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-             "<title>Relighting Humans leaderboard</title>", f"<style>{_CSS}</style></head><body>",
+             "<title>Relighting Humans leaderboard</title>", f"<style>{_CSS}{PICTURES_CSS}</style></head><body>",
              "<h1>Relighting Humans leaderboard</h1>",
              f'<p class="note">{e(_convention_line(entries)).replace("**bold**", "<b>bold</b>").replace("`", "")}'
              " Click a column header to sort.</p>"]
@@ -396,6 +401,11 @@ def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
     if aligned_rows:
         parts += ["<h2>Albedo after per-channel least-squares scale (separate from the raw scores)</h2>",
                   _html_table(aligned_rows, ALIGNED_COLUMNS, _best(entries, ALIGNED_COLUMNS), "aligned")]
+    if pictures is not None and pictures.html:
+        parts.append(pictures.html)
+        parts.append('<p class="note" id="pictures-check"></p>')
+    for note in (pictures.notes if pictures is not None else []):
+        parts.append(f'<p class="warn">Pictures: {e(note)}</p>')
     plots = _plots([x for _, _, rs in _groups(entries) for x in rs])
     if plots:
         parts.append("<h2>Per subject</h2><div class=\"plots\">")
@@ -409,7 +419,7 @@ def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
         parts.append(f"<li><code>{e(x.path.name)}</code>: {e(x.name)} ({e(x.group)}), "
                      f"{r.get('n_frames_evaluated')} frames; weights {e(ws)}</li>")
     parts.append("</ul>")
-    parts.append(f"<script>{_JS}</script></body></html>")
+    parts.append(f"<script>{_JS}{PICTURES_JS}</script></body></html>")
     return "\n".join(parts) + "\n"
 
 
@@ -422,6 +432,11 @@ def main(argv: list[str] | None = None) -> int:
                     "submissions are listed separately, never ranked.")
     p.add_argument("results", nargs="+", type=Path, help="rh-eval result JSON files")
     p.add_argument("--out", type=Path, required=True, help="output folder (index.html, leaderboard.md)")
+    p.add_argument("--pictures", type=int, default=6, metavar="N",
+                   help="fixed frames per protocol shown as pictures after the first-ranked method's best, median "
+                        "and worst (default 6; 0: those three only); tiles come from each result's .thumbs/ "
+                        "folder and are copied into OUT/pictures/")
+    p.add_argument("--no-pictures", action="store_true", help="no pictures section (and no OUT/pictures/)")
     p.add_argument("--allow-mixed", action="store_true",
                    help="combine results computed on different datasets/protocols/conventions (warned in output)")
     args = p.parse_args(argv)
@@ -430,9 +445,17 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"rh-leaderboard: error: {exc}", file=sys.stderr)
         return 2
+    if args.pictures < 0:
+        print(f"rh-leaderboard: error: --pictures must be >= 0, got {args.pictures}", file=sys.stderr)
+        return 2
+    from .leaderboard_pictures import Pictures, build_pictures, write_pictures
+
+    pictures = Pictures() if args.no_pictures else \
+        build_pictures([x for _, _, rs in _groups(entries) for x in rs], args.pictures)
     args.out.mkdir(parents=True, exist_ok=True)
+    write_pictures(args.out, pictures)  # first: the page names its tiles only once they are in place
     for name, text in (("leaderboard.md", build_markdown(entries, warnings)),
-                       ("index.html", build_html(entries, warnings))):
+                       ("index.html", build_html(entries, warnings, pictures))):
         with atomic_path(args.out / name) as tmp:
             tmp.write_text(text, encoding="utf-8")
     print(f"rh-leaderboard: {len(entries)} result(s) -> {args.out / 'index.html'}, {args.out / 'leaderboard.md'}")
