@@ -38,7 +38,7 @@ __all__ = ["SELECTION_SEED", "PER_SUBJECT", "TILE_PX", "THUMBS_FORMAT", "seeded_
            "write_thumbnails", "light_summary"]
 
 SELECTION_SEED = "rh-thumbs/1"
-PER_SUBJECT = 2
+PER_SUBJECT = 4
 TILE_PX = 128
 WEBP_QUALITY = 80
 THUMBS_FORMAT = "rh-eval-thumbs/1"
