@@ -234,7 +234,7 @@ def test_hostile_names_and_thumbnail_indexes_stay_harmless(results, tmp_path):
     assert _check(dom)[0] == _check(dom)[1] > 0
 
 
-PAGE_LIMIT_BYTES = 4_000_000  # 10 methods x 2 protocols, 128 px tiles (docs/EVALUATION.md, "Pictures")
+PAGE_LIMIT_BYTES = 2_500_000  # 10 methods x 2 protocols, 128 px tiles: measured 1.45 MB (docs/EVALUATION.md, "Pictures")
 
 
 def test_ten_methods_two_protocols_stay_small(tmp_path):
@@ -260,7 +260,9 @@ def test_ten_methods_two_protocols_stay_small(tmp_path):
     page = (dst / "index.html").read_text()
     assert page.count('<section class="pics"') == 2
     n_tiles = len(re.findall(r'<img class="tile"', page))
-    assert n_tiles == 2 * 9 * 3 * (1 + 2 * 10)  # 2 protocols, 9 frames, 3 layers, ground truth + 10 x (frame, error)
+    n_cols = page.count('<th class="frame">') // (2 * 3)  # best, median, worst + 6 fixed, fewer where they overlap
+    assert 6 <= n_cols <= 9
+    assert n_tiles == 2 * n_cols * 3 * (1 + 2 * 10)  # 2 protocols, 3 layers, ground truth + 10 x (frame, error)
     size = sum(p.stat().st_size for p in dst.rglob("*") if p.is_file())
     print(f"10 methods x 2 protocols: {n_tiles} tiles, {size} bytes in all, index.html {len(page.encode())} bytes")
     assert size < PAGE_LIMIT_BYTES
