@@ -217,7 +217,7 @@ PICTURES_CSS = """
 .pics table.strip td{border:0;padding:0;text-align:center;vertical-align:middle}
 .pics table.strip th{background:none;border:0;cursor:default;font-weight:normal;font-size:.85em;padding:0 .5em 0 0;
   text-align:right;max-width:12em;overflow-wrap:anywhere}
-.pics table.strip th.frame{text-align:center;font-size:.75em;color:#444;padding:0 0 .2em 0}
+.pics table.strip th.frame{text-align:center;font-size:.75em;color:#444;padding:0 .5em .2em .5em}
 .pics .role{font-weight:bold;color:#225}
 .pics img.tile{display:block;max-width:128px;max-height:128px;cursor:zoom-in;border:1px solid #ddd}
 .pics tr.gt th{font-weight:bold}
