@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -21,6 +22,7 @@ from PIL import Image
 __all__ = [
     "ImageFileError",
     "atomic_path",
+    "atomic_dir",
     "read_exr",
     "write_exr",
     "read_png",
@@ -60,6 +62,29 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+@contextmanager
+def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a new empty folder next to `path`; on success it replaces `path` whole (the old folder, if any, is
+    renamed aside, the new one renamed in, the old one deleted), so a reader sees the old set of files or the new
+    one. Each file inside is still written with `atomic_path` (fsynced). On error the new folder is removed."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    try:
+        yield tmp
+        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes it 0700
+        old = None
+        if path.exists():
+            old = path.with_name(f".{path.name}.old-{os.getpid()}.tmp")
+            os.replace(path, old)
+        os.replace(tmp, path)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _umask() -> int:

@@ -26,7 +26,7 @@ from typing import Any, Callable
 import numpy as np
 import torch
 
-from rh_common.imageio import ImageFileError, read_json, sha256_file
+from rh_common.imageio import ImageFileError, sha256_file
 
 from . import __version__
 from .conventions import Convention
@@ -38,8 +38,7 @@ from .metrics.lpips import get_lpips_net
 from .report import summarise
 from .scoring import (ALL_METRICS, IMAGE_METRICS, FrameScores, NetworkPair, check_metrics, prepare_frame,
                       read_frame, record_pair_scores, score_pairs)
-from .thumbnails import (PER_SUBJECT, SELECTION_SEED, TILE_PX, ThumbnailSet, frame_tiles, headline_metric,
-                         light_summary, seeded_rank, select_extremes, select_fixed)
+from .thumbnails import ThumbnailSet, collect_thumbnails, frame_tiles, select_fixed
 from .weights import WEIGHTS, weights_record
 
 __all__ = ["ALL_METRICS", "EvalOptions", "Evaluator", "FeatureCache", "summarise", "metric_columns",
@@ -357,33 +356,12 @@ class Evaluator:
 
     def _thumbnails(self, pred: PredictionIndex, rows: list[dict], cols: list[str], fixed: set[str],
                     tiles: dict) -> ThumbnailSet:
-        """The picture selection: the fixed frames (tiles made in the loop) and this method's best, median and
-        worst by its headline metric (read again here: which they are is known only now)."""
-        keys = [pf.gt.key for pf in pred.frames]
-        roles: dict[str, list[str]] = {k: ["fixed"] for k in fixed}
-        for role, k in select_extremes(rows, keys, cols).items():
-            roles.setdefault(k, []).append(role)
-        head = headline_metric(cols)
-        sel = {"seed": SELECTION_SEED, "per_subject": PER_SUBJECT, "tile_px": TILE_PX,
-               "headline": head[0] if head else None, "lower_is_better": head[1] if head else None,
-               "rule": f"per subject the {PER_SUBJECT} test frames first by sha256('{SELECTION_SEED}|<subject>|"
-                       f"<frame index>'), plus this method's best, median (lower middle) and worst frame by its "
-                       f"headline metric; frames with an empty ground-truth mask have no tiles"}
-        out = ThumbnailSet(sel)
-        for pf, row, k in zip(pred.frames, rows, keys):
-            if k not in roles:
-                continue
-            t = tiles[k] if k in tiles else frame_tiles(*read_frame(pf, self.options.metrics),
-                                                        self.options.convention)
-            if t is None:
-                continue
-            scores = {c: ("inf" if isinstance(row.get(c), float) and row[c] == float("inf") else row.get(c))
-                      for c in cols}
-            out.tiles[k] = t
-            out.frames.append({"name": k, "subject": pf.gt.subject, "frame": pf.gt.index, "roles": roles[k],
-                               "seeded_rank": seeded_rank(pf.gt.subject, pf.gt.index), "scores": scores,
-                               "light": light_summary(read_json(pf.gt.json_path).get("light"))})
-        return out
+        """The fixed frames' tiles (made in the loop) and this method's best, median and worst, read again here:
+        which frames they are is known only now."""
+        def again(pf):
+            return frame_tiles(*read_frame(pf, self.options.metrics), self.options.convention)
+
+        return collect_thumbnails(pred.frames, rows, cols, fixed, tiles, again)
 
     def _result(self, ds: DatasetIndex, pred: PredictionIndex, rows: list[dict], cols: list[str]) -> dict:
         import flip_evaluator  # noqa: F401  (version only)

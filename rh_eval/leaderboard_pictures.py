@@ -15,14 +15,12 @@ from __future__ import annotations
 import html
 import json
 import math
-import os
 import re
 import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from rh_common.imageio import atomic_path
+from rh_common.imageio import atomic_dir, atomic_path
 
 from .thumbnails import THUMBS_FORMAT, select_extremes
 
@@ -184,31 +182,19 @@ def build_pictures(entries: list, max_fixed: int = 6) -> Pictures:
 
 
 def write_pictures(out_dir: Path, pictures: Pictures) -> int:
-    """Copy the tiles into `<out_dir>/pictures/`, replacing that folder whole (built beside it, then renamed);
+    """Copy the tiles into `<out_dir>/pictures/`, replacing that folder whole (`atomic_dir`);
     returns the bytes copied. No tiles: the folder is removed (a stale one would mislead)."""
     dst = Path(out_dir) / PICTURES_DIR
     if not pictures.copies:
         shutil.rmtree(dst, ignore_errors=True)
         return 0
-    tmp = Path(tempfile.mkdtemp(prefix=f".{PICTURES_DIR}.", suffix=".tmp", dir=out_dir))
     total = 0
-    try:
+    with atomic_dir(dst) as tmp:
         for src, rel in pictures.copies:
             data = src.read_bytes()
             with atomic_path(tmp / rel) as t:
                 t.write_bytes(data)
             total += len(data)
-        os.chmod(tmp, 0o755)
-        old = None
-        if dst.exists():
-            old = dst.with_name(f".{PICTURES_DIR}.old-{os.getpid()}")
-            os.replace(dst, old)
-        os.replace(tmp, dst)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
     return total
 
 

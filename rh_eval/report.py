@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -82,6 +83,8 @@ def write_result(out: Path, result: dict, rows: list[dict], cols: list[str], csv
     result = dict(result)
     if thumbnails is not None:
         result["thumbnails"] = write_thumbnails(thumbs_dir_for(out), thumbnails)
+    elif (thumbs_dir_for(out) / "index.json").is_file():  # an earlier run's pictures: not of this result
+        shutil.rmtree(thumbs_dir_for(out))
     csv_path = Path(csv_path) if csv_path else csv_path_for(out)
     extra = ["albedo_scale"] if any("albedo_scale" in r for r in rows) else []
     header = ["subject", "frame", "empty_mask"] + cols + extra

@@ -17,16 +17,13 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from rh_common.colourspace import quantize8
-from rh_common.imageio import write_json, write_webp
+from rh_common.imageio import atomic_dir, read_json, write_json, write_webp
 
 from .conventions import BACKGROUNDS, Convention, albedo_to_space, composite, compute_region
 from .dataset_io import albedo_from_stored, display_from_stored, normal_from_stored
@@ -35,7 +32,7 @@ from .metrics.normal import angular_error_map
 
 __all__ = ["SELECTION_SEED", "PER_SUBJECT", "TILE_PX", "THUMBS_FORMAT", "seeded_rank", "select_fixed",
            "headline_metric", "select_extremes", "frame_crops", "frame_tiles", "ThumbnailSet", "thumbs_dir_for",
-           "write_thumbnails", "light_summary"]
+           "write_thumbnails", "light_summary", "collect_thumbnails"]
 
 SELECTION_SEED = "rh-thumbs/1"
 PER_SUBJECT = 4
@@ -193,18 +190,45 @@ class ThumbnailSet:
     tiles: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)  # frame name -> tile name -> pixels
 
 
+def collect_thumbnails(frames, rows: list[dict], cols: list[str], fixed: set[str], tiles: dict,
+                       make_tiles) -> ThumbnailSet:
+    """The selection of one run: `frames` (its `PredFrame`s) with their CSV `rows`, the `fixed` keys whose tiles
+    the loop made (`tiles`: key -> tiles or None), and `make_tiles(frame)` for the extremes it did not."""
+    keys = [pf.gt.key for pf in frames]
+    roles: dict[str, list[str]] = {k: ["fixed"] for k in fixed}
+    for role, k in select_extremes(rows, keys, cols).items():
+        roles.setdefault(k, []).append(role)
+    head = headline_metric(cols)
+    out = ThumbnailSet({"seed": SELECTION_SEED, "per_subject": PER_SUBJECT, "tile_px": TILE_PX,
+                        "headline": head[0] if head else None, "lower_is_better": head[1] if head else None,
+                        "rule": f"per subject the {PER_SUBJECT} test frames first by sha256('{SELECTION_SEED}|"
+                                f"<subject>|<frame index>'), plus this method's best, median (lower middle) and "
+                                f"worst frame by its headline metric; frames with an empty ground-truth mask have "
+                                f"no tiles"})
+    for pf, row, k in zip(frames, rows, keys):
+        if k not in roles:
+            continue
+        t = tiles[k] if k in tiles else make_tiles(pf)
+        if t is None:
+            continue
+        scores = {c: ("inf" if isinstance(row.get(c), float) and row[c] == math.inf else row.get(c)) for c in cols}
+        out.tiles[k] = t
+        out.frames.append({"name": k, "subject": pf.gt.subject, "frame": pf.gt.index, "roles": roles[k],
+                           "seeded_rank": seeded_rank(pf.gt.subject, pf.gt.index), "scores": scores,
+                           "light": light_summary(read_json(pf.gt.json_path).get("light"))})
+    return out
+
+
 def thumbs_dir_for(json_path: Path) -> Path:
     return json_path.with_name(json_path.stem + ".thumbs")
 
 
 def write_thumbnails(folder: Path, thumbs: ThumbnailSet) -> dict:
-    """Write the tiles and `index.json` into `folder`, replacing it whole: built in a temporary sibling folder,
-    then renamed into place, so a reader sees the old set or the new one. Returns the result's `thumbnails`
+    """Write the tiles and `index.json` into `folder`, replacing it whole (`atomic_dir`: a reader sees the old set
+    or the new one). Returns the result's `thumbnails`
     record (folder name, counts, bytes)."""
     folder = Path(folder)
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".tmp", dir=folder.parent))
-    try:
+    with atomic_dir(folder) as tmp:
         entries, total = [], 0
         for entry in thumbs.frames:
             files = {}
@@ -221,16 +245,5 @@ def write_thumbnails(folder: Path, thumbs: ThumbnailSet) -> dict:
                                 "normal": f"angle between normals inside the mask, 0-{NORMAL_ERROR_MAX_DEG:g} "
                                           f"degrees, magma"}}
         write_json(tmp / "index.json", index)
-        os.chmod(tmp, 0o755)
-        old = None
-        if folder.exists():
-            old = folder.with_name(f".{folder.name}.old-{os.getpid()}")
-            os.replace(folder, old)
-        os.replace(tmp, folder)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
     return {"dir": folder.name, "index": "index.json", "n_frames": len(thumbs.frames), "tile_bytes": total,
             "format": THUMBS_FORMAT}
