@@ -67,8 +67,9 @@ class EvalOptions:
     every operation, lose more to a busy core than overlapping gains (measured: docs/EVALUATION.md, Speed)."""
     preload_mb: int = 1024
     """Prediction pixels decoded by the up-front check are kept (up to this many MB) instead of decoded again."""
-    thumbnails: bool = True
-    """Keep display-space tiles of the seeded frame selection (`rh_eval.thumbnails`) in `Evaluator.thumbnails`."""
+    thumbnails: bool = False
+    """Keep display-space tiles of the seeded frame selection (`rh_eval.thumbnails`) in `Evaluator.thumbnails`
+    (rh-eval's default; off here, so that code timing or scoring through the API pays for no pictures)."""
 
     def __post_init__(self) -> None:
         check_metrics(self.metrics)
