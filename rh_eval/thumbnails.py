@@ -129,7 +129,9 @@ def _shrink(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     if (h, w) == size:
         return img
     ry, rx = _area_matrix(h, size[0]), _area_matrix(w, size[1])
-    return np.einsum("ih,hwc,jw->ijc", ry, img.reshape(h, w, -1), rx).reshape(size + img.shape[2:])
+    x = img.reshape(h, w, -1)
+    rows = (ry @ x.reshape(h, -1)).reshape(size[0], w, -1)  # two matrix products (a 3-operand einsum loops naively)
+    return (rows.transpose(0, 2, 1) @ rx.T).transpose(0, 2, 1).reshape(size + img.shape[2:])
 
 
 def _tile_size(h: int, w: int) -> tuple[int, int]:
