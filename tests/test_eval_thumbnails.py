@@ -15,7 +15,8 @@ from rh_eval.cli import main as eval_main
 from rh_eval.conventions import Convention
 from rh_eval.dataset_io import load_dataset, scan_predictions
 from rh_eval.scoring import prepare_frame, read_frame
-from rh_eval.thumbnails import (PER_SUBJECT, TILE_PX, _colourise, frame_crops, seeded_rank, select_extremes,
+from rh_common.imageio import write_webp
+from rh_eval.thumbnails import (PER_SUBJECT, TILE_PX, WEBP_QUALITY, _colourise, frame_crops, seeded_rank, select_extremes,
                                 select_fixed)
 from test_eval_fake import make_dataset, make_predictions
 
@@ -126,11 +127,15 @@ def test_identical_prediction_has_black_error_maps(ds, tmp_path):
     oracle = make_predictions(ds, tmp_path / "oracle", name="oracle")
     _eval(oracle, ds, tmp_path / "oracle.json")
     folder = tmp_path / "oracle.thumbs"
-    black = _colourise(np.zeros((1, 1)))[0, 0].astype(int)
+    black = _colourise(np.zeros((1, 1)))[0, 0]
     for f in json.loads((folder / "index.json").read_text())["frames"]:
         for layer in ("image", "albedo", "normal"):
-            err = np.asarray(Image.open(folder / f["tiles"][layer + "_err"]).convert("RGB"), dtype=int)
-            assert np.abs(err - black).max() <= 3  # FLIP 0 / 0 degrees everywhere (lossy WebP: a few levels)
+            err = folder / f["tiles"][layer + "_err"]
+            with Image.open(err) as im:
+                size = im.size
+            write_webp(tmp_path / "black.webp", np.broadcast_to(black.astype(np.uint8), (size[1], size[0], 3)),
+                       quality=WEBP_QUALITY)
+            assert err.read_bytes() == (tmp_path / "black.webp").read_bytes()  # FLIP 0 / 0 degrees everywhere
             a = np.asarray(Image.open(folder / f["tiles"][layer]).convert("RGB"), dtype=int)
             b = np.asarray(Image.open(folder / f["tiles"][layer + "_gt"]).convert("RGB"), dtype=int)
             assert np.array_equal(a, b)  # the same pixels encode to the same bytes
