@@ -1,4 +1,5 @@
-"""The one image and file I/O module: float32 EXR, 8-bit PNG, Radiance RGBE .hdr, JSON, all written atomically.
+"""The one image and file I/O module: float32 EXR, 8-bit PNG, Radiance RGBE .hdr, lossy WebP previews, JSON,
+all written atomically.
 
 Atomic means: write to a temporary file in the destination folder, flush and fsync it, then rename it over the
 destination. A reader (or a rerun after `kill -9`) therefore sees either the old file, the complete new file, or
@@ -10,6 +11,7 @@ import errno
 import hashlib
 import json
 import os
+import shutil
 import signal
 import tempfile
 from contextlib import contextmanager
@@ -23,12 +25,14 @@ from PIL import Image
 __all__ = [
     "ImageFileError",
     "atomic_path",
+    "atomic_dir",
     "read_exr",
     "write_exr",
     "read_png",
     "write_png",
     "write_hdr",
     "read_hdr",
+    "write_webp",
     "read_json",
     "write_json",
     "dumps_json",
@@ -79,6 +83,29 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         if tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
         signal.pthread_sigmask(signal.SIG_SETMASK, held)  # after the unlink: a signal it releases cannot skip it
+
+
+@contextmanager
+def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a new empty folder next to `path`; on success it replaces `path` whole (the old folder, if any, is
+    renamed aside, the new one renamed in, the old one deleted), so a reader sees the old set of files or the new
+    one. Each file inside is still written with `atomic_path` (fsynced). On error the new folder is removed."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    try:
+        yield tmp
+        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes it 0700
+        old = None
+        if path.exists():
+            old = path.with_name(f".{path.name}.old-{os.getpid()}.tmp")
+            os.replace(path, old)
+        os.replace(tmp, path)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _umask() -> int:
@@ -163,6 +190,17 @@ def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
         raise ValueError(f"write_png {path}: expected (H, W[, 3|4]), got shape {arr.shape}")
     with atomic_path(path) as tmp:
         Image.fromarray(arr).save(tmp, format="PNG", compress_level=6)
+
+
+def write_webp(path: str | os.PathLike, image: np.ndarray, *, quality: int = 80) -> None:
+    """Write a uint8 (H, W, 3) array as lossy WebP (libwebp, `quality` 0-100, slowest/smallest method 6),
+    atomically. For small previews only (rh-eval's thumbnails): lossy, never for data that is scored."""
+    arr = np.asarray(image)
+    if arr.dtype != np.uint8 or arr.ndim != 3 or arr.shape[2] != 3:
+        raise ValueError(f"write_webp {path}: expected uint8 (H, W, 3), got {arr.dtype} {arr.shape}; quantise with "
+                         f"colourspace.quantize8")
+    with atomic_path(path) as tmp:
+        Image.fromarray(np.ascontiguousarray(arr)).save(tmp, format="WEBP", quality=int(quality), method=6)
 
 
 def read_png(path: str | os.PathLike, *, allow_16bit: bool = False) -> np.ndarray:

@@ -94,6 +94,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--preload-mb", type=int, default=1024,
                    help="prediction pixels decoded by the up-front check are kept up to this many MB instead of "
                         "decoded a second time (default 1024; 0 = always decode again)")
+    p.add_argument("--no-thumbnails", action="store_true",
+                   help="write no pictures (<out stem>.thumbs/: display-space tiles of the evaluated region, error "
+                        "maps, albedo and normal for a seeded set of frames, shown by rh-leaderboard)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_debug_flag(p)
     return p
@@ -107,9 +110,9 @@ def main(argv: list[str] | None = None) -> int:
     from .dataset_io import PredictionError
     from .evaluate import EvalOptions, Evaluator
     from .report import write_result
-    from rh_common.weights import WeightError
-    from rh_common.imageio import ImageFileError
+    from rh_common.imageio import ImageFileError, read_json
     from rh_common.threads import torch_threads
+    from rh_common.weights import WeightError
 
     try:
         metrics = tuple(m.strip() for m in args.metrics.split(",") if m.strip())
@@ -119,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         opts = EvalOptions(convention=conv, metrics=metrics, batch_size=args.batch_size, cache_dir=args.cache_dir,
                            cache_mb=args.cache_mb, allow_incomplete=args.allow_incomplete,
                            progress=False if args.no_progress else None, threads=args.threads,
-                           workers=args.workers, preload_mb=args.preload_mb)
+                           workers=args.workers, preload_mb=args.preload_mb, thumbnails=not args.no_thumbnails)
         with torch_threads(opts.threads):  # the command's own count; the Evaluator never changes it
             ev = Evaluator(opts)
             result, rows, cols = ev.evaluate(args.predictions, args.dataset, args.protocol)
@@ -130,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
         result["kind"] = args.kind
     if args.name:
         result["method"] = dict(result["method"], name=args.name)
-    csv_path = write_result(args.out, result, rows, cols, args.csv)
+    csv_path = write_result(args.out, result, rows, cols, args.csv, thumbnails=ev.thumbnails)
     ov = result["overall"]
     status = "complete" if result["complete"] else f"INCOMPLETE ({len(result['missing'])} missing)"
     print(f"rh-eval: {result['method'].get('name')}: {result['n_frames_evaluated']} frames, {status}; "
@@ -140,7 +143,10 @@ def main(argv: list[str] | None = None) -> int:
         extra = f" (+{s['n_infinite']} inf)" if s.get("n_infinite") else ""
         mean = s["mean"] if isinstance(s["mean"], str) or s["mean"] is None else f"{s['mean']:.6g}"
         print(f"  {c:24s} {mean}{extra}")
-    print(f"rh-eval: wrote {args.out} and {csv_path}")
+    thumbs = read_json(args.out).get("thumbnails")  # the record write_result added
+    pics = f" and {thumbs['n_frames']} frames' pictures in {thumbs['dir']}/ ({thumbs['tile_bytes']} bytes)" \
+        if thumbs else ""
+    print(f"rh-eval: wrote {args.out}, {csv_path}{pics}")
     return 0
 
 

@@ -1,7 +1,8 @@
 """The evaluation engine behind `rh-eval`: a predictions folder and a dataset -> per-frame rows -> the result JSON.
 
 In: `EvalOptions` (convention, metrics, batching, cache, threads), a predictions folder, a dataset and a protocol.
-Out: `Evaluator.evaluate` -> (result JSON dict, per-frame rows, CSV columns); `rh_eval.report` writes them.
+Out: `Evaluator.evaluate` -> (result JSON dict, per-frame rows, CSV columns), and `Evaluator.thumbnails` (the
+     tiles of the seeded frame selection, `rh_eval.thumbnails`); `rh_eval.report` writes them.
 
 Each frame is scored by `rh_eval.scoring` (the same code as the public `score_frame`): `prepare_frame` on worker
 threads, then LPIPS/DISTS through `score_pairs` on batches of equal-shape crops from many frames (`batch_size`).
@@ -39,6 +40,7 @@ from .metrics.lpips import get_lpips_net
 from .report import summarise
 from .scoring import (ALL_METRICS, IMAGE_METRICS, CropTooSmallError, FrameScores, NetworkPair, check_metrics,
                       prepare_frame, read_frame, record_pair_scores, score_pairs)
+from .thumbnails import ThumbnailSet, collect_thumbnails, frame_tiles, select_fixed
 
 __all__ = ["ALL_METRICS", "EvalOptions", "Evaluator", "FeatureCache", "summarise", "metric_columns",
            "RESULT_FORMAT"]
@@ -66,6 +68,9 @@ class EvalOptions:
     every operation, lose more to a busy core than overlapping gains (measured: docs/EVALUATION.md, Speed)."""
     preload_mb: int = 1024
     """Prediction pixels decoded by the up-front check are kept (up to this many MB) instead of decoded again."""
+    thumbnails: bool = False
+    """Keep display-space tiles of the seeded frame selection (`rh_eval.thumbnails`) in `Evaluator.thumbnails`
+    (rh-eval's default; off here, so that code timing or scoring through the API pays for no pictures)."""
 
     def __post_init__(self) -> None:
         check_metrics(self.metrics)
@@ -127,6 +132,8 @@ class Evaluator:
         self.cache = FeatureCache(self.options.cache_mb << 20, self.options.cache_dir)
         self._hash_memo: dict[tuple[str, int, int], str] = {}
         self._queue: list[_NetItem] = []
+        self.thumbnails: ThumbnailSet | None = None
+        """The last `evaluate`'s tiles (None with `thumbnails=False`); `report.write_result` writes them."""
 
     # ---------------------------------------------------------------- bookkeeping
     def weight_names(self) -> list[str]:
@@ -208,16 +215,20 @@ class Evaluator:
         self._queue = keep
 
     # ---------------------------------------------------------------- per frame (worker threads)
-    def _prepare(self, pf, pred: PredictionIndex, stored: dict) -> tuple[FrameScores, list[_NetItem]]:
-        """Everything about one frame except the networks: read, crop, convert, CPU metrics. Runs in a worker
-        thread; returns the frame's scores so far and its network inputs."""
+    def _prepare(self, pf, pred: PredictionIndex, stored: dict, thumb_keys: set,
+                 tiles: dict) -> tuple[FrameScores, list[_NetItem]]:
+        """Everything about one frame except the networks: read, crop, convert, CPU metrics, and the tiles of a
+        frame in the fixed picture selection (`thumb_keys`, into `tiles`). Runs in a worker thread; returns the
+        frame's scores so far and its network inputs."""
         conv = self.options.convention
         gt = pf.gt
+        frame_pred, frame_gt = read_frame(pf, self.options.metrics, stored=stored)
         try:
-            scores, pairs = prepare_frame(*read_frame(pf, self.options.metrics, stored=stored), conv,
-                                          self.options.metrics)
+            scores, pairs = prepare_frame(frame_pred, frame_gt, conv, self.options.metrics)
         except CropTooSmallError as exc:
             raise CropTooSmallError(f"{pf.gt.json_path}: {exc}") from None
+        if gt.key in thumb_keys:  # while the pixels are in memory
+            tiles[gt.key] = frame_tiles(frame_pred, frame_gt, conv)
         items = []
         if pairs:
             frame_id = "|".join([self._file_sha(gt.json_path), self._file_sha(gt.layer("mask.png"))])
@@ -299,6 +310,9 @@ class Evaluator:
                                               f"with the albedo aligned to the ground truth, and that albedo is "
                                               f"scored with them"])
         stored = self.check_predictions(pred)
+        self.thumbnails = None
+        thumb_keys = select_fixed([pf.gt for pf in pred.frames]) if self.options.thumbnails else set()
+        tiles: dict[str, dict | None] = {}
         self._cache_start = {k: getattr(self.cache, k) for k in ("hits", "disk_hits", "misses")}
         opts = self.options
         conv = opts.convention
@@ -316,17 +330,17 @@ class Evaluator:
         try:
             # frames are prepared on the workers, in order, a bounded number ahead of the networks (memory)
             todo = iter(pred.frames)
-            pending = deque(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, ahead))
+            pending = deque(pool.submit(self._prepare, pf, pred, stored, thumb_keys, tiles) for pf in islice(todo, ahead))
             while pending:
                 scores, items = pending.popleft().result()
                 if overlap:
-                    pending.extend(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, 1))
+                    pending.extend(pool.submit(self._prepare, pf, pred, stored, thumb_keys, tiles) for pf in islice(todo, 1))
                 frames.append(scores)
                 self._queue.extend(items)
                 if len(self._queue) >= opts.batch_size:
                     self._flush_full_groups()
                 if not overlap and not pending:
-                    pending.extend(pool.submit(self._prepare, pf, pred, stored) for pf in islice(todo, ahead))
+                    pending.extend(pool.submit(self._prepare, pf, pred, stored, thumb_keys, tiles) for pf in islice(todo, ahead))
                 if bar is not None:
                     bar.update(1)
                 if on_frame is not None:
@@ -349,7 +363,18 @@ class Evaluator:
                 row.setdefault(c, None)
             rows.append(row)
         result = self._result(ds, pred, rows, cols)
+        if self.options.thumbnails:
+            self.thumbnails = self._thumbnails(pred, rows, cols, thumb_keys, tiles)
         return result, rows, cols
+
+    def _thumbnails(self, pred: PredictionIndex, rows: list[dict], cols: list[str], fixed: set[str],
+                    tiles: dict) -> ThumbnailSet:
+        """The fixed frames' tiles (made in the loop) and this method's best, median and worst, read again here:
+        which frames they are is known only now."""
+        def again(pf):
+            return frame_tiles(*read_frame(pf, self.options.metrics), self.options.convention)
+
+        return collect_thumbnails(pred.frames, rows, cols, fixed, tiles, again)
 
     def _result(self, ds: DatasetIndex, pred: PredictionIndex, rows: list[dict], cols: list[str]) -> dict:
         import flip_evaluator  # noqa: F401  (version only)

@@ -1,5 +1,6 @@
 """`rh-leaderboard`: several `rh-eval` result files -> `leaderboard.md` (laid out like the paper's Table 2) and a
-self-contained `index.html` (sortable tables, per-subject plots as inline SVG).
+self-contained folder: `index.html` (sortable tables, pictures of frames and error maps from the tiles rh-eval wrote
+beside each result, copied into `pictures/`: `rh_eval.leaderboard_pictures`; per-subject plots as inline SVG).
 
 Only result files scored on the same benchmark split, protocol and convention are combined (`--allow-mixed`
 overrides, with a warning in both outputs). The same split = the same content identity (docs/ARCHITECTURE.md,
@@ -509,11 +510,15 @@ def _plots(entries: list[Entry]) -> list[tuple[str, str]]:
     return figs
 
 
-def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
+def build_html(entries: list[Entry], warnings: list[str] | None = None, pictures=None) -> str:
+    """The page. `pictures`: a `leaderboard_pictures.Pictures` (its HTML goes after the tables; its tiles are
+    copied by `main`), or None for none."""
+    from .leaderboard_pictures import PICTURES_CSS, PICTURES_JS
+
     e = html.escape
     convs = _by_convention(entries)
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-             "<title>Relighting Humans leaderboard</title>", f"<style>{_CSS}</style></head><body>",
+             "<title>Relighting Humans leaderboard</title>", f"<style>{_CSS}{PICTURES_CSS}</style></head><body>",
              "<h1>Relighting Humans leaderboard</h1>"]
     if len(convs) > 1:
         parts.append(f'<p class="note">One set of tables per evaluation convention '
@@ -532,6 +537,11 @@ def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
                      + "".join(f"<th>{e(h)}</th>" for h in head) + "</tr></thead><tbody>")
         parts += [f"<tr><td>{e(m)}</td>" + "".join(f"<td>{e(c)}</td>" for c in cells) + "</tr>" for m, cells in rows]
         parts.append("</tbody></table>")
+    if pictures is not None and pictures.html:
+        parts.append(pictures.html)
+        parts.append('<p class="note" id="pictures-check"></p>')
+    for note in (pictures.notes if pictures is not None else []):
+        parts.append(f'<p class="warn">Pictures: {e(note)}</p>')
     parts.append("<h2>Result files</h2><ul>")
     for x in entries:
         r = x.result
@@ -540,7 +550,7 @@ def build_html(entries: list[Entry], warnings: list[str] | None = None) -> str:
         parts.append(f"<li><code>{e(x.path.name)}</code>: {e(x.name)} ({e(x.group)}{conv}), "
                      f"{r.get('n_frames_evaluated')} frames; weights {e(ws)}</li>")
     parts.append("</ul>")
-    parts.append(f"<script>{_JS}</script></body></html>")
+    parts.append(f"<script>{_JS}{PICTURES_JS}</script></body></html>")
     return "\n".join(parts) + "\n"
 
 
@@ -590,6 +600,11 @@ def main(argv: list[str] | None = None) -> int:
                     "every convention.")
     p.add_argument("results", nargs="+", type=Path, help="rh-eval result JSON files")
     p.add_argument("--out", type=Path, required=True, help="output folder (index.html, leaderboard.md)")
+    p.add_argument("--pictures", type=int, default=6, metavar="N",
+                   help="fixed frames per protocol shown as pictures after the first-ranked method's best, median "
+                        "and worst (default 6; 0: those three only); tiles come from each result's .thumbs/ "
+                        "folder and are copied into OUT/pictures/")
+    p.add_argument("--no-pictures", action="store_true", help="no pictures section (and no OUT/pictures/)")
     p.add_argument("--allow-mixed", action="store_true",
                    help="combine results computed on different datasets/protocols/conventions (warned in output)")
     p.add_argument("--comparison", type=Path, action="append", default=[], metavar="FILE",
@@ -604,9 +619,17 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, OSError) as exc:
         print(f"rh-leaderboard: error: {exc}", file=sys.stderr)
         return 2
+    if args.pictures < 0:
+        print(f"rh-leaderboard: error: --pictures must be >= 0, got {args.pictures}", file=sys.stderr)
+        return 2
+    from .leaderboard_pictures import Pictures, build_pictures, write_pictures
+
+    pictures = Pictures() if args.no_pictures else \
+        build_pictures([x for _, _, rs in _groups(entries) for x in rs], args.pictures)
     args.out.mkdir(parents=True, exist_ok=True)
+    write_pictures(args.out, pictures)  # first: the page names its tiles only once they are in place
     for name, text in (("leaderboard.md", build_markdown(entries, warnings)),
-                       ("index.html", build_html(entries, warnings))):
+                       ("index.html", build_html(entries, warnings, pictures))):
         with atomic_path(args.out / name) as tmp:
             tmp.write_text(text, encoding="utf-8")
     print(f"rh-leaderboard: {len(entries)} result(s) -> {args.out / 'index.html'}, {args.out / 'leaderboard.md'}")

@@ -1,18 +1,22 @@
 """Summarising and writing a result: per-metric means and stds, the JSON summary and the per-frame CSV beside it.
 
-In: per-frame values (`summarise`); the result dict, rows and columns of `Evaluator.evaluate` (`write_result`).
-Out: summary dicts; the JSON and CSV files."""
+In: per-frame values (`summarise`); the result dict, rows and columns of `Evaluator.evaluate` and its
+    `Evaluator.thumbnails` (`write_result`).
+Out: summary dicts; the JSON, the CSV and the `<stem>.thumbs/` folder of pictures beside it."""
 from __future__ import annotations
 
 import csv
 import io
 import math
+import shutil
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from rh_common.imageio import atomic_path, write_json
+
+from .thumbnails import ThumbnailSet, thumbs_dir_for, write_thumbnails
 
 __all__ = ["summarise", "write_result", "csv_path_for", "format_value"]
 
@@ -70,9 +74,17 @@ def format_value(v) -> str:
     return str(v)
 
 
-def write_result(out: Path, result: dict, rows: list[dict], cols: list[str], csv_path: Path | None = None) -> Path:
-    """Write `out` (JSON) and the per-frame CSV (default `<out stem>.frames.csv`); returns the CSV path."""
+def write_result(out: Path, result: dict, rows: list[dict], cols: list[str], csv_path: Path | None = None,
+                 thumbnails: ThumbnailSet | None = None) -> Path:
+    """Write `out` (JSON), the per-frame CSV (default `<out stem>.frames.csv`) and, given `thumbnails`, the
+    `<out stem>.thumbs/` folder (first: the JSON, written last, names it only once it is whole); returns the CSV
+    path."""
     out = Path(out)
+    result = dict(result)
+    if thumbnails is not None:
+        result["thumbnails"] = write_thumbnails(thumbs_dir_for(out), thumbnails)
+    elif (thumbs_dir_for(out) / "index.json").is_file():  # an earlier run's pictures: not of this result
+        shutil.rmtree(thumbs_dir_for(out))
     csv_path = Path(csv_path) if csv_path else csv_path_for(out)
     extra = ["albedo_scale"] if any("albedo_scale" in r for r in rows) else []
     header = ["subject", "frame", "empty_mask"] + cols + extra
@@ -83,7 +95,6 @@ def write_result(out: Path, result: dict, rows: list[dict], cols: list[str], csv
         w.writerow([format_value(r.get(h)) for h in header])
     with atomic_path(csv_path) as tmp:
         tmp.write_text(buf.getvalue(), encoding="utf-8")
-    result = dict(result)
     result["per_frame_csv"] = csv_path.name
     write_json(out, result)
     return csv_path

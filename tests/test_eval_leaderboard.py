@@ -166,3 +166,105 @@ def test_flip_ppd_is_shown_and_never_mixed_silently(results, tmp_path, capsys):
     assert lb_main([str(out / "good.json"), str(tmp_path / "d.json"), "--out", str(tmp_path / "noflip")]) == 0
     md = (tmp_path / "noflip" / "leaderboard.md").read_text()
     assert "FLIP (" not in md and "Warning" not in md
+
+
+# ------------------------------------------------------------------------------------------------ pictures
+def _check(dom: str) -> tuple[int, int]:
+    m = re.search(r'id="pictures-check"[^>]*data-loaded="(\d+)"[^>]*data-total="(\d+)"', dom)
+    assert m, "the page's picture check did not run"
+    return int(m.group(1)), int(m.group(2))
+
+
+def test_pictures_load_and_enlarge_in_headless_chromium(results, tmp_path):
+    code, dst = _lb(results, tmp_path)
+    assert code == 0
+    page = (dst / "index.html").read_text()
+    srcs = re.findall(r'<img class="tile" src="([^"]+)"', page)
+    assert srcs and all(s.startswith("pictures/") and (dst / s).is_file() for s in srcs)  # one folder
+    n_frames = 3  # 4 frames, each pictured by every result, but `partial` lacks one: only frames all have
+    assert page.count('<th class="frame">') == 3 * n_frames  # image, albedo, normal tables
+    # rows: ground truth, then each result and its error map; albedo and normal only for results that have them
+    with_albedo = 3  # good, okay, oracle (imgonly and partial have images only)
+    assert len(srcs) == n_frames * ((1 + 2 * 5) + 2 * (1 + 2 * with_albedo))
+    dom = _dump_dom(dst / "index.html", "#view=0.0.-1.image", tmp_path)
+    loaded, total = _check(dom)
+    assert loaded == total == len(srcs)
+    title = re.search(r'id="lightbox-title">(.*?)</div>', dom).group(1)
+    assert title.startswith("subject_") and "ground truth" in title and "protocol a" in title
+    scores = re.search(r'id="lightbox-scores">(.*?)</table>', dom, flags=re.S).group(1)
+    assert all(n in scores for n in ("good", "okay", "oracle (bound)", "image_psnr", "∞"))
+    assert '<tr class="bound"><th>oracle (bound)<span class="badge">bound</span>' in dom  # marked as a bound
+    # a broken tile is counted as such
+    (dst / srcs[0]).unlink()
+    loaded, total = _check(_dump_dom(dst / "index.html", "", tmp_path))
+    assert (loaded, total) == (len(srcs) - 1, len(srcs))
+
+
+def test_hostile_names_and_thumbnail_indexes_stay_harmless(results, tmp_path):
+    root, ds, out = results
+    src = tmp_path / "src"
+    src.mkdir()
+    hostile = ['<script>document.title="pwned"</script>', '"><img src=x onerror=alert(1)>', "</script><b>x"]
+    paths = []
+    for i, name in enumerate(hostile):
+        res = json.loads((out / "good.json").read_text())
+        res["method"]["name"] = name
+        shutil.copytree(out / "good.thumbs", src / "good.thumbs", dirs_exist_ok=True)
+        (src / f"h{i}.json").write_text(json.dumps(res))
+        paths.append(src / f"h{i}.json")
+    evil = json.loads((out / "okay.json").read_text())  # a result whose index points outside its folder
+    shutil.copytree(out / "okay.thumbs", src / "evil.thumbs")
+    idx = json.loads((src / "evil.thumbs" / "index.json").read_text())
+    idx["frames"][0]["tiles"]["image"] = "../../../../etc/passwd"
+    (src / "evil.thumbs" / "index.json").write_text(json.dumps(idx))
+    evil["thumbnails"]["dir"] = "evil.thumbs"
+    evil["method"]["name"] = "evil"
+    (src / "evil.json").write_text(json.dumps(evil))
+    dst = tmp_path / "lb"
+    assert lb_main([str(p) for p in paths] + [str(src / "evil.json"), "--out", str(dst)]) == 0
+    page = (dst / "index.html").read_text()
+    for name in hostile:
+        assert name not in page
+    assert "<img src=x" not in page and "<script>document" not in page
+    assert "<b>x" not in page and "evil.thumbs/index.json" in page and "unsafe tile" in page
+    assert not any("passwd" in p.name for p in dst.rglob("*"))
+    dom = _dump_dom(dst / "index.html", "#view=0.0.0.image", tmp_path)
+    assert "<title>Relighting Humans leaderboard</title>" in dom and 'src="x"' not in dom
+    assert "&lt;img src=x onerror=alert(1)&gt;" in re.search(r'id="lightbox-title">(.*?)</div>', dom).group(1)
+    assert _check(dom)[0] == _check(dom)[1] > 0
+
+
+PAGE_LIMIT_BYTES = 2_500_000  # 10 methods x 2 protocols, 128 px tiles: measured 1.45 MB (docs/EVALUATION.md, "Pictures")
+
+
+def test_ten_methods_two_protocols_stay_small(tmp_path):
+    ds = make_dataset(tmp_path / "ds", size=256, frames=tuple(range(6)))
+    pred = make_predictions(ds, tmp_path / "noisy", name="noisy", noise=0.08)
+    res_dir = tmp_path / "res"
+    assert eval_main([str(pred), "--dataset", str(ds), "--out", str(res_dir / "noisy.json"), "--no-progress",
+                      "--metrics", "psnr,ssim,normal"]) == 0
+    base = json.loads((res_dir / "noisy.json").read_text())
+    paths = []
+    for protocol in ("a", "b"):
+        for i in range(10):
+            stem = f"m{i}_{protocol}"
+            res = json.loads(json.dumps(base))
+            res["method"]["name"] = f"method {i}"
+            res["dataset"]["protocol"] = protocol
+            res["thumbnails"]["dir"] = f"{stem}.thumbs"
+            shutil.copytree(res_dir / "noisy.thumbs", res_dir / f"{stem}.thumbs")
+            (res_dir / f"{stem}.json").write_text(json.dumps(res))
+            paths.append(res_dir / f"{stem}.json")
+    dst = tmp_path / "lb"
+    assert lb_main([str(p) for p in paths] + ["--out", str(dst), "--allow-mixed"]) == 0
+    page = (dst / "index.html").read_text()
+    assert page.count('<section class="pics"') == 2
+    n_tiles = len(re.findall(r'<img class="tile"', page))
+    n_cols = page.count('<th class="frame">') // (2 * 3)  # best, median, worst + 6 fixed, fewer where they overlap
+    assert 6 <= n_cols <= 9
+    assert n_tiles == 2 * n_cols * 3 * (1 + 2 * 10)  # 2 protocols, 3 layers, ground truth + 10 x (frame, error)
+    size = sum(p.stat().st_size for p in dst.rglob("*") if p.is_file())
+    print(f"10 methods x 2 protocols: {n_tiles} tiles, {size} bytes in all, index.html {len(page.encode())} bytes")
+    assert size < PAGE_LIMIT_BYTES
+    loaded, total = _check(_dump_dom(dst / "index.html", "", tmp_path))
+    assert loaded == total == n_tiles

@@ -7,7 +7,7 @@ import stat
 import numpy as np
 import pytest
 
-from rh_common.imageio import atomic_path, write_exr, write_json, write_png
+from rh_common.imageio import atomic_dir, atomic_path, write_exr, write_json, write_png, write_webp
 
 
 @pytest.mark.parametrize("umask", [0o022, 0o002, 0o077])
@@ -33,3 +33,22 @@ def test_atomic_files_follow_the_umask(tmp_path, umask):
     assert want_dir == 0o777 & ~umask
     for name in ("new", "new/deeper"):
         assert stat.S_IMODE((tmp_path / name).stat().st_mode) == want_dir, name
+
+
+def test_atomic_dir_replaces_a_folder_whole(tmp_path):
+    dst = tmp_path / "pics"
+    with atomic_dir(dst) as d:
+        (d / "a.txt").write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_dir(dst) as d:
+            (d / "b.txt").write_text("half")
+            raise RuntimeError("killed half way")
+    assert sorted(p.name for p in dst.iterdir()) == ["a.txt"]  # the failed set left no trace
+    with atomic_dir(dst) as d:
+        (d / "sub").mkdir()
+        write_webp(d / "sub" / "t.webp", np.zeros((4, 6, 3), np.uint8))
+    assert sorted(str(p.relative_to(dst)) for p in dst.rglob("*")) == ["sub", "sub/t.webp"]  # old files gone
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pics"]  # no temporary or old folder left
+    assert stat.S_IMODE(dst.stat().st_mode) == 0o777 & ~os.umask(os.umask(0o022))
+    with pytest.raises(ValueError, match="uint8"):
+        write_webp(tmp_path / "x.webp", np.zeros((4, 4, 3), np.float32))
