@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-__all__ = ["_validate", "_validate_mask", "_stack"]
+__all__ = ["_validate", "_validate_mask", "_stack", "_deep_inputs"]
 
 
 def _validate(pred, target, *, data_range: float | None, name: str, channels: int | None = 3,
@@ -80,3 +80,22 @@ def _stack(images, *, name: str, label: str):
         raise ValueError(f"{name}: a {label} list must hold (H, W, C) numpy arrays of one shape, got shapes "
                          f"{sorted(map(str, shapes))}")
     return np.stack(images)
+
+
+def _deep_inputs(pred, target, target_features, mask, *, data_range: float, name: str):
+    """The one input check of the network metrics (LPIPS, DISTS): a rectangle (no mask), the reference as images or
+    as precomputed features but not both, `pred` as one image or a batch. Returns (single, pred batch, target batch
+    or None when `target_features` are given)."""
+    if mask is not None:
+        raise ValueError(f"{name}: a mask is not supported ({name.upper()} is defined on a rectangle); crop and "
+                         "composite with rh_eval.conventions first")
+    if (target is None) == (target_features is None):
+        raise ValueError(f"{name}: give either target or target_features")
+    single = isinstance(pred, np.ndarray) and pred.ndim == 3
+    pred = _stack(pred, name=name, label="pred")
+    if target_features is None:
+        p, t = _validate(pred, _stack(target, name=name, label="target"), data_range=data_range, name=name,
+                         batch=True)
+        return single, p, t
+    p, _ = _validate(pred, None, data_range=data_range, name=name, batch=True)
+    return single, p, None

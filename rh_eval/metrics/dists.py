@@ -20,7 +20,7 @@ from torch import nn
 
 from rh_common.weights import load_backbone, load_dists_alpha_beta
 
-from ._validate import _stack, _validate
+from ._validate import _deep_inputs, _stack, _validate
 from .lpips import check_same_features, to_tensor01
 
 __all__ = ["dists", "dists_features", "DISTSNet", "get_dists_net"]
@@ -144,19 +144,9 @@ def dists(pred, target=None, *, data_range: float = 1.0, mask=None,
     """DISTS of `pred` against the reference `target`; (H, W, 3) -> float, (N, H, W, 3) or a list of equal-shape
     (H, W, 3) -> (N,). 0 if identical. One image is the batch of one. Give the reference as `target` images or as
     their `dists_features` (same data range), not both."""
-    if mask is not None:
-        raise ValueError("dists: a mask is not supported (DISTS is defined on a rectangle); crop and composite "
-                         "with rh_eval.conventions first")
-    if (target is None) == (target_features is None):
-        raise ValueError("dists: give either target or target_features")
-    single = isinstance(pred, np.ndarray) and pred.ndim == 3
-    pred = _stack(pred, name="dists", label="pred")
-    if target_features is None:
-        p, t = _validate(pred, _stack(target, name="dists", label="target"), data_range=data_range, name="dists",
-                         batch=True)
+    single, p, t = _deep_inputs(pred, target, target_features, mask, data_range=data_range, name="dists")
+    if t is not None:
         target_features = _features(t, data_range)
-    else:
-        p, _ = _validate(pred, None, data_range=data_range, name="dists", batch=True)
     fp = _features(p, data_range)
     check_same_features("dists", [c for _, c, _ in target_features], [c for _, c, _ in fp])
     # official argument order: D(ref, dist)

@@ -29,7 +29,7 @@ import torch
 
 from rh_common.weights import load_backbone, load_lpips_heads
 
-from ._validate import _stack, _validate
+from ._validate import _deep_inputs, _stack, _validate
 
 __all__ = ["lpips", "lpips_features", "LPIPSNet", "get_lpips_net", "BACKBONES"]
 
@@ -128,19 +128,9 @@ def lpips(pred, target=None, *, data_range: float = 1.0, mask=None, backbone: st
     `lpips_features` (same backbone, data range and `normalize`), not both. `normalize=False`: see the module
     docstring."""
     _check_backbone(backbone)
-    if mask is not None:
-        raise ValueError("lpips: a mask is not supported (LPIPS is defined on a rectangle); crop and composite "
-                         "with rh_eval.conventions first")
-    if (target is None) == (target_features is None):
-        raise ValueError("lpips: give either target or target_features")
-    single = isinstance(pred, np.ndarray) and pred.ndim == 3
-    pred = _stack(pred, name="lpips", label="pred")
-    if target_features is None:
-        p, t = _validate(pred, _stack(target, name="lpips", label="target"), data_range=data_range, name="lpips",
-                         batch=True)
+    single, p, t = _deep_inputs(pred, target, target_features, mask, data_range=data_range, name="lpips")
+    if t is not None:
         target_features = _features(t, data_range, backbone, normalize)
-    else:
-        p, _ = _validate(pred, None, data_range=data_range, name="lpips", batch=True)
     net = get_lpips_net(backbone)
     fp = _features(p, data_range, backbone, normalize)
     check_same_features("lpips", target_features, fp)
