@@ -94,7 +94,7 @@ def versions() -> dict[str, str]:
 
 
 def light_spec_json(spec) -> dict:
-    d = dataclasses.asdict(spec)
+    d = spec.as_dict()  # procedural kinds add their `params`; envmap and sunsky blocks are unchanged
     d["source"] = os.path.basename(str(d.get("source", "")))  # no machine-specific absolute paths in the data
     return d
 
