@@ -71,6 +71,16 @@ def cct_to_linear_srgb(cct_kelvin: float) -> np.ndarray:
     return rgb / float(rgb @ REC709_LUMINANCE.astype(np.float64))
 
 
+def linear_srgb_to_cct(rgb_linear: np.ndarray) -> float:
+    """Correlated colour temperature (K) of a linear Rec.709 colour: colour-science's McCamy (1992) fit from its
+    xy chromaticity (good to a few kelvin from 2856 to 6504 K, rougher outside 2000-12500 K). NaN for black."""
+    rgb = np.asarray(rgb_linear, dtype=np.float64).reshape(3)
+    xyz = colour.RGB_to_XYZ(rgb, "sRGB", chromatic_adaptation_transform=None)
+    if not xyz.sum() > 0:
+        return float("nan")
+    return float(colour.xy_to_CCT(colour.XYZ_to_xy(xyz), method="McCamy 1992"))
+
+
 def quantize8(x01: np.ndarray) -> np.ndarray:
     """[0, 1] floats to uint8 with round-half-up, the one quantisation rule for 8-bit files."""
     return np.floor(np.clip(np.asarray(x01, dtype=np.float64), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)

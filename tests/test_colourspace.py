@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rh_common.colourspace import REC709_LUMINANCE, cct_to_linear_srgb, quantize8, srgb_decode, srgb_encode, srgb_encode_reference, to_display
+from rh_common.colourspace import REC709_LUMINANCE, cct_to_linear_srgb, linear_srgb_to_cct, quantize8, srgb_decode, srgb_encode, srgb_encode_reference, to_display
 
 
 def test_fast_srgb_curve_matches_colour_science():
@@ -42,3 +42,9 @@ def test_colour_temperature_white_point_luminance_and_order():
     assert ratio == sorted(ratio)  # hotter is bluer
     with pytest.raises(ValueError, match="1667, 25000"):
         cct_to_linear_srgb(1000.0)
+
+
+def test_colour_temperature_round_trip():
+    for t in (2856.0, 4000.0, 5000.0, 6504.0):  # McCamy's fit is good to a few kelvin here
+        assert linear_srgb_to_cct(cct_to_linear_srgb(t)) == pytest.approx(t, abs=30)
+    assert np.isnan(linear_srgb_to_cct(np.zeros(3)))
