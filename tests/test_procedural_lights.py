@@ -149,3 +149,17 @@ def test_mixture_draw_order_and_determinism(library: dict[str, Path]) -> None:
 def test_bad_mixture_rejected(bad: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         L.check_mixture(bad)
+
+
+def test_export_bakes_a_procedural_frame_light(tmp_path: Path) -> None:
+    # rh-export rebuilds a frame's light from its JSON alone: a procedural light needs no file.
+    from rh_dataset.export.rh_light import bake_frame_light
+
+    spec = L.LightSpec("window", "window", "", 12.0, 0.5, params=L.sample_params("window", np.random.default_rng(1)))
+    meta = {"light": {**json.loads(json.dumps(spec.as_dict())), "sh_world": [[0.0] * 3] * 9},
+            "camera": {"camera_to_world": np.eye(4).tolist()}, "exposure": 1.0}
+    rec = bake_frame_light(meta, None, tmp_path, {}, "frame_000000.json")
+    assert (tmp_path / "hdri" / rec["file"]).is_file() and rec["file"].startswith("rh_window_")
+    bad = {**meta, "light": {**meta["light"], "kind": "disco"}}
+    with pytest.raises(ValueError, match="frame_000000.json: light: .*'disco'"):
+        bake_frame_light(bad, None, tmp_path, {}, "frame_000000.json")

@@ -152,35 +152,34 @@ def _check_room(p: dict) -> None:
     _num("floor_factor", p["floor_factor"], 0.0, 1e3)
 
 
+_RECT_KEYS = {"azimuth_deg", "elevation_deg", "width_deg", "height_deg", "intensity"}
+
+
+def _room_and_rects(params: Any, field: str, most: int, extra: set[str]) -> list[tuple[str, dict]]:
+    """Check a room-with-rectangles description (keys, room, each rectangle); (name, rectangle) pairs."""
+    _keys(field, params, {"room_level", "room_cct_k", "floor_factor", field})
+    _check_room(params)
+    rects = params[field]
+    if not (isinstance(rects, list) and 1 <= len(rects) <= most):
+        raise ValueError(f"LightSpec.params: {field} must be a list of 1-{most} entries, got {rects!r}")
+    named = [(f"{field}[{k}]", r) for k, r in enumerate(rects)]
+    for w, r in named:
+        _keys(w, r, _RECT_KEYS | extra)
+        _check_rect(w, r)
+    return named
+
+
 def check_params(kind: str, params: Any) -> None:
     """Raise ValueError (one line, naming the field) unless `params` is a valid description of a `kind` map."""
     if kind == "studio":
-        _keys("studio", params, {"room_level", "room_cct_k", "floor_factor", "lights"})
-        _check_room(params)
-        lights = params["lights"]
-        if not (isinstance(lights, list) and 1 <= len(lights) <= 8):
-            raise ValueError(f"LightSpec.params: lights must be a list of 1-8 lights, got {lights!r}")
-        for k, lt in enumerate(lights):
-            w = f"lights[{k}]"
-            _keys(w, lt, {"role", "shape", "azimuth_deg", "elevation_deg", "width_deg", "height_deg", "cct_k",
-                          "gel", "intensity"})
+        for w, lt in _room_and_rects(params, "lights", 8, {"role", "shape", "cct_k", "gel"}):
             if lt["role"] not in STUDIO_ROLES or lt["shape"] not in ("softbox", "strip"):
                 raise ValueError(f"LightSpec.params: {w} role must be one of {STUDIO_ROLES} and shape 'softbox' or "
                                  f"'strip', got {lt['role']!r}, {lt['shape']!r}")
-            _check_rect(w, lt)
             _num(f"{w}.cct_k", lt["cct_k"], 1667.0, 25000.0)
             _rgb(f"{w}.gel", lt["gel"])
     elif kind == "window":
-        _keys("window", params, {"room_level", "room_cct_k", "floor_factor", "openings"})
-        _check_room(params)
-        ops = params["openings"]
-        if not (isinstance(ops, list) and 1 <= len(ops) <= 4):
-            raise ValueError(f"LightSpec.params: openings must be a list of 1-4 openings, got {ops!r}")
-        for k, op in enumerate(ops):
-            w = f"openings[{k}]"
-            _keys(w, op, {"azimuth_deg", "elevation_deg", "width_deg", "height_deg", "sky_cct_k", "intensity",
-                          "ground_factor", "mullions"})
-            _check_rect(w, op)
+        for w, op in _room_and_rects(params, "openings", 4, {"sky_cct_k", "ground_factor", "mullions"}):
             _num(f"{w}.sky_cct_k", op["sky_cct_k"], 1667.0, 25000.0)
             _num(f"{w}.ground_factor", op["ground_factor"], 0.0, 10.0)
             if op["mullions"] not in (0, 1) or isinstance(op["mullions"], bool):
