@@ -62,23 +62,6 @@ def test_regressor_reproduces_anny_joints(neutral):
     assert rep.shape_variance_kept > 0.99
 
 
-def _moderate_pose() -> np.ndarray:
-    """Parent-relative axis-angle (24,3): a walk-like step, bent elbows and knees, a turned torso and head."""
-    p = np.zeros((24, 3))
-    n = {k: i for i, k in enumerate(S.SMPL_JOINT_NAMES)}
-    p[n["pelvis"]] = (0.1, 0.4, 0.0)
-    p[n["L_hip"]], p[n["R_hip"]] = (-0.5, 0.0, 0.1), (0.3, 0.0, -0.1)
-    p[n["L_knee"]], p[n["R_knee"]] = (0.8, 0.0, 0.0), (0.3, 0.0, 0.0)
-    p[n["L_ankle"]] = (0.2, 0.1, 0.0)
-    p[n["spine1"]], p[n["spine2"]], p[n["spine3"]] = (0.1, 0.1, 0.0), (0.05, 0.1, 0.05), (0.0, 0.1, 0.0)
-    p[n["neck"]], p[n["head"]] = (0.2, -0.2, 0.0), (0.1, -0.2, 0.1)
-    p[n["L_collar"]], p[n["R_collar"]] = (0.0, 0.0, 0.1), (0.0, 0.0, -0.1)
-    p[n["L_shoulder"]], p[n["R_shoulder"]] = (0.0, -0.3, -0.9), (0.2, 0.3, 1.0)
-    p[n["L_elbow"]], p[n["R_elbow"]] = (0.0, -1.2, 0.0), (0.0, 0.7, 0.0)
-    p[n["L_wrist"]], p[n["R_wrist"]] = (0.3, 0.0, 0.2), (-0.2, 0.0, 0.0)
-    return p
-
-
 def test_forward_matches_anny_posed_body(neutral):
     """The stand-in's LBS of a moderate pose against anny's own forward pass, posed by the same joint rotations.
     Joints agree to the regressor's residual (0.1 mm); vertices differ where skinning blends bones that the T-pose
@@ -89,7 +72,7 @@ def test_forward_matches_anny_posed_body(neutral):
     from rh_dataset.poses.rig import rig_for
 
     pheno = S.default_phenotype("neutral")
-    pose = _moderate_pose()
+    pose = S.example_pose()
     anny_out = run_anny(pheno, S.anny_pose_from_smpl(rig_for(load_anny(), pheno), pose))
     ids = neutral.extra["rh_standin"]["anny_vertex_ids"]
     expected = anny_out["vertices"][ids] @ S.ANNY_TO_SMPL.T

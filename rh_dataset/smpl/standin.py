@@ -40,7 +40,7 @@ from rh_dataset.poses.rig import Rig
 from rh_dataset.smpl.model import GENDERS, MODEL_FILE_NAMES, BodyModel, write_smpl_pickle
 
 __all__ = ["build_standin", "write_test_models", "standin_report", "tpose_deltas", "tpose_rotations",
-           "anny_pose_from_smpl", "default_phenotype", "shape_phenotypes", "bone_joint_map",
+           "anny_pose_from_smpl", "example_pose", "default_phenotype", "shape_phenotypes", "bone_joint_map",
            "SMPL_JOINT_NAMES", "SMPL_PARENTS", "JOINT_BONES", "SMPL_VERTEX_IDS", "ANNY_TO_SMPL", "N_VERTICES",
            "StandinReport"]
 
@@ -200,6 +200,25 @@ def anny_pose_from_smpl(rig: Rig, full_pose: np.ndarray) -> dict[str, np.ndarray
     G = np.einsum("cab,cbd->cad", Ga[owner], tpose_rotations(rig))
     D = _deltas(rig.parents, G)
     return {label: D[i] for i, label in enumerate(rig.bone_labels)}
+
+
+def example_pose() -> np.ndarray:
+    """A moderate SMPL pose, parent-relative axis-angle (24,3): a walk-like step, bent elbows and knees, a turned
+    torso and head, the foot and hand joints at zero (see `anny_pose_from_smpl`). What the tests and
+    bench/smpl_standin.py compare the stand-in against anny with."""
+    p = np.zeros((24, 3))
+    n = {k: i for i, k in enumerate(SMPL_JOINT_NAMES)}
+    p[n["pelvis"]] = (0.1, 0.4, 0.0)
+    p[n["L_hip"]], p[n["R_hip"]] = (-0.5, 0.0, 0.1), (0.3, 0.0, -0.1)
+    p[n["L_knee"]], p[n["R_knee"]] = (0.8, 0.0, 0.0), (0.3, 0.0, 0.0)
+    p[n["L_ankle"]] = (0.2, 0.1, 0.0)
+    p[n["spine1"]], p[n["spine2"]], p[n["spine3"]] = (0.1, 0.1, 0.0), (0.05, 0.1, 0.05), (0.0, 0.1, 0.0)
+    p[n["neck"]], p[n["head"]] = (0.2, -0.2, 0.0), (0.1, -0.2, 0.1)
+    p[n["L_collar"]], p[n["R_collar"]] = (0.0, 0.0, 0.1), (0.0, 0.0, -0.1)
+    p[n["L_shoulder"]], p[n["R_shoulder"]] = (0.0, -0.3, -0.9), (0.2, 0.3, 1.0)
+    p[n["L_elbow"]], p[n["R_elbow"]] = (0.0, -1.2, 0.0), (0.0, 0.7, 0.0)
+    p[n["L_wrist"]], p[n["R_wrist"]] = (0.3, 0.0, 0.2), (-0.2, 0.0, 0.0)
+    return p
 
 
 def _rigs(phenotypes: list[dict[str, float]]) -> list[Rig]:
