@@ -32,7 +32,8 @@ def test_layout(neutral):
     import trimesh
 
     assert len(np.unique(m.faces)) == 6890
-    assert trimesh.Trimesh(m.v_template, m.faces, process=False).is_watertight
+    mesh = trimesh.Trimesh(m.v_template, m.faces, process=False)
+    assert mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0.03  # closed, normals outward
 
 
 def test_smpl_axes_and_tpose(neutral):
@@ -125,3 +126,6 @@ def test_cli_writes_the_stand_in(tmp_path, capsys):
     assert "not SMPL" in capsys.readouterr().out
     with pytest.raises(SystemExit):
         main(["--format", "usd"])  # an export still needs --dataset and --out
+    (tmp_path / "file").write_text("")
+    assert main(["--write-test-smpl", str(tmp_path / "file")]) == 2  # not a folder: one line, exit 2
+    assert "pass a folder you can write to" in capsys.readouterr().err

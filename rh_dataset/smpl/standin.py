@@ -360,17 +360,20 @@ def _build(gender: str) -> tuple[BodyModel, StandinReport]:
     np.add.at(weights, (np.repeat(np.arange(len(ids)), rig.weights.shape[1]), owner[rig.weight_bones[ids]].ravel()),
               rig.weights[ids].ravel())
     weights /= weights.sum(1, keepdims=True)
+    report = StandinReport(gender, float(res[0].max()), float(res[1:].max()), float(res[1:].mean()), kept,
+                           int(len(mesh.faces)))
     extra = {"rh_standin": {
         "source": f"anny {getattr(anny, '__version__', '?')}, topology {ANNY_TOPOLOGY}",
         "note": "not SMPL: a stand-in built from anny for tests and trials; results with it are not SMPL results",
         "gender": gender, "phenotype": phenos[0], "anny_vertex_ids": ids.astype(np.int64),
         "joint_bones": {j: list(JOINT_BONES[j]) for j in SMPL_JOINT_NAMES},
+        "joint_residual_mm": {"template_max": report.joint_residual_template_mm,
+                              "shape_samples_max": report.joint_residual_samples_mm,
+                              "shape_samples_mean": report.joint_residual_samples_mean_mm},
     }}
     model = BodyModel(kind="smpl", gender=gender, v_template=template, shapedirs=shapedirs,
                       posedirs=np.zeros((len(ids), 3, 9 * (len(SMPL_PARENTS) - 1))), J_regressor=J_regressor,
                       weights=weights, parents=SMPL_PARENTS.copy(), faces=mesh.faces.astype(np.int64), extra=extra)
-    report = StandinReport(gender, float(res[0].max()), float(res[1:].max()), float(res[1:].mean()), kept,
-                           int(len(mesh.faces)))
     return model, report
 
 
