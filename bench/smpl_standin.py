@@ -36,11 +36,11 @@ def main() -> None:
     m = S.build_standin("neutral")
     pheno, pose = S.default_phenotype("neutral"), S.example_pose()
     out = run_anny(pheno, S.anny_pose_from_smpl(rig_for(load_anny(), pheno), pose))
-    expected = out["vertices"][m.extra["rh_standin"]["anny_vertex_ids"]] @ S.ANNY_TO_SMPL.T
+    expected = S.to_smpl_axes(out["vertices"][m.extra["rh_standin"]["anny_vertex_ids"]])
     t = lambda a: torch.as_tensor(np.asarray(a, np.float64).reshape(1, -1))  # noqa: E731
     verts, joints = forward(m, t(np.zeros(10)), t(pose[1:]), t(pose[0]))
     err = np.linalg.norm(verts[0].numpy() - expected, axis=1) * 1e3
-    heads = out["bone_poses"][:, :3, 3] @ S.ANNY_TO_SMPL.T
+    heads = S.to_smpl_axes(out["bone_poses"][:, :3, 3])
     idx = rig_for(load_anny(), pheno).index
     anny_j = np.stack([heads[[idx[b] for b in S.JOINT_BONES[j]]].mean(0) for j in S.SMPL_JOINT_NAMES])
     jerr = np.linalg.norm(joints[0].numpy() - anny_j, axis=1).max() * 1e3

@@ -41,8 +41,8 @@ from rh_dataset.smpl.model import GENDERS, MODEL_FILE_NAMES, BodyModel, write_sm
 
 __all__ = ["build_standin", "write_test_models", "standin_report", "tpose_deltas", "tpose_rotations",
            "anny_pose_from_smpl", "example_pose", "default_phenotype", "shape_phenotypes", "bone_joint_map",
-           "SMPL_JOINT_NAMES", "SMPL_PARENTS", "JOINT_BONES", "SMPL_VERTEX_IDS", "ANNY_TO_SMPL", "N_VERTICES",
-           "StandinReport"]
+           "SMPL_JOINT_NAMES", "SMPL_PARENTS", "JOINT_BONES", "SMPL_VERTEX_IDS", "ANNY_TO_SMPL", "to_smpl_axes",
+           "N_VERTICES", "StandinReport"]
 
 N_VERTICES = 6890
 N_BETAS = 10
@@ -248,7 +248,13 @@ def _tposed(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     heads = W[:, :3, 3]
     idx = rig.index
     joints = np.stack([heads[[idx[b] for b in JOINT_BONES[j]]].mean(0) for j in SMPL_JOINT_NAMES])
-    return verts @ ANNY_TO_SMPL.T, heads @ ANNY_TO_SMPL.T, joints @ ANNY_TO_SMPL.T
+    return to_smpl_axes(verts), to_smpl_axes(heads), to_smpl_axes(joints)
+
+
+def to_smpl_axes(points: np.ndarray) -> np.ndarray:
+    """anny's axes to SMPL's (`ANNY_TO_SMPL`) by moving coordinates, exactly: (x, y, z) -> (x, z, -y)."""
+    p = np.asarray(points)
+    return np.stack([p[..., 0], p[..., 2], -p[..., 1]], -1)
 
 
 def default_phenotype(gender: str) -> dict[str, float]:
@@ -317,10 +323,12 @@ def _shape_space(template: np.ndarray, bodies: np.ndarray) -> tuple[np.ndarray, 
     by its standard deviation, the sign fixed so the largest entry is positive; and the variance share kept."""
     X = (bodies - template[None]).reshape(len(bodies), -1)
     # Through the small (P,P) Gram matrix: the same directions as an SVD of X, at a fraction of its cost.
-    ev, U = np.linalg.eigh(X @ X.T)
+    # einsum, not BLAS: OpenBLAS's threaded products change the last bits with the core count, the file's bytes
+    # must not.
+    ev, U = np.linalg.eigh(np.einsum("ik,jk->ij", X, X))
     ev, U = np.maximum(ev[::-1], 0.0), U[:, ::-1]
     s = np.sqrt(ev)
-    Vt = (U[:, :N_BETAS].T @ X) / s[:N_BETAS, None]
+    Vt = np.einsum("pb,pk->bk", U[:, :N_BETAS], X) / s[:N_BETAS, None]
     dirs = Vt * (s[:N_BETAS, None] / np.sqrt(len(bodies)))
     sign = np.sign(dirs[np.arange(N_BETAS), np.argmax(np.abs(dirs), axis=1)])
     dirs = dirs * sign[:, None]
