@@ -6,7 +6,8 @@ Prints, per gender: build time (the first includes anny's load and the shared ve
 count, the J_regressor's residual against anny's joints (max on the template; max and mean over the 64 shape
 samples), the shape variance its 10 directions keep; then, for the neutral model, the stand-in's LBS of a moderate
 pose against anny's own forward pass posed by the same joint rotations (mean / median / 90th percentile / max
-vertex distance in mm, and the joints' max distance). Machine shared with other jobs: read seconds as +-30 %.
+vertex distance in mm, and the joints' max distance), and how well its betas reproduce 8 held-out anny bodies
+(T-posed; least-squares betas; mean vertex error). Machine shared with other jobs: read seconds as +-30 %.
 """
 from __future__ import annotations
 
@@ -46,6 +47,18 @@ def main() -> None:
     jerr = np.linalg.norm(joints[0].numpy() - anny_j, axis=1).max() * 1e3
     print(f"moderate pose, stand-in LBS vs anny: vertices mean {err.mean():.2f} / median {np.median(err):.2f} / "
           f"p90 {np.percentile(err, 90):.2f} / max {err.max():.1f} mm; joints max {jerr:.2f} mm")
+    from rh_dataset.characters.body import sample_phenotype
+
+    rng = np.random.default_rng(12345)  # the test's held-out bodies
+    bodies, _ = S.anny_tpose_bodies([sample_phenotype(rng) for _ in range(8)])
+    D = m.shapedirs.reshape(-1, 10)
+    errs = []
+    for body in bodies:
+        off = (body - m.v_template).ravel()
+        fit = D @ np.linalg.lstsq(D, off, rcond=None)[0]
+        errs.append(np.linalg.norm((fit - off).reshape(-1, 3), axis=1).mean() * 1e3)
+    print(f"8 held-out anny bodies (T-posed) by their best betas: mean vertex error {np.mean(errs):.2f} mm, "
+          f"worst body {max(errs):.2f} mm")
 
 
 if __name__ == "__main__":

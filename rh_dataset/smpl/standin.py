@@ -40,7 +40,7 @@ from rh_dataset.poses.rig import Rig
 from rh_dataset.smpl.model import GENDERS, MODEL_FILE_NAMES, BodyModel, write_smpl_pickle
 
 __all__ = ["build_standin", "write_test_models", "standin_report", "tpose_deltas", "tpose_rotations",
-           "anny_pose_from_smpl", "example_pose", "default_phenotype", "shape_phenotypes", "bone_joint_map",
+           "anny_pose_from_smpl", "anny_tpose_bodies", "example_pose", "default_phenotype", "shape_phenotypes", "bone_joint_map",
            "SMPL_JOINT_NAMES", "SMPL_PARENTS", "JOINT_BONES", "SMPL_VERTEX_IDS", "ANNY_TO_SMPL", "to_smpl_axes",
            "N_VERTICES", "StandinReport"]
 
@@ -354,9 +354,7 @@ def _build(gender: str) -> tuple[BodyModel, StandinReport]:
     rigs = _rigs(phenos)
     mesh = _resampled()
     ids = mesh.anny_ids
-    posed = [_tposed(r) for r in rigs]
-    bodies = np.stack([p[0][ids] for p in posed])
-    joints = np.stack([p[2] for p in posed])
+    bodies, joints = _tposed_bodies(rigs, ids)
     template = bodies[0]
     shapedirs, kept = _shape_space(template, bodies[1:])
     rig = rigs[0]
@@ -383,6 +381,17 @@ def _build(gender: str) -> tuple[BodyModel, StandinReport]:
                       posedirs=np.zeros((len(ids), 3, 9 * (len(SMPL_PARENTS) - 1))), J_regressor=J_regressor,
                       weights=weights, parents=SMPL_PARENTS.copy(), faces=mesh.faces.astype(np.int64), extra=extra)
     return model, report
+
+
+def _tposed_bodies(rigs: list[Rig], ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    posed = [_tposed(r) for r in rigs]
+    return np.stack([p[0][ids] for p in posed]), np.stack([p[2] for p in posed])
+
+
+def anny_tpose_bodies(phenotypes: list[dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """anny bodies of `phenotypes` as the stand-in sees them: T-posed, in SMPL's axes, at the stand-in's vertices
+    (P,6890,3), with their mapped joints (P,24,3). What a shape fit of the stand-in to anny aims at."""
+    return _tposed_bodies(_rigs(list(phenotypes)), _resampled().anny_ids)
 
 
 @functools.lru_cache(maxsize=3)
