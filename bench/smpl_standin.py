@@ -22,6 +22,7 @@ def main() -> None:
     from rh_dataset.characters.body import run_anny
     from rh_dataset.poses.rig import rig_for
     from rh_dataset.smpl import standin as S
+    from rh_dataset.smpl import standin_pose as P
     from rh_dataset.smpl.model import forward
 
     print(f"load average {open('/proc/loadavg').read().split()[0]}")
@@ -35,8 +36,8 @@ def main() -> None:
               f"{r.joint_residual_template_mm:.2f} mm, samples max {r.joint_residual_samples_mm:.1f} / mean "
               f"{r.joint_residual_samples_mean_mm:.1f} mm  shape variance kept {100 * r.shape_variance_kept:.2f} %")
     m = S.build_standin("neutral")
-    pheno, pose = S.default_phenotype("neutral"), S.example_pose()
-    out = run_anny(pheno, S.anny_pose_from_smpl(rig_for(load_anny(), pheno), pose))
+    pheno, pose = S.default_phenotype("neutral"), P.example_pose()
+    out = run_anny(pheno, P.anny_pose_from_smpl(rig_for(load_anny(), pheno), pose))
     expected = S.to_smpl_axes(out["vertices"][m.extra["rh_standin"]["anny_vertex_ids"]])
     t = lambda a: torch.as_tensor(np.asarray(a, np.float64).reshape(1, -1))  # noqa: E731
     verts, joints = forward(m, t(np.zeros(10)), t(pose[1:]), t(pose[0]))

@@ -11,6 +11,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from rh_dataset.smpl import standin as S  # noqa: E402
+from rh_dataset.smpl import standin_pose as P  # noqa: E402
 from rh_dataset.smpl.model import find_model_file, forward, load_body_model, write_smpl_pickle  # noqa: E402
 
 
@@ -73,8 +74,8 @@ def test_forward_matches_anny_posed_body(neutral):
     from rh_dataset.poses.rig import rig_for
 
     pheno = S.default_phenotype("neutral")
-    pose = S.example_pose()
-    anny_out = run_anny(pheno, S.anny_pose_from_smpl(rig_for(load_anny(), pheno), pose))
+    pose = P.example_pose()
+    anny_out = run_anny(pheno, P.anny_pose_from_smpl(rig_for(load_anny(), pheno), pose))
     ids = neutral.extra["rh_standin"]["anny_vertex_ids"]
     expected = S.to_smpl_axes(anny_out["vertices"][ids])
     t = lambda a: torch.as_tensor(np.asarray(a, np.float64).reshape(1, -1))  # noqa: E731

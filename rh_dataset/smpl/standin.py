@@ -39,9 +39,9 @@ from rh_dataset.characters.body import PHENOTYPE_LABELS, body_topology, sample_p
 from rh_dataset.poses.rig import Rig
 from rh_dataset.smpl.model import GENDERS, MODEL_FILE_NAMES, BodyModel, write_smpl_pickle
 
-__all__ = ["build_standin", "write_test_models", "standin_report", "tpose_deltas", "tpose_rotations",
-           "anny_pose_from_smpl", "anny_tpose_bodies", "example_pose", "default_phenotype", "shape_phenotypes", "bone_joint_map",
-           "SMPL_JOINT_NAMES", "SMPL_PARENTS", "JOINT_BONES", "SMPL_VERTEX_IDS", "ANNY_TO_SMPL", "to_smpl_axes",
+__all__ = ["build_standin", "write_test_models", "standin_report", "anny_tpose_bodies", "tpose_deltas",
+           "tpose_rotations", "local_ref_deltas", "default_phenotype", "shape_phenotypes", "bone_joint_map",
+           "to_smpl_axes", "SMPL_JOINT_NAMES", "SMPL_PARENTS", "JOINT_BONES", "SMPL_VERTEX_IDS", "ANNY_TO_SMPL",
            "N_VERTICES", "StandinReport"]
 
 N_VERTICES = 6890
@@ -128,10 +128,10 @@ def _frame(along: np.ndarray, across: np.ndarray) -> np.ndarray:
 
 def tpose_deltas(rig: Rig) -> np.ndarray:
     """anny 'local-ref' deltas (J,4,4) that put `rig`'s body (reference A-pose) into SMPL's T-pose."""
-    return _deltas(rig.parents, tpose_rotations(rig))
+    return local_ref_deltas(rig.parents, tpose_rotations(rig))
 
 
-def _deltas(parents: np.ndarray, G: np.ndarray) -> np.ndarray:
+def local_ref_deltas(parents: np.ndarray, G: np.ndarray) -> np.ndarray:
     """'local-ref' deltas from world rotations relative to the reference pose: D_c = G_parent^T G_c."""
     D = np.tile(np.eye(4), (len(parents), 1, 1))
     for c in range(len(parents)):
@@ -179,46 +179,6 @@ def tpose_rotations(rig: Rig) -> np.ndarray:
             across = G[c] @ (ref[idx[f"finger5-1.{arg}"]] - ref[idx[f"finger2-1.{arg}"]])
             G[c] = _frame(out, np.array([0.0, 1.0, 0.0])) @ _frame(along, across).T @ G[c]
     return G
-
-
-def anny_pose_from_smpl(rig: Rig, full_pose: np.ndarray) -> dict[str, np.ndarray]:
-    """anny 'local-ref' deltas (label -> 4x4) that pose `rig`'s body as the stand-in poses it for SMPL's
-    parent-relative axis-angle `full_pose` (24,3: global_orient, then joints 1-23); translation not included.
-
-    Each bone turns with its SMPL joint's world rotation (SMPL axes turned into anny's) on top of its T-pose
-    rotation. Exact, up to the J_regressor's residual, wherever a joint's group hangs from one bone; the foot and
-    hand joints turn five toes / four fingers, each about its own base in anny but about their mean in the
-    stand-in, so keep those two joints near zero when comparing the two."""
-    from scipy.spatial.transform import Rotation
-
-    R = Rotation.from_rotvec(np.asarray(full_pose, np.float64).reshape(-1, 3)).as_matrix()
-    Gs = np.empty_like(R)
-    for k, p in enumerate(SMPL_PARENTS):
-        Gs[k] = R[k] if p < 0 else Gs[p] @ R[k]
-    Ga = np.einsum("ba,kbc,cd->kad", ANNY_TO_SMPL, Gs, ANNY_TO_SMPL)  # C^T Gs C: the same turn in anny's axes
-    owner = bone_joint_map(rig.bone_labels, rig.parents)
-    G = np.einsum("cab,cbd->cad", Ga[owner], tpose_rotations(rig))
-    D = _deltas(rig.parents, G)
-    return {label: D[i] for i, label in enumerate(rig.bone_labels)}
-
-
-def example_pose() -> np.ndarray:
-    """A moderate SMPL pose, parent-relative axis-angle (24,3): a walk-like step, bent elbows and knees, a turned
-    torso and head, the foot and hand joints at zero (see `anny_pose_from_smpl`). What the tests and
-    bench/smpl_standin.py compare the stand-in against anny with."""
-    p = np.zeros((24, 3))
-    n = {k: i for i, k in enumerate(SMPL_JOINT_NAMES)}
-    p[n["pelvis"]] = (0.1, 0.4, 0.0)
-    p[n["L_hip"]], p[n["R_hip"]] = (-0.5, 0.0, 0.1), (0.3, 0.0, -0.1)
-    p[n["L_knee"]], p[n["R_knee"]] = (0.8, 0.0, 0.0), (0.3, 0.0, 0.0)
-    p[n["L_ankle"]] = (0.2, 0.1, 0.0)
-    p[n["spine1"]], p[n["spine2"]], p[n["spine3"]] = (0.1, 0.1, 0.0), (0.05, 0.1, 0.05), (0.0, 0.1, 0.0)
-    p[n["neck"]], p[n["head"]] = (0.2, -0.2, 0.0), (0.1, -0.2, 0.1)
-    p[n["L_collar"]], p[n["R_collar"]] = (0.0, 0.0, 0.1), (0.0, 0.0, -0.1)
-    p[n["L_shoulder"]], p[n["R_shoulder"]] = (0.0, -0.3, -0.9), (0.2, 0.3, 1.0)
-    p[n["L_elbow"]], p[n["R_elbow"]] = (0.0, -1.2, 0.0), (0.0, 0.7, 0.0)
-    p[n["L_wrist"]], p[n["R_wrist"]] = (0.3, 0.0, 0.2), (-0.2, 0.0, 0.0)
-    return p
 
 
 def _rigs(phenotypes: list[dict[str, float]]) -> list[Rig]:
