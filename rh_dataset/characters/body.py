@@ -114,19 +114,22 @@ def _shape_distribution():
     return SimpleShapeDistribution(load_anny())
 
 
-def sample_phenotype(rng: np.random.Generator, age_years: tuple[float, float] = (18.0, 70.0)) -> dict[str, float]:
+def sample_phenotype(rng: np.random.Generator, age_years: tuple[float, float] = (18.0, 70.0),
+                     gender: float | None = None) -> dict[str, float]:
     """Draw a realistic adult phenotype from anny's calibrated (WHO-fitted) conditional Beta distributions.
 
     anny's own `SimpleShapeDistribution.sample` draws from torch's global generator; here the same calibrated
     distributions are evaluated for their Beta parameters and sampled with the caller's numpy generator, so the
     draw is reproducible from one explicit seed. Ages are restricted to adults (the benchmark films adults).
+    `gender` fixes anny's gender value (0 male, 1 female) instead of drawing it (the SMPL stand-in's male and
+    female shape spaces); None draws it, as the generator does.
     """
     import torch
 
     dist = _shape_distribution()
     morph_age = rng.uniform(*age_years)
     age = dist.morphological_age_mapping.morphological_to_anny_age(torch.tensor([morph_age], dtype=torch.float64))
-    gender = float(rng.uniform(0.0, 1.0))
+    gender = float(rng.uniform(0.0, 1.0)) if gender is None else float(gender)
     sex = "boys" if gender <= 0.5 else "girls"  # anny's convention: gender 0 = male, 1 = female
     out = {"gender": gender, "age": float(age[0])}
     for key in ("height", "weight", "muscle", "proportions"):

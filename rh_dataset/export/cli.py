@@ -125,11 +125,12 @@ def build_parser() -> argparse.ArgumentParser:
                     "Relighting Humans folders, ZJU-MoCap (NeuralBody family), or one USD stage per frame. "
                     "docs/INTEROP.md lists what each holds and how it differs from the original.",
         formatter_class=HelpFormatter)
-    p.add_argument("--dataset", required=True, type=Path, help="dataset folder made by rh-generate")
+    # --dataset, --format and --out are required unless --write-test-smpl is given (checked in main).
+    p.add_argument("--dataset", type=Path, help="dataset folder made by rh-generate (required)")
     p.add_argument("--protocol", default="a", help="protocol to export: a or b")
-    p.add_argument("--format", required=True, choices=FORMATS, help="output layout")
-    p.add_argument("--out", required=True, type=Path, help="output folder (empty, new, or an earlier export of "
-                                                            "the same format, whose files are replaced)")
+    p.add_argument("--format", choices=FORMATS, help="output layout (required)")
+    p.add_argument("--out", type=Path, help="output folder (required; empty, new, or an earlier export of "
+                                            "the same format, whose files are replaced)")
     p.add_argument("--subjects", type=int, default=None, help="export only the first N subjects")
     p.add_argument("--split", action="append", default=None, help="export only this split (repeatable)")
     p.add_argument("--usd-ext", default="usdc", choices=["usda", "usdc", "usd"],
@@ -147,13 +148,33 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--smpl-max-peak-mm", type=float, default=None,
                    help="refuse a frame whose largest SMPL-to-anny distance (either way) is above this (default 100)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--write-test-smpl", type=Path, metavar="DIR",
+                   help="write a stand-in model built from anny as SMPL_NEUTRAL.pkl, SMPL_MALE.pkl and "
+                        "SMPL_FEMALE.pkl into DIR, then exit (no dataset needed): it lets the SMPL path be tried "
+                        "without SMPL's own files. It is NOT SMPL: results with it are not SMPL results")
     add_debug_flag(p)
     return p
 
 
 @command("rh-export")
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.write_test_smpl is not None:
+        from rh_dataset.smpl.standin import write_test_models
+
+        try:
+            paths = write_test_models(args.write_test_smpl)
+        except OSError as exc:
+            print(f"rh-export: error: {args.write_test_smpl}: cannot write the stand-in model files "
+                  f"({exc.strerror or exc}); pass a folder you can write to", file=sys.stderr)
+            return 2
+        for path in paths:
+            print(f"rh-export: wrote {path} (a stand-in built from anny, not SMPL)")
+        return 0
+    missing = [f"--{k}" for k in ("dataset", "format", "out") if getattr(args, k) is None]
+    if missing:
+        parser.error(f"the following arguments are required: {', '.join(missing)}")
     # Every export file is written atomically, and a rerun into the same --out replaces them all.
     on_stop(lambda: f"the files already in {args.out} are whole; a rerun rewrites the export")
     try:
