@@ -31,29 +31,16 @@ import numpy as np
 from rh_common.threads import torch_threads
 
 from .model import BodyModel, forward, model_tensors, rodrigues
+from .standin import JOINT_BONES, SMPL_JOINT_NAMES
 
 __all__ = ["FrameTarget", "FitInput", "FitSettings", "FitQuality", "FrameFit", "SubjectFit", "FitRefused",
-           "fit_subject", "camera_frame", "measure_quality", "check_quality", "SMPL_JOINTS", "ANNY_JOINT_BONES",
+           "fit_subject", "camera_frame", "measure_quality", "check_quality", "ANNY_JOINT_BONES",
            "anny_joints"]
 
-SMPL_JOINTS = ("pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2", "left_ankle",
-               "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar", "right_collar", "head",
-               "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
-               "left_hand", "right_hand")
-
-# The anny bones whose mean head stands for each SMPL joint (anny's .L is the character's left, as SMPL's left_*),
-# the same choice the stand-in model makes (standin.JOINT_BONES). Used to start the fit and as a weak prior; a real
-# SMPL's joints sit a little elsewhere inside the body, so a real-SMPL fit's joint error measures that difference
-# as well as the fit.
-def _sides(bones):
-    return tuple((tuple(f"{b}.L" for b in bones), tuple(f"{b}.R" for b in bones)))
-
-
-_TOES, _FINGERS = tuple(f"toe{t}-1" for t in range(1, 6)), tuple(f"finger{f}-1" for f in range(2, 6))
-ANNY_JOINT_BONES: tuple[tuple[str, ...], ...] = (
-    ("root",), *_sides(("upperleg01",)), ("spine04",), *_sides(("lowerleg01",)), ("spine02",), *_sides(("foot",)),
-    ("spine01",), *_sides(_TOES), ("neck01",), *_sides(("clavicle",)), ("head",), *_sides(("upperarm01",)),
-    *_sides(("lowerarm01",)), *_sides(("wrist",)), *_sides(_FINGERS))
+# The anny bones whose mean head stands for each SMPL joint: the stand-in's own map (standin.JOINT_BONES). It
+# starts the fit and is a weak prior; a real SMPL's joints sit a little elsewhere inside the body, so a real-SMPL
+# fit's joint error measures that difference as well as the fit.
+ANNY_JOINT_BONES: tuple[tuple[str, ...], ...] = tuple(JOINT_BONES[j] for j in SMPL_JOINT_NAMES)
 
 # Joints whose rigid fit gives the root's first orientation: they move little with the pose.
 _TORSO = (0, 1, 2, 3, 6, 9)
