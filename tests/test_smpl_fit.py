@@ -78,24 +78,21 @@ def test_refuses_a_frame_above_the_thresholds():
 
 @pytest.mark.slow
 def test_fits_a_posed_anny_body_within_the_thresholds(standin):
-    """The stand-in fitted to anny posed by its own rig (the frame a dataset holds): the documented error."""
-    from rh_common.body_model import load_anny
-    from rh_dataset.characters.body import body_topology, run_anny
-    from rh_dataset.poses import sample_pose
-    from rh_dataset.smpl.fit import anny_joints
+    """The stand-in fitted to anny posed by the pose prior, as the export builds the frame's target."""
+    from pathlib import Path
 
-    model, topo = load_anny(), body_topology()
+    from rh_common.body_model import load_anny
+    from rh_dataset.export.common import FrameRef
+    from rh_dataset.export.smpl import frame_target
+    from rh_dataset.poses import sample_pose
+
     rng = np.random.default_rng(15)
     phen = dict(gender=0.3, age=0.5, muscle=0.6, weight=0.6, height=0.7, proportions=0.5)
-    w2c = np.array([[1.0, 0, 0, 0], [0, 0, -1, 0.9], [0, 1, 0, 3.0]])  # world Z up → OpenCV, camera 3 m in front
-    frames = []
-    for i in range(2):
-        pose = sample_pose(rng, model)
-        out = run_anny(phen, dict(pose.bones) or None)
-        cam = lambda x: pose.apply_root_transform(x) @ w2c[:, :3].T + w2c[:, 3]  # noqa: E731
-        frames.append(FrameTarget(f"frame {i}", cam(out["vertices"]), np.asarray(topo.faces),
-                                  anny_joints(cam(out["bone_poses"][:, :3, 3]), topo.bone_labels)))
-    fit = fit_subject(FitInput(standin, tuple(frames)))
+    w2c = [[1.0, 0, 0, 0], [0, 0, -1, 0.9], [0, 1, 0, 3.0], [0, 0, 0, 1]]  # world Z up → OpenCV, 3 m in front
+    frames = tuple(frame_target(FrameRef("subject_000", "train", i, Path("."), {
+        "body": {"pose": sample_pose(rng, load_anny()).to_json(), "phenotype": phen},
+        "camera": {"world_to_camera": w2c}})) for i in range(2))
+    fit = fit_subject(FitInput(standin, frames))
     check_quality([(f.name, f.quality) for f in fit.frames], FitSettings())
     for f in fit.frames:
         assert f.quality.model_to_anny_mean_mm < 5.0 and f.quality.anny_to_model_mean_mm < 5.0, f.quality

@@ -12,6 +12,8 @@ In: the frames of one protocol of a finished dataset. Out (docs/INTEROP.md "Reli
     <out>/README.md                                       what this export can and cannot serve
 
 Protocol a maps to train_p1/ + test/, protocol b to train_p2_p3/ + test/, as the published folders are named.
+With --smpl-model, `skeleton_0.smpl_data` holds SMPL fitted to the frame's anny body (export/smpl.py) and anny's
+numbers move to `anny_*` keys; without it, anny's numbers stand in SMPL's keys and the README says who fails.
 """
 from __future__ import annotations
 
