@@ -151,3 +151,18 @@ def test_bad_model_folders_are_one_line_errors(tmp_path, capsys, tmp_path_factor
         np.full((24, V), 1.0 / V), w / w.sum(1, keepdims=True), parents, rng.integers(0, V, (50, 3))))
     assert "100 vertices, not SMPL's 6890" in run(small)
     assert not (tmp_path / "o").exists()  # nothing written before the model is known to be good
+
+
+def test_usd_stage_carries_the_smpl_mesh(rh_export, models, tmp_path):
+    pxr = pytest.importorskip("pxr")
+    ds, rh_out, _ = rh_export
+    out = tmp_path / "usd"
+    export_dataset(ds, "a", "usd", out, smpl_model=models, smpl_settings=QUICK, splits=("test",))
+    stage = pxr.Usd.Stage.Open(str(out / "subject_000" / "protocol_a" / "test" / "frame_000001.usdc"))
+    mesh = pxr.UsdGeom.Mesh(stage.GetPrimAtPath("/World/SMPL"))
+    points = np.asarray(mesh.GetPointsAttr().Get())
+    assert points.shape == (6890, 3) and mesh.GetPurposeAttr().Get() == "guide"
+    assert stage.GetPrimAtPath("/World/Character").IsValid()  # beside the clothed character, not instead of it
+    w2c = np.asarray(read_json(rh_out / "test" / "subject_01" / "frame_000001.json")["rh"]["camera"]["world_to_camera"])
+    rh = read_json(rh_out / "test" / "subject_01" / "frame_000001.json")["skeleton_0"]["smpl_data"]
+    assert np.abs(points @ w2c[:3, :3].T + w2c[:3, 3] - np.asarray(rh["vertices"]) / 1000.0).max() < 1e-5

@@ -55,9 +55,6 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
         raise ExportError(f"unknown --format {fmt!r}; choose one of {', '.join(FORMATS)}")
     ds = check_dataset(dataset, protocol)
     model = None
-    if smpl_model is not None and fmt == "usd":
-        raise ExportError("--smpl-model serves --format relighting-humans and zju-mocap; the usd export carries "
-                          "anny's clothed character only")
     if smpl_model is not None:
         from .smpl import load_model
 
@@ -100,7 +97,8 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
         else:
             from .usd import export_frame
 
-            files += len(export_frame(f, out, protocol, dataset=dataset, hdri_folder=hdri_folder, ext=usd_ext))
+            files += len(export_frame(f, out, protocol, dataset=dataset, hdri_folder=hdri_folder, ext=usd_ext,
+                                      smpl=None if fits is None else fits.usd_mesh(f)))
     if fmt == "zju-mocap":
         from .zju_mocap import sequence_dir, write_annots
 
@@ -139,7 +137,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--smpl-model", type=Path, default=None, metavar="DIR",
                    help="folder holding your own SMPL_NEUTRAL.pkl / SMPL_MALE.pkl / SMPL_FEMALE.pkl (SMPL's licence: "
                         "never bundled or downloaded): fit SMPL to every frame's unclothed anny body and write its "
-                        "numbers (relighting-humans, zju-mocap); the fit is cached in OUT/smpl_fit/")
+                        "numbers (relighting-humans, zju-mocap; usd adds the SMPL mesh); the fit is cached in "
+                        "OUT/smpl_fit/")
     p.add_argument("--smpl-gender", default="neutral", choices=["neutral", "male", "female"],
                    help="which SMPL file to fit (the clients name it in `gender`; Gaussian Shadow Casting always "
                         "loads the neutral one)")

@@ -1,12 +1,14 @@
 """SMPL numbers for the exports (`rh-export --smpl-model DIR`): the fit of every frame's anny body, cached.
 
 In: the frames of the exported protocol, the user's model folder, a gender. Out: `SmplFits`, which gives for each
-frame the Relighting Humans `smpl_data` block (`rh_block`) and the ZJU-MoCap params and vertices (`zju_params`).
+frame the Relighting Humans `smpl_data` block (`rh_block`), the ZJU-MoCap params and vertices (`zju_params`) and
+the USD stage's SMPL mesh (`usd_mesh`).
 
 The fit (`rh_dataset.smpl.fit`) runs once per subject over ALL its frames of the protocol (every split, whatever
 --split / --subjects select), so its one `betas` does not depend on what is exported. Each subject's result is
 cached in `<out>/smpl_fit/<subject>.json` (atomic write; floats in JSON's exact round-trip form, so the cached
-betas are bit-identical), keyed by the model file's sha256, the gender and the fit settings: a rerun reuses it
+betas are bit-identical), keyed by the model file's sha256, the gender, the fit settings and a hash of what the fit
+reads of the frames (bodies, cameras): a rerun reuses it
 and refits nothing. Posed vertices and joints are always recomputed from the cached parameters, one frame at a
 time, so a fresh run and a rerun write the same numbers.
 """
@@ -70,6 +72,17 @@ def _key(f: FrameRef) -> str:
     return f"{f.subject}/{f.split}/{f.index:06d}"
 
 
+def _inputs_sha256(frames: list[FrameRef]) -> str:
+    """What the fit reads of a subject's frames (names, bodies, cameras): a cache made from other frames is stale."""
+    import hashlib
+    import json
+
+    h = hashlib.sha256()
+    for f in frames:
+        h.update(json.dumps([_key(f), f.meta.get("body"), f.meta["camera"]["world_to_camera"]], sort_keys=True).encode())
+    return h.hexdigest()
+
+
 class SmplFits:
     """Fits of the exported subjects, made or read from the cache on first use of each subject."""
 
@@ -102,8 +115,8 @@ class SmplFits:
             raise ExportError(f"{subject}: no frames to fit SMPL to")
         path = self._cache_path(subject)
         rec = read_json(path) if path.is_file() else None
-        keys = [_key(f) for f in frames]
-        if rec and {k: rec.get(k) for k in self._identity()} == self._identity() and set(keys) <= set(rec["frames"]):
+        inputs = _inputs_sha256(frames)
+        if rec and {k: rec.get(k) for k in self._identity()} == self._identity() and rec.get("inputs_sha256") == inputs:
             self.log(f"SMPL fit of {subject}: cached in {path} (delete it to refit)")
         else:
             t0 = time.perf_counter()
@@ -114,7 +127,8 @@ class SmplFits:
             seconds = time.perf_counter() - t0
             self.log(f"SMPL fit of {subject}: {len(frames)} frames in {seconds:.1f} s "
                      f"({seconds / len(frames):.2f} s per frame)")
-            rec = {**self._identity(), "model_file": Path(self.model.path).name, "betas": fit.betas.tolist(),
+            rec = {**self._identity(), "inputs_sha256": inputs, "model_file": Path(self.model.path).name,
+                   "betas": fit.betas.tolist(),
                    "scale": fit.scale, "seconds": seconds,
                    "frames": {ff.name: {"pose": ff.pose.tolist(), "global_orient": ff.global_orient.tolist(),
                                         "global_trans": ff.global_trans.tolist(), "quality": ff.quality.to_json()}
@@ -182,3 +196,13 @@ class SmplFits:
                   "model": self.model.kind, "gender": self.model.gender, "model_sha256": self.model.sha256,
                   "fit": fr["quality"]}
         return params, verts
+
+    def usd_mesh(self, f: FrameRef) -> tuple[np.ndarray, np.ndarray, dict]:
+        """(world vertices, faces, a record of the parameters) for the USD stage's /World/SMPL prim."""
+        params, verts = self.zju_params(f)
+        rec = {"model": self.model.kind, "gender": self.model.gender, "model_sha256": self.model.sha256,
+               "betas": [float(x) for x in params["shapes"][0]], "poses": [float(x) for x in params["poses"][0]],
+               "Rh": [float(x) for x in params["Rh"][0]], "Th": [float(x) for x in params["Th"][0]],
+               "relation": "points = SMPL(poses, betas) · R(Rh)ᵀ + Th, world metres"}
+        return verts, self.model.faces, rec
+
