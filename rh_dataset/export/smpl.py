@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from rh_common.imageio import read_json, write_json
+from rh_common.threads import torch_threads
 from rh_dataset.smpl.fit import (FitInput, FitQuality, FitRefused, FitSettings, FrameTarget, anny_joints,
                                  camera_frame, check_quality, fit_subject)
 from rh_dataset.smpl.model import BodyModel, SmplModelError, find_model_file, load_body_model
@@ -154,7 +155,7 @@ class SmplFits:
         fr = rec["frames"][_key(f)]
         betas = np.asarray(rec["betas"], np.float64)
         t = lambda a: torch.as_tensor(np.asarray(a, np.float64)[None])  # noqa: E731
-        with torch.no_grad():
+        with torch.no_grad(), torch_threads(self.settings.threads):  # the fit's thread count: the same last bits
             V, J = camera_frame(self.model, t(betas), t(fr["pose"]), t(fr["global_orient"]), t(fr["global_trans"]),
                                 float(rec["scale"]))
         return fr, betas, V[0].numpy(), J[0].numpy()
@@ -185,7 +186,7 @@ class SmplFits:
         t = lambda a: torch.as_tensor(np.asarray(a, np.float64)[None])  # noqa: E731
         from rh_dataset.smpl.model import forward
 
-        with torch.no_grad():
+        with torch.no_grad(), torch_threads(self.settings.threads):
             V0, J0 = forward(self.model, t(betas), t(fr["pose"]), t(np.zeros(3)), None)
         V0, j0 = V0[0].numpy(), J0[0, 0].numpy()
         R = Rw @ rodrigues(np.asarray(fr["global_orient"]))

@@ -11,7 +11,7 @@ The camera-frame body is the one the Relighting Humans clients build (docs/resea
 §1.2): `x_cam = scale · (V − J0) + global_trans`, with V, J the model posed by (betas, pose, global_orient)
 without translation and J0 its root joint (`camera_frame`).
 
-Method (docs/INTEROP.md "SMPL fit"): (1) initialise every frame from anny's joints: a rigid Kabsch fit of the
+Method (docs/INTEROP.md "SMPL fitted to every frame"): (1) initialise every frame from anny's joints: a rigid Kabsch fit of the
 torso joints gives the root, then each joint turns its bone(s) onto anny's (the shortest rotation, or a Kabsch fit
 over several children); (2) Levenberg-Marquardt on the joints alone (shape and pose); (3) rounds of
 Levenberg-Marquardt on the surface: strided model vertices to the tangent plane of their nearest anny vertex,
@@ -232,18 +232,22 @@ def fit_subject(inp: FitInput, log=print) -> SubjectFit:
     """Fit one subject's frames jointly (shared betas) and measure each frame; see the module docstring."""
     if not inp.frames:
         raise ValueError("fit_subject: no frames to fit")
-    t0 = time.perf_counter()
-    with torch_threads(inp.settings.threads):
-        betas, poses = _optimise(inp)
-    model, s = inp.model, inp.settings
+    if inp.model.n_joints != len(ANNY_JOINT_BONES):
+        raise ValueError(f"fit_subject: {inp.model.path or 'the model'} has {inp.model.n_joints} joints; the fit "
+                         f"maps anny onto SMPL's {len(ANNY_JOINT_BONES)}")
     import torch
 
-    t = model_tensors(model)
-    with torch.no_grad():
-        V, J = camera_frame(model, torch.as_tensor(np.repeat(betas[None], len(poses), 0)),
-                            torch.as_tensor(np.stack([p[1] for p in poses])),
-                            torch.as_tensor(np.stack([p[0] for p in poses])),
-                            torch.as_tensor(np.stack([p[2] for p in poses])), 1.0, tensors=t)
+    t0 = time.perf_counter()
+    model, s = inp.model, inp.settings
+    # One thread count for the fit and the posed result: torch's reductions sum in a thread-dependent order.
+    with torch_threads(s.threads):
+        betas, poses = _optimise(inp)
+        with torch.no_grad():
+            V, J = camera_frame(model, torch.as_tensor(np.repeat(betas[None], len(poses), 0)),
+                                torch.as_tensor(np.stack([p[1] for p in poses])),
+                                torch.as_tensor(np.stack([p[0] for p in poses])),
+                                torch.as_tensor(np.stack([p[2] for p in poses])), 1.0,
+                                tensors=model_tensors(model))
     frames = []
     for i, target in enumerate(inp.frames):
         q = measure_quality(V[i].numpy(), model.faces, J[i].numpy(), target)
