@@ -35,6 +35,22 @@ if [ ! -x .blender-venv/bin/python ] || ! .blender-venv/bin/python -c "import bp
   .blender-venv/bin/python -m pip install -q --disable-pip-version-check bpy==5.0.1
 fi
 
+# Optional: 16 more CC0 Poly Haven maps (512x256) from npm's @pmndrs/assets, their resize ringing repaired and
+# the two that lost their sun rejected (tools/pmndrs_hdris.py), with the 8 bundled maps, in data/hdri: use them
+# with `rh-generate --hdri-folder data/hdri`. Never used unless asked for; skipped without npm; never fails setup.
+if [ ! -f data/hdri/pmndrs_hdris.json ] && command -v npm >/dev/null; then
+  echo "setup: converting @pmndrs/assets@1.7.0 HDRIs into data/hdri (optional)"
+  pm_tmp=$(mktemp -d)
+  if (cd "$pm_tmp" && npm pack --silent @pmndrs/assets@1.7.0 >/dev/null 2>&1) \
+     && python tools/pmndrs_hdris.py --package "$pm_tmp/pmndrs-assets-1.7.0.tgz" --out data/hdri --with-bundled \
+        >/dev/null; then
+    echo "setup: data/hdri ready (see data/hdri/pmndrs_hdris.json)"
+  else
+    echo "setup: optional @pmndrs/assets maps skipped (npm pack or the conversion failed)"
+  fi
+  rm -rf "$pm_tmp"
+fi
+
 # anny builds its mesh cache on first use (~2 min, ~790 MB); do it once here rather than inside a test.
 python -c "import rh_common.body_model as b; b.warm_cache()"
 echo "setup: done"

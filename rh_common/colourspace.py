@@ -55,6 +55,32 @@ def luminance(rgb_linear: np.ndarray) -> np.ndarray:
     return np.asarray(rgb_linear, dtype=np.float32)[..., :3] @ REC709_LUMINANCE
 
 
+def cct_to_linear_srgb(cct_kelvin: float) -> np.ndarray:
+    """Linear Rec.709 RGB (3,) float64 of a black body at `cct_kelvin`, scaled to Rec.709 luminance 1.
+
+    colour-science's Kang et al. (2002) fit of the Planckian locus (valid 1667-25000 K) gives the chromaticity;
+    XYZ -> sRGB without chromatic adaptation, so ~6500 K is near-white. The few out-of-gamut negatives (below
+    ~1900 K, blue) are clipped to 0 before rescaling.
+    """
+    t = float(cct_kelvin)
+    if not (np.isfinite(t) and 1667.0 <= t <= 25000.0):
+        raise ValueError(f"cct_to_linear_srgb: colour temperature must be in [1667, 25000] K, got {cct_kelvin!r}")
+    x, y = colour.CCT_to_xy(t, method="Kang 2002")
+    rgb = colour.XYZ_to_RGB(colour.xyY_to_XYZ([x, y, 1.0]), "sRGB", chromatic_adaptation_transform=None)
+    rgb = np.maximum(np.asarray(rgb, dtype=np.float64), 0.0)
+    return rgb / float(rgb @ REC709_LUMINANCE.astype(np.float64))
+
+
+def linear_srgb_to_cct(rgb_linear: np.ndarray) -> float:
+    """Correlated colour temperature (K) of a linear Rec.709 colour: colour-science's McCamy (1992) fit from its
+    xy chromaticity (good to a few kelvin from 2856 to 6504 K, rougher outside 2000-12500 K). NaN for black."""
+    rgb = np.asarray(rgb_linear, dtype=np.float64).reshape(3)
+    xyz = colour.RGB_to_XYZ(rgb, "sRGB", chromatic_adaptation_transform=None)
+    if not xyz.sum() > 0:
+        return float("nan")
+    return float(colour.xy_to_CCT(colour.XYZ_to_xy(xyz), method="McCamy 1992"))
+
+
 def quantize8(x01: np.ndarray) -> np.ndarray:
     """[0, 1] floats to uint8 with round-half-up, the one quantisation rule for 8-bit files."""
     return np.floor(np.clip(np.asarray(x01, dtype=np.float64), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)

@@ -177,6 +177,10 @@ class ProtocolSpec:
     exposure_ev_range: tuple[float, float] = (-0.5, 0.5)
     hdri_folder: str | None = None
     """A folder of .exr/.hdr maps to draw lights from instead of the bundled Poly Haven set."""
+    light_mixture: dict | None = field(default=None, hash=False)
+    """kind -> weight (`rh_dataset.lights.MIXTURE_KEYS`: 'real' maps, 'sunsky', 'studio', 'window', 'outdoor')
+    the 'random' splits draw their lights from; None = the uniform choice among the maps (protocols a and b).
+    'fixed' lights (the training light) never use it, so a mixed scene's train split is its protocol's."""
     character: CharacterSource | None = None
     """An imported character for every subject instead of anny characters; None = anny (the default)."""
     source: str = field(default="", compare=False)
@@ -207,6 +211,16 @@ class ProtocolSpec:
         lo, hi = self.exposure_ev_range
         if not lo <= hi:
             raise SpecError(f"exposure_ev_range must be [low, high] with low <= high, got {self.exposure_ev_range}")
+        if self.light_mixture is not None:
+            from rh_dataset.lights.sampling import check_mixture  # the lights package imports Mitsuba lazily
+
+            where = self.source or self.name
+            if self.sunsky:
+                raise SpecError(f"{where}: lights: give sunsky a weight in the mixture instead of sunsky: true")
+            try:
+                check_mixture(self.light_mixture)
+            except ValueError as exc:
+                raise SpecError(f"{where}: lights: {exc}") from None
 
     def split(self, name: str) -> SplitSpec:
         for s in self.splits:
@@ -249,6 +263,8 @@ class ProtocolSpec:
         d.pop("source")
         if d["character"] is None:  # anny datasets keep the description (and digest) they had before imports
             d.pop("character")
+        if d["light_mixture"] is None:  # datasets without a mixture keep the description (and digest) they had
+            d.pop("light_mixture")
         d["splits"] = [dataclasses.asdict(s) for s in self.splits]
         for split, out in zip(self.splits, d["splits"]):
             if split.motion is None:
@@ -299,7 +315,7 @@ _PROTOCOL_KEYS = {"format", "name", "protocol", "description", "subjects", "char
                   "fov_y_deg", "splits", "lights"}
 _SPLIT_KEYS = {"frames", "poses", "light", "layers", "motion", "scene_class"}
 _MOTION_KEYS = {"file", "start", "stride", "heading", "in_place"}
-_LIGHT_KEYS = {"sunsky", "exposure_ev_range", "hdri_folder"}
+_LIGHT_KEYS = {"sunsky", "exposure_ev_range", "hdri_folder", "mixture"}
 
 
 def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
@@ -338,7 +354,7 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
         subjects=data["subjects"], character_pool=data["character_pool"], width=res[0], height=res[1],
         fov_y_deg=float(data["fov_y_deg"]), splits=tuple(splits), sunsky=bool(lights.get("sunsky", False)),
         exposure_ev_range=tuple(lights.get("exposure_ev_range", (-0.5, 0.5))),
-        hdri_folder=lights.get("hdri_folder"), source=where,
+        hdri_folder=lights.get("hdri_folder"), light_mixture=lights.get("mixture"), source=where,
     )
 
 

@@ -130,7 +130,9 @@ class Convention:
     normal_frame: str = "opengl_camera"
     """Normals compared in camera axes, OpenGL convention (x right, y up, z toward the camera; ARCHITECTURE.md)."""
     resampling: str = "none"
-    """Predictions must be at the ground truth's resolution; nothing is resampled."""
+    """none: predictions must be at the ground truth's resolution. area: a prediction may be smaller; the ground
+    truth is brought to its size first (images, albedo, normals area-averaged, the mask by nearest neighbour:
+    RelightableAvatar's loader, `scoring.resample_ground_truth`)."""
 
     def __post_init__(self) -> None:
         if isinstance(self.align_albedo, bool):  # result files before the named conventions recorded a bool
@@ -139,6 +141,7 @@ class Convention:
                              ("composite", ("both", "gt")), ("alpha", ("coverage", "binary")),
                              ("ssim_window", SSIM_WINDOWS), ("albedo_gt", ("linear", "srgb_as_linear")),
                              ("albedo_region", ("same", "mask_box")), ("normal_mask", ("gt", "gt_and_pred")),
+                             ("resampling", ("none", "area")),
                              ("name", tuple(CONVENTIONS))):
             if getattr(self, fld) not in allowed:
                 raise ValueError(f"{fld} must be one of {allowed}, got {getattr(self, fld)!r}")
@@ -329,11 +332,12 @@ CONVENTIONS: dict[str, dict] = {
                             align_albedo="lsq", relit_with_aligned_albedo=True),
     # zju3dv/RelightableAvatar @ 3504fde: lib/evaluators/base_evaluator.py (eval_whole_img, bg_brightness 0, GT
     # background zeroed by its mask, skimage SSIM data_range=1, lpips.LPIPS() = AlexNet without normalize);
-    # albedo (median), relit-image alignment and the normal mask follow the paper (not in the released code)
+    # albedo (median), relit-image alignment and the normal mask follow the paper (not in the released code);
+    # lib/datasets/base_dataset.py get_image_and_mask: the GT shrunk by cfg.ratio (INTER_AREA image, INTER_NEAREST mask)
     "relightableavatar": dict(region="full", composite="gt", alpha="binary", background="black", min_crop=0,
                               ssim_window="uniform7", ssim_data_range=1.0, backbone="alex", lpips_normalize=False,
                               albedo_space="linear", albedo_region="mask_box", align_albedo="median",
-                              align_image="median", normal_mask="gt_and_pred"),
+                              align_image="median", normal_mask="gt_and_pred", resampling="area"),
 }
 
 

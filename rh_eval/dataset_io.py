@@ -229,17 +229,19 @@ def _png_header(path: Path) -> tuple[int, int, int, int]:
 _PNG_CTYPES = {0: "greyscale (1 channel)", 2: "RGB", 3: "palette", 4: "greyscale+alpha (2 channels)", 6: "RGBA"}
 
 
-def _read_rgb_png(path: Path, frame: GTFrame) -> np.ndarray:
+def _read_rgb_png(path: Path, frame: GTFrame, smaller_ok: bool = False) -> np.ndarray:
     w, h, depth, ctype = _png_header(path)
     _check_png_type(path, depth, ctype)
-    _check_size(path, (h, w), frame)
+    _check_size(path, (h, w), frame, smaller_ok)
     arr = read_png(path)
     if arr.ndim != 3 or arr.shape[2] not in (3, 4) or arr.dtype != np.uint8:
         raise ImageFileError(f"{path}: decoded to shape {arr.shape} {arr.dtype}; expected 8-bit RGB or RGBA")
     return arr[..., :3]
 
 
-def _check_size(path: Path, hw: tuple[int, int], frame: GTFrame) -> None:
+def _check_size(path: Path, hw: tuple[int, int], frame: GTFrame, smaller_ok: bool = False) -> None:
+    if smaller_ok and 0 < hw[0] <= frame.height and 0 < hw[1] <= frame.width:
+        return  # a convention that resamples the ground truth to the prediction's size (`resampling="area"`)
     if tuple(hw) != (frame.height, frame.width):
         raise ImageFileError(f"{path}: resolution {hw[1]}x{hw[0]} (WxH) differs from the ground truth's "
                              f"{frame.width}x{frame.height}; write it at {frame.width}x{frame.height}")
@@ -264,7 +266,7 @@ def _exr_header(path: Path) -> tuple[list[str], tuple[int, int]]:
     return names, (int(hi[1]) - int(lo[1]) + 1, int(hi[0]) - int(lo[0]) + 1)
 
 
-def check_header(path: Path, frame: GTFrame) -> None:
+def check_header(path: Path, frame: GTFrame, smaller_ok: bool = False) -> None:
     """Everything about a prediction file that its header tells, without decoding pixels: it exists, it is a PNG or
     EXR, its resolution, channel count and (PNG) bit depth. Raises `ImageFileError` naming the file."""
     if not path.is_file():
@@ -272,13 +274,13 @@ def check_header(path: Path, frame: GTFrame) -> None:
     if path.suffix == ".png":
         w, h, depth, ctype = _png_header(path)
         _check_png_type(path, depth, ctype)
-        _check_size(path, (h, w), frame)
+        _check_size(path, (h, w), frame, smaller_ok)
         return
     names, hw = _exr_header(path)
     if sorted(names) not in (["B", "G", "R"], ["A", "B", "G", "R"]):
         raise ImageFileError(f"{path}: {len(names)} channel(s) ({','.join(sorted(names))}); expected R,G,B (or "
                              f"R,G,B,A, alpha ignored)")
-    _check_size(path, hw, frame)
+    _check_size(path, hw, frame, smaller_ok)
 
 
 def _check_png_type(path: Path, depth: int, ctype: int) -> None:
@@ -298,18 +300,18 @@ def _check_finite(path: Path, arr: np.ndarray) -> None:
                              f"write finite values")
 
 
-def decode_layer(path: Path, frame: GTFrame) -> np.ndarray:
+def decode_layer(path: Path, frame: GTFrame, smaller_ok: bool = False) -> np.ndarray:
     """A prediction layer decoded and fully checked, in its stored form: uint8 (H, W, 3) for a PNG, finite float32
     (H, W, 3) for an EXR (alpha dropped). `read_pred_*` turn it into values; the evaluator decodes every prediction
     file this way before it computes anything."""
     if path.suffix == ".png":
-        return _read_rgb_png(path, frame)
-    return _read_rgb_exr32(path, frame)
+        return _read_rgb_png(path, frame, smaller_ok)
+    return _read_rgb_exr32(path, frame, smaller_ok)
 
 
-def _read_rgb_exr32(path: Path, frame: GTFrame) -> np.ndarray:
+def _read_rgb_exr32(path: Path, frame: GTFrame, smaller_ok: bool = False) -> np.ndarray:
     arr = read_exr(path)
-    _check_size(path, arr.shape[:2], frame)
+    _check_size(path, arr.shape[:2], frame, smaller_ok)
     if arr.shape[2] not in (3, 4):
         raise ImageFileError(f"{path}: {arr.shape[2]} channel(s); expected R,G,B (or R,G,B,A, alpha ignored)")
     arr = arr[..., :3]

@@ -133,6 +133,8 @@ class Evaluator:
         self._hash_memo: dict[tuple[str, int, int], str] = {}
         self._queue: list[_NetItem] = []
         self.thumbnails: ThumbnailSet | None = None
+        # predictions smaller than the ground truth are read only where the convention resamples to their size
+        self._smaller_ok = self.options.convention.resampling == "area"
         """The last `evaluate`'s tiles (None with `thumbnails=False`); `report.write_result` writes them."""
 
     # ---------------------------------------------------------------- bookkeeping
@@ -222,7 +224,7 @@ class Evaluator:
         frame's scores so far and its network inputs."""
         conv = self.options.convention
         gt = pf.gt
-        frame_pred, frame_gt = read_frame(pf, self.options.metrics, stored=stored)
+        frame_pred, frame_gt = read_frame(pf, self.options.metrics, stored=stored, smaller_ok=self._smaller_ok)
         try:
             scores, pairs = prepare_frame(frame_pred, frame_gt, conv, self.options.metrics)
         except CropTooSmallError as exc:
@@ -268,11 +270,11 @@ class Evaluator:
                 if path is None:
                     continue
                 try:
-                    check_header(path, pf.gt)
+                    check_header(path, pf.gt, self._smaller_ok)
                 except ImageFileError as exc:
                     problems.append(str(exc))
                 else:
-                    files.append((path, pf.gt))
+                    files.append((path, pf.gt, self._smaller_ok))
         stored: dict[Path, np.ndarray] = {}
         budget, used_bytes = self.options.preload_mb << 20, 0
 
@@ -283,7 +285,7 @@ class Evaluator:
                 return exc
 
         with ThreadPoolExecutor(self._workers()) as pool:
-            for (path, _), arr in zip(files, pool.map(decode, files)):
+            for (path, *_), arr in zip(files, pool.map(decode, files)):
                 if isinstance(arr, Exception):
                     problems.append(str(arr))
                 elif used_bytes + arr.nbytes <= budget and not problems:
@@ -372,7 +374,8 @@ class Evaluator:
         """The fixed frames' tiles (made in the loop) and this method's best, median and worst, read again here:
         which frames they are is known only now."""
         def again(pf):
-            return frame_tiles(*read_frame(pf, self.options.metrics), self.options.convention)
+            return frame_tiles(*read_frame(pf, self.options.metrics, smaller_ok=self._smaller_ok),
+                               self.options.convention)
 
         return collect_thumbnails(pred.frames, rows, cols, fixed, tiles, again)
 

@@ -22,10 +22,13 @@ from typing import Callable
 
 import numpy as np
 
+from rh_common.colourspace import srgb_decode
+
 from .conventions import (Convention, Region, align_albedo, albedo_to_space, composite, compute_region,
                           gt_albedo_values)
 from .dataset_io import (PredFrame, albedo_from_stored, decode_layer, display_from_stored, normal_from_stored,
                          read_gt_albedo, read_gt_image_stored, read_gt_mask, read_gt_normal)
+from .resample import shrink_area, shrink_nearest
 from .metrics import dists, dists_features, flip, lpips, lpips_features, normal_angular_error, psnr, ssim
 
 __all__ = ["ALL_METRICS", "IMAGE_METRICS", "NETWORK_METRICS", "LAYERS", "check_metrics", "FramePrediction",
@@ -112,6 +115,37 @@ class FrameGroundTruth:
         if arr is None:
             raise ValueError(f"the prediction has the {name} layer but FrameGroundTruth.{name} is None")
         return arr
+
+
+def match_ground_truth(pred: FramePrediction, gt: FrameGroundTruth, conv: Convention) -> FrameGroundTruth:
+    """`gt` at the prediction's size where the convention resamples (`resampling="area"`), else `gt` itself."""
+    hw = next((getattr(pred, n).shape[:2] for n in ("image", "albedo", "normal") if getattr(pred, n) is not None),
+              None)
+    if hw is not None and hw != gt.mask.shape and conv.resampling == "area":
+        return resample_ground_truth(gt, hw)
+    return gt
+
+
+def resample_ground_truth(gt: FrameGroundTruth, hw: tuple[int, int]) -> FrameGroundTruth:
+    """The ground truth at the prediction's smaller size `hw`, as RelightableAvatar's loader makes it
+    (`resampling="area"`, docs/EVALUATION.md): the display-space image and the albedo and normals area-averaged
+    (OpenCV INTER_AREA), the mask by nearest neighbour (INTER_NEAREST). The image is averaged in display space, as
+    their loader averages the 8-bit image's values, and kept as the linear radiance whose display value is that
+    average, so everything downstream reads it as any ground truth."""
+    hw = tuple(int(v) for v in hw)
+    if gt.mask.shape == hw:
+        return gt
+    H, W = gt.mask.shape
+    if not (0 < hw[0] <= H and 0 < hw[1] <= W):
+        raise ValueError(f"area resampling shrinks the ground truth: {W}x{H} cannot become {hw[1]}x{hw[0]}")
+    image = None
+    if gt.image is not None:
+        disp = shrink_area(np.asarray(display_from_stored(gt.image, gt), np.float64), hw)
+        image = (srgb_decode(np.clip(disp, 0.0, 1.0)) / gt.exposure).astype(np.float32)
+    albedo = None if gt.albedo is None else shrink_area(gt.albedo, hw).astype(np.float32)
+    normal = None if gt.normal is None else shrink_area(gt.normal, hw).astype(np.float32)
+    return FrameGroundTruth(mask=shrink_nearest(gt.mask, hw), exposure=gt.exposure, image=image, albedo=albedo,
+                            normal=normal)
 
 
 @dataclass
@@ -221,6 +255,7 @@ def prepare_frame(pred: FramePrediction, gt: FrameGroundTruth, convention: Conve
     """Everything about one frame except LPIPS and DISTS: the scores so far and the networks' inputs."""
     conv = convention or Convention()
     metrics = check_metrics(metrics)
+    gt = match_ground_truth(pred, gt, conv)
     for name in ("image", "albedo", "normal"):
         arr = getattr(pred, name)
         if arr is not None and arr.shape[:2] != gt.mask.shape:
@@ -320,7 +355,7 @@ def score_frame(pred: FramePrediction, gt: FrameGroundTruth, convention: Convent
 
 
 def read_frame(frame: PredFrame, metrics=ALL_METRICS, *, layers=("image", "albedo", "normal"),
-               stored: dict[Path, np.ndarray] | None = None) -> tuple[FramePrediction, FrameGroundTruth]:
+               stored: dict[Path, np.ndarray] | None = None, smaller_ok: bool = False) -> tuple[FramePrediction, FrameGroundTruth]:
     """One frame of a predictions folder (`dataset_io.scan_predictions`) and its ground truth, as `score_frame` takes
     them; only the prediction's `layers` that `metrics` compare are read. `stored`: prediction layers already
     decoded, by path (taken out of it; rh-eval's up-front check keeps them)."""
@@ -335,7 +370,7 @@ def read_frame(frame: PredFrame, metrics=ALL_METRICS, *, layers=("image", "albed
         if path is None:
             return None
         arr = stored.pop(path, None)
-        return arr if arr is not None else decode_layer(path, gt)
+        return arr if arr is not None else decode_layer(path, gt, smaller_ok)
 
     image_metrics = any(m in metrics for m in IMAGE_METRICS)
     image = image_metrics and "image" in layers

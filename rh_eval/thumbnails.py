@@ -29,6 +29,8 @@ from .conventions import BACKGROUNDS, Convention, albedo_to_space, composite, co
 from .dataset_io import albedo_from_stored, display_from_stored, normal_from_stored
 from .metrics.flip import flip_map
 from .metrics.normal import angular_error_map
+from .resample import shrink_area
+from .scoring import match_ground_truth
 
 __all__ = ["SELECTION_SEED", "PER_SUBJECT", "TILE_PX", "THUMBS_FORMAT", "seeded_rank", "select_fixed",
            "headline_metric", "select_extremes", "frame_crops", "frame_tiles", "ThumbnailSet", "thumbs_dir_for",
@@ -97,6 +99,7 @@ def frame_crops(pred, gt, conv: Convention) -> dict[str, np.ndarray] | None:
     `inside` (the ground-truth mask in the crop). The same conversions, in the same order, as
     `scoring.prepare_frame` (tests/test_eval_thumbnails.py checks them against its network inputs). None: empty
     ground-truth mask (no region)."""
+    gt = match_ground_truth(pred, gt, conv)
     region = compute_region(gt.mask, conv)
     if region.empty:
         return None
@@ -113,25 +116,6 @@ def frame_crops(pred, gt, conv: Convention) -> dict[str, np.ndarray] | None:
         out["normal"] = normal_from_stored(pred.normal[crop])
         out["normal_gt"] = normal_from_stored(gt.need("normal")[crop])
     return out
-
-
-def _area_matrix(n_in: int, n_out: int) -> np.ndarray:
-    """(n_out, n_in) weights averaging each output pixel's footprint (exact box/area resampling)."""
-    edges = np.arange(n_out + 1) * (n_in / n_out)
-    lo, hi = edges[:-1, None], edges[1:, None]
-    px = np.arange(n_in)[None, :]
-    w = np.clip(np.minimum(hi, px + 1) - np.maximum(lo, px), 0.0, None)
-    return w / w.sum(axis=1, keepdims=True)
-
-
-def _shrink(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    h, w = img.shape[:2]
-    if (h, w) == size:
-        return img
-    ry, rx = _area_matrix(h, size[0]), _area_matrix(w, size[1])
-    x = img.reshape(h, w, -1)
-    rows = (ry @ x.reshape(h, -1)).reshape(size[0], w, -1)  # two matrix products (a 3-operand einsum loops naively)
-    return (rows.transpose(0, 2, 1) @ rx.T).transpose(0, 2, 1).reshape(size + img.shape[2:])
 
 
 def _tile_size(h: int, w: int) -> tuple[int, int]:
@@ -164,9 +148,9 @@ def frame_tiles(pred, gt, conv: Convention) -> dict[str, np.ndarray] | None:
     for layer in ("image", "albedo"):
         if layer in c:
             err = flip_map(c[layer], c[layer + "_gt"], data_range=1.0, ppd=conv.flip_ppd)
-            tiles[layer] = quantize8(_shrink(c[layer], size))
-            tiles[layer + "_gt"] = quantize8(_shrink(c[layer + "_gt"], size))
-            tiles[layer + "_err"] = _colourise(_shrink(err[..., None], size)[..., 0])
+            tiles[layer] = quantize8(shrink_area(c[layer], size))
+            tiles[layer + "_gt"] = quantize8(shrink_area(c[layer + "_gt"], size))
+            tiles[layer + "_err"] = _colourise(shrink_area(err[..., None], size)[..., 0])
     if "normal" in c:
         inside = c["inside"]
         region = c["region"]
@@ -176,9 +160,9 @@ def frame_tiles(pred, gt, conv: Convention) -> dict[str, np.ndarray] | None:
             n = c[name]
             length = np.linalg.norm(n, axis=-1, keepdims=True)
             rgb = np.divide(n, length, out=np.zeros_like(n), where=length > 0) * 0.5 + 0.5  # the usual picture
-            tiles[name] = quantize8(_shrink(alpha[..., None] * rgb + (1 - alpha[..., None]) * bg, size))
+            tiles[name] = quantize8(shrink_area(alpha[..., None] * rgb + (1 - alpha[..., None]) * bg, size))
         deg = np.where(inside, angular_error_map(c["normal"], c["normal_gt"]), 0.0)  # compared inside the mask
-        tiles["normal_err"] = _colourise(_shrink((deg / NORMAL_ERROR_MAX_DEG)[..., None], size)[..., 0])
+        tiles["normal_err"] = _colourise(shrink_area((deg / NORMAL_ERROR_MAX_DEG)[..., None], size)[..., 0])
     return tiles
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rh_common.colourspace import quantize8, srgb_decode, srgb_encode, srgb_encode_reference, to_display
+from rh_common.colourspace import REC709_LUMINANCE, cct_to_linear_srgb, linear_srgb_to_cct, quantize8, srgb_decode, srgb_encode, srgb_encode_reference, to_display
 
 
 def test_fast_srgb_curve_matches_colour_science():
@@ -30,3 +30,21 @@ def test_display_space_clips_and_refuses_non_finite():
 
 def test_quantize8_rounds_half_up():
     assert quantize8(np.array([0.0, 0.5 / 255, 1.0, 2.0, -1.0])).tolist() == [0, 1, 255, 255, 0]
+
+
+def test_colour_temperature_white_point_luminance_and_order():
+    # The Planckian locus at 6504 K passes within ~0.003 in xy of D65, i.e. a few percent of sRGB white.
+    np.testing.assert_allclose(cct_to_linear_srgb(6504.0), [1.0, 1.0, 1.0], atol=0.05)
+    cols = [cct_to_linear_srgb(t) for t in (1800.0, 2700.0, 4000.0, 6504.0, 10000.0, 20000.0)]
+    for c in cols:
+        assert c.min() >= 0 and float(c @ REC709_LUMINANCE) == pytest.approx(1.0, rel=1e-12)
+    ratio = [c[2] / max(c[0], 1e-12) for c in cols]
+    assert ratio == sorted(ratio)  # hotter is bluer
+    with pytest.raises(ValueError, match="1667, 25000"):
+        cct_to_linear_srgb(1000.0)
+
+
+def test_colour_temperature_round_trip():
+    for t in (2856.0, 4000.0, 5000.0, 6504.0):  # McCamy's fit is good to a few kelvin here
+        assert linear_srgb_to_cct(cct_to_linear_srgb(t)) == pytest.approx(t, abs=30)
+    assert np.isnan(linear_srgb_to_cct(np.zeros(3)))

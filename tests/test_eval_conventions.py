@@ -12,6 +12,7 @@ by < 3e-5 (normal degrees, acos in float32) and < 1e-6 elsewhere; the required a
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -268,3 +269,31 @@ def test_a_crop_too_small_for_the_backbone_is_one_line(tmp_path):
         score_frame(pred, gt, named_convention("relightableavatar"), ("lpips",))
     assert score_frame(pred, gt, named_convention("intrinsicavatar"), ("lpips",)).albedo.lpips > 0
     assert score_frame(pred, gt, named_convention("relightableavatar"), ("psnr",)).albedo.psnr > 0
+
+
+def test_cli_half_size_predictions_under_area_resampling(ds, noisy, tmp_path, capsys):
+    """relightableavatar reads predictions at half the ground truth's size (their cfg.ratio 0.5); rana refuses."""
+    from rh_common.imageio import read_exr, read_png, write_exr, write_png
+    from rh_eval.resample import shrink_area
+
+    half = tmp_path / "half"
+    shutil.copytree(noisy, half)
+    for f in sorted(half.rglob("*")):
+        if f.suffix == ".png":
+            a = read_png(f)
+            write_png(f, np.clip(np.round(shrink_area(a, (a.shape[0] // 2, a.shape[1] // 2))), 0, 255).astype(np.uint8))
+        elif f.suffix == ".exr":
+            a = read_exr(f)
+            write_exr(f, shrink_area(a, (a.shape[0] // 2, a.shape[1] // 2)).astype(np.float32))
+    code, _, err = _run([half, "--dataset", ds, "--out", tmp_path / "ra.json", "--convention", "relightableavatar"],
+                        capsys)
+    assert code == 0, err
+    r = json.loads((tmp_path / "ra.json").read_text())
+    code, _, err = _run([noisy, "--dataset", ds, "--out", tmp_path / "full.json", "--convention", "relightableavatar"],
+                        capsys)
+    full = json.loads((tmp_path / "full.json").read_text())
+    assert r["convention"]["resampling"] == "area" and r["n_frames_evaluated"] == full["n_frames_evaluated"]
+    # the same predictions, shrunk as the ground truth is: about the same score (the noise averages down a little)
+    assert abs(r["overall"]["image_psnr"]["mean"] - full["overall"]["image_psnr"]["mean"]) < 1.0
+    code, _, err = _run([half, "--dataset", ds, "--out", tmp_path / "rana.json"], capsys)
+    assert code != 0 and "differs from the ground truth's" in err

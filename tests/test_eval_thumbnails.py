@@ -145,13 +145,3 @@ def test_no_thumbnails(ds, tmp_path):
     pred = make_predictions(ds, tmp_path / "p", name="p", noise=0.02)
     res = _eval(pred, ds, tmp_path / "p.json", "--no-thumbnails")
     assert "thumbnails" not in res and not (tmp_path / "p.thumbs").exists()
-
-
-def test_shrinking_averages_areas():
-    from rh_eval.thumbnails import _shrink
-
-    a = np.random.default_rng(0).random((64, 48, 3))
-    np.testing.assert_allclose(_shrink(a, (32, 24)), a.reshape(32, 2, 24, 2, 3).mean(axis=(1, 3)), atol=1e-15)
-    b = _shrink(a, (37, 29))  # a non-integer factor: still a weighted mean of each footprint
-    assert b.shape == (37, 29, 3) and abs(b.mean() - a.mean()) < 1e-12
-    np.testing.assert_allclose(_shrink(np.full((50, 30, 1), 0.25), (17, 11)), 0.25, atol=1e-15)

@@ -1,4 +1,4 @@
-"""A convex diffuse sphere under each bundled HDRI renders albedo * E / pi, E the brute-force cosine convolution.
+"""A convex diffuse sphere under each bundled HDRI (and each procedural kind) renders albedo * E / pi, E the brute-force cosine convolution.
 
 This ties together the renderer, the environment mapping (Mitsuba's envmap vs our equirect convention), light
 scale and rotation, and the normal layer: a mistake in any of them moves the rendered radiance off the integral.
@@ -10,8 +10,9 @@ import pytest
 
 from analytic_scenes import uv_sphere
 from rh_common.colourspace import luminance
-from rh_dataset.lights import (LightSpec, brute_force_irradiance, build_light, bundled_hdris, downsample_equirect,
-                               mitsuba_emitter_dict, normalised_scale, load_hdri)
+from rh_dataset.lights import (PROCEDURAL_KINDS, LightSpec, brute_force_irradiance, build_light, bundled_hdris,
+                               downsample_equirect, load_hdri, mitsuba_emitter_dict, normalised_scale, procedural_map,
+                               sample_params)
 from rh_common.camera import Camera
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
@@ -30,8 +31,20 @@ def test_diffuse_sphere_under_hdri_matches_cosine_convolution(name):
     path = bundled_hdris()[name]
     base, _ = load_hdri(path)
     # 90 degrees is a whole number of columns of a 1024-wide map, so the brute-force map rotates exactly.
-    spec = LightSpec("envmap", name, str(path), rotation_deg=90.0, scale=normalised_scale(base))
-    light = build_light(spec)
+    _check_diffuse_sphere(build_light(LightSpec("envmap", name, str(path), rotation_deg=90.0,
+                                                scale=normalised_scale(base))))
+
+
+@pytest.mark.parametrize("kind", PROCEDURAL_KINDS)
+def test_diffuse_sphere_under_procedural_map_matches_cosine_convolution(kind):
+    params = sample_params(kind, np.random.default_rng(2))
+    base = procedural_map(kind, params)
+    _check_diffuse_sphere(build_light(LightSpec(kind, kind, "", rotation_deg=90.0, scale=normalised_scale(base),
+                                                params=params)))
+
+
+def _check_diffuse_sphere(light):
+    name = light.spec.name
     cam = Camera(width=48, height=48, fov_y_deg=30.0, origin=(0.3, -4.0, 0.5), target=(0.0, 0.0, 0.0))
     # max_depth 2 = direct light only, which for a convex object is the whole answer (it never sees itself).
     out = render_frame([uv_sphere(albedo=ALBEDO, n_lat=96, n_lon=192)], mitsuba_emitter_dict(light), cam,

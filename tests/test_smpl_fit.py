@@ -11,7 +11,8 @@ torch = pytest.importorskip("torch")
 
 from rh_dataset.smpl.fit import (FitInput, FitQuality, FitRefused, FitSettings, FrameTarget,  # noqa: E402
                                  camera_frame, check_quality, fit_subject)
-from rh_dataset.smpl.standin import build_standin, example_pose  # noqa: E402
+from rh_dataset.smpl.standin import build_standin  # noqa: E402
+from rh_dataset.smpl.standin_pose import example_pose  # noqa: E402
 
 # A body facing an OpenCV camera 3 m away: SMPL's +Y up is the camera's −Y, its +Z (facing) the camera's −Z.
 FACING_CAMERA = np.array([np.pi, 0.0, 0.0])

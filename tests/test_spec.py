@@ -56,3 +56,27 @@ def test_bad_descriptions_are_refused_with_the_reason(tmp_path, mutate, message)
 def test_unknown_protocol_names_the_choices():
     with pytest.raises(SpecError, match="choose one of"):
         load_protocol("zz")
+
+
+def test_mixed_scenes_keep_their_protocols_splits_and_add_only_the_mixture():
+    for proto in "ab":
+        base, mixed = load_protocol(proto), load_protocol(f"mixed_{proto}")
+        assert mixed.protocol == proto and mixed.splits == base.splits
+        assert base.light_mixture is None and "light_mixture" not in base.to_json()  # a and b keep their digest
+        assert mixed.light_mixture == {"real": 0.4, "studio": 0.2, "window": 0.2, "outdoor": 0.2}
+        assert mixed.digest() != base.digest()
+
+
+@pytest.mark.parametrize("lights, message", [
+    ({"mixture": {"real": 1, "olat": 1}}, "unknown kind 'olat'"),
+    ({"mixture": {"real": 0}}, "sum to 0"),
+    ({"sunsky": True, "mixture": {"real": 1}}, "weight in the mixture"),
+])
+def test_bad_light_mixture_refused_naming_the_file(tmp_path, lights, message):
+    data = json.loads(open(load_protocol("a").source).read())
+    data["lights"] = lights
+    p = tmp_path / "bad.json"
+    p.write_text(json.dumps(data))
+    with pytest.raises(SpecError, match=message) as info:
+        load_protocol(str(p))
+    assert str(p) in str(info.value) and "\n" not in str(info.value)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rh_common import layout
 from rh_common.colourspace import quantize8
 from rh_common.imageio import atomic_path, read_exr, read_png, write_json, write_png
 from rh_dataset.poses import ANNY_BONE_LABELS
@@ -137,7 +138,8 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, hdri_folder: str | No
     if f.layer("normal.png").is_file():
         _copy(f.layer("normal.png"), d / f"{stem}_normals.png")  # same encoding: (n + 1) / 2 * 255, OpenGL axes
         written.append(d / f"{stem}_normals.png")
-    bake = bake_frame_light(f.meta, hdri_folder, Path(out), {} if baked is None else baked)
+    bake = bake_frame_light(f.meta, hdri_folder, Path(out), {} if baked is None else baked,
+                            str(layout.frame_json_path(f.split_dir, f.index)))
     write_json(d / f"{stem}.json", rh_json(f, bake, smpl))
     written.append(d / f"{stem}.json")
     return written

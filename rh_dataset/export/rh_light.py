@@ -88,9 +88,11 @@ def bake_key(meta: dict) -> tuple[str, dict]:
     return f"rh_{name}_{digest}", desc
 
 
-def bake_frame_light(meta: dict, hdri_folder: str | None, out_root: Path, done: dict[str, dict]) -> dict:
+def bake_frame_light(meta: dict, hdri_folder: str | None, out_root: Path, done: dict[str, dict],
+                     where: str = "frame JSON") -> dict:
     """Write `<out_root>/hdri/<stem>.hdr` and `.exr` for this frame's light (once per export: `done` caches),
-    return the record that goes into the frame JSON (`rh_bake`)."""
+    return the record that goes into the frame JSON (`rh_bake`). `where` (the frame JSON's path) names the file
+    in the error for a light that cannot be rebuilt."""
     from rh_dataset.lights import LightSpec, build_light
 
     stem, desc = bake_key(meta)
@@ -107,9 +109,7 @@ def bake_frame_light(meta: dict, hdri_folder: str | None, out_root: Path, done: 
         source = str(src)
     else:
         source = ""
-    spec = LightSpec(kind=L["kind"], name=L["name"], source=source, rotation_deg=float(L["rotation_deg"]),
-                     scale=float(L["scale"]), sun_azimuth_deg=L.get("sun_azimuth_deg"),
-                     sun_elevation_deg=L.get("sun_elevation_deg"), turbidity=L.get("turbidity"))
+    spec = LightSpec.from_json(L, where, source=source)
     light = build_light(spec)
     baked = bake_radiance(light.radiance, spec.rotation_deg, np.array(meta["camera"]["camera_to_world"]), desc["k"])
     write_hdr(out_root / "hdri" / f"{stem}.hdr", baked)

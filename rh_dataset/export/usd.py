@@ -150,11 +150,10 @@ def _light_texture(f: FrameRef, stage_dir: Path, hdri_folder: str | None) -> tup
         return str(p), float(light["scale"])
     if light["kind"] == "envmap":
         return light["source"], float(light["scale"])  # the map is not on this machine: name it, resolve later
-    # sunsky: bake it as the generator does and write it beside the stage (scale already applied)
+    # sunsky or procedural: bake it as the generator does and write it beside the stage (scale already applied)
     from rh_dataset.lights import LightSpec, build_light
 
-    keys = ("kind", "name", "source", "rotation_deg", "scale", "sun_azimuth_deg", "sun_elevation_deg", "turbidity")
-    built = build_light(LightSpec(**{k: light[k] for k in keys}))
+    built = build_light(LightSpec.from_json(light, str(layout.frame_json_path(f.split_dir, f.index))))
     path = stage_dir / layout.layer_file_name(f.index, "sky", "exr")
     write_exr(path, built.radiance)
     return _rel(path, stage_dir), 1.0

@@ -47,7 +47,8 @@ class FrameResult:
 
 
 def light_for(plan: DatasetPlan, split: SplitSpec, s: int, i: int, library: dict):
-    """The frame's light: one per (subject, split) for a 'fixed' split, else one per frame."""
+    """The frame's light: one per (subject, split) for a 'fixed' split, else one per frame (from the protocol's
+    light mixture when it has one)."""
     from rh_dataset.lights import build_light, sample_light
 
     protocol_key = plan.spec.protocol
@@ -55,7 +56,9 @@ def light_for(plan: DatasetPlan, split: SplitSpec, s: int, i: int, library: dict
         rng = rng_for(plan.seed, "light", s, protocol_key, split.name)
     else:
         rng = rng_for(plan.seed, "light", s, protocol_key, split.name, i)
-    spec = sample_light(rng, library, exposure_ev_range=plan.spec.exposure_ev_range, allow_sunsky=plan.spec.sunsky)
+    mixture = plan.spec.light_mixture if split.light == "random" else None  # training lights stay as they were
+    spec = sample_light(rng, library, exposure_ev_range=plan.spec.exposure_ev_range, allow_sunsky=plan.spec.sunsky,
+                        mixture=mixture)
     return build_light(spec)
 
 
@@ -94,7 +97,7 @@ def versions() -> dict[str, str]:
 
 
 def light_spec_json(spec) -> dict:
-    d = dataclasses.asdict(spec)
+    d = spec.as_dict()  # procedural kinds add their `params`; envmap and sunsky blocks are unchanged
     d["source"] = os.path.basename(str(d.get("source", "")))  # no machine-specific absolute paths in the data
     return d
 

@@ -78,7 +78,11 @@ def resolve_plan(plan: DatasetPlan) -> DatasetPlan:
 
     plan = dataclasses.replace(plan, out=Path(plan.out))
     library = light_library(plan.spec)
-    if not library and not plan.spec.sunsky:
+    mixture = plan.spec.light_mixture
+    # Fixed (training) lights always draw as protocols a and b do; random ones from the mixture when there is one.
+    needs_maps = not plan.spec.sunsky and (mixture is None or mixture.get("real", 0) > 0
+                                           or any(s.light == "fixed" for s in plan.spec.splits))
+    if not library and needs_maps:
         raise GenerateError(f"no .exr/.hdr environment maps in {plan.spec.hdri_folder}; point --hdri-folder at maps")
     for path in library.values():
         load_hdri(path)

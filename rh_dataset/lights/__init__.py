@@ -1,4 +1,4 @@
-"""Lights: HDRI library, sunsky bake, exposure normalisation, SH of the light, the Mitsuba emitter.
+"""Lights: HDRI library, sunsky bake, procedural maps, sampling (mixtures), exposure normalisation, SH of the light, the Mitsuba emitter.
 
 Conventions: docs/ARCHITECTURE.md ("Environment lights", "Spherical harmonics"); SH maths in `rh_common.sh`.
 `Light.radiance` is scaled but NOT rotated; the rotation lives in the Mitsuba `to_world` and in `sh_world`
@@ -24,10 +24,12 @@ from .light import (
     brute_force_irradiance,
     build_light,
     mitsuba_emitter_dict,
+    LIGHT_KINDS,
     rotate_equirect,
-    sample_light,
     sh_truncation_error,
 )
+from .procedural import PROCEDURAL_KINDS, check_params, procedural_map, sample_params
+from .sampling import MIXTURE_KEYS, check_mixture, sample_light
 from .mitsuba_env import ENVMAP_BASIS, envmap_to_world, mitsuba_envmap_array, mitsuba_envmap_data, rotation_z
 from .sunsky import SUN_APERTURE_DEG, bake_sunsky, sun_direction
 
@@ -35,6 +37,9 @@ __all__ = [
     "DEBIAN_STUDIOLIGHTS",
     "ENVMAP_BASIS",
     "HdriError",
+    "LIGHT_KINDS",
+    "MIXTURE_KEYS",
+    "PROCEDURAL_KINDS",
     "Light",
     "LightSpec",
     "SUN_APERTURE_DEG",
@@ -45,6 +50,8 @@ __all__ = [
     "brute_force_irradiance",
     "build_light",
     "bundled_hdris",
+    "check_mixture",
+    "check_params",
     "downsample_equirect",
     "envmap_to_world",
     "hdri_library",
@@ -53,9 +60,11 @@ __all__ = [
     "mitsuba_envmap_array",
     "mitsuba_envmap_data",
     "normalised_scale",
+    "procedural_map",
     "rotate_equirect",
     "rotation_z",
     "sample_light",
+    "sample_params",
     "sh_truncation_error",
     "sun_direction",
 ]

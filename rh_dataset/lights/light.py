@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal, Mapping
 
 import numpy as np
@@ -21,16 +21,17 @@ from rh_common import sh
 from rh_common.colourspace import luminance
 
 from ..variant import ensure_variant
-from .library import load_hdri, normalised_scale
+from .library import load_hdri
 from .mitsuba_env import envmap_to_world, mitsuba_envmap_array, rotation_z
+from .procedural import PROCEDURAL_KINDS, check_params, procedural_map
 from .sunsky import bake_sunsky
 
 __all__ = [
+    "LIGHT_KINDS",
     "LightSpec",
     "Light",
     "SUNSKY_ELEVATION_RANGE_DEG",
     "SUNSKY_TURBIDITY_RANGE",
-    "sample_light",
     "build_light",
     "mitsuba_emitter_dict",
     "rotate_equirect",
@@ -50,17 +51,23 @@ def _is_real(x: object) -> bool:
     return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool) and math.isfinite(x)
 
 
+LIGHT_KINDS = ("envmap", "sunsky", *PROCEDURAL_KINDS)
+
+
 @dataclass(frozen=True)
 class LightSpec:
     """What light a frame uses; reproduces the light exactly (with the file at `source`).
 
-    kind: 'envmap' (an HDRI file) or 'sunsky' (Mitsuba's sunsky, baked). name: library name / 'sunsky'.
-    source: the HDRI path for 'envmap', '' for 'sunsky'. rotation_deg: about +Z, counter-clockwise from above.
-    scale: multiplier applied to the map (includes the exposure normalisation). sun_*: degrees, azimuth
-    counter-clockwise from +X, elevation above the horizon in [0, 90]; turbidity in [1, 10]; None for 'envmap'.
+    kind: 'envmap' (an HDRI file), 'sunsky' (Mitsuba's sunsky, baked) or a procedural kind ('studio', 'window',
+    'outdoor'; `rh_dataset.lights.procedural`). name: library name / the kind. source: the HDRI path for
+    'envmap', '' otherwise. rotation_deg: about +Z, counter-clockwise from above. scale: multiplier applied to the
+    map (includes the exposure normalisation). sun_*: degrees, azimuth counter-clockwise from +X, elevation above
+    the horizon in [0, 90]; turbidity in [1, 10]; only for 'sunsky'. params: the procedural map's JSON-ready
+    description (`procedural.check_params`), only for procedural kinds; `as_dict` leaves it out when None, so
+    the frame JSON of an envmap or sunsky light is what it was before procedural kinds existed.
     """
 
-    kind: Literal["envmap", "sunsky"]
+    kind: Literal["envmap", "sunsky", "studio", "window", "outdoor"]
     name: str
     source: str
     rotation_deg: float
@@ -68,10 +75,11 @@ class LightSpec:
     sun_azimuth_deg: float | None = None
     sun_elevation_deg: float | None = None
     turbidity: float | None = None
+    params: dict | None = field(default=None, hash=False)
 
     def __post_init__(self) -> None:
-        if self.kind not in ("envmap", "sunsky"):
-            raise ValueError(f"LightSpec.kind must be 'envmap' or 'sunsky', got {self.kind!r}")
+        if self.kind not in LIGHT_KINDS:
+            raise ValueError(f"LightSpec.kind must be one of {', '.join(LIGHT_KINDS)}, got {self.kind!r}")
         if not isinstance(self.name, str) or not self.name:
             raise ValueError(f"LightSpec.name must be a non-empty string, got {self.name!r}")
         if not isinstance(self.source, str):
@@ -82,26 +90,54 @@ class LightSpec:
             raise ValueError(f"LightSpec.scale must be a finite number > 0, got {self.scale!r}")
         sun = {"sun_azimuth_deg": self.sun_azimuth_deg, "sun_elevation_deg": self.sun_elevation_deg,
                "turbidity": self.turbidity}
+        if self.kind != "sunsky":
+            for name, value in sun.items():
+                if value is not None:
+                    raise ValueError(f"LightSpec.{name} must be None for kind {self.kind!r}, got {value!r}")
+        if self.kind in PROCEDURAL_KINDS:
+            if self.source != "":
+                raise ValueError(f"LightSpec.source must be '' for kind {self.kind!r}, got {self.source!r}")
+            check_params(self.kind, self.params)
+            return
+        if self.params is not None:
+            raise ValueError(f"LightSpec.params must be None for kind {self.kind!r}, got {self.params!r}")
         if self.kind == "envmap":
             if not self.source:
                 raise ValueError("LightSpec.source must be the HDRI file path for kind 'envmap', got ''")
-            for field, value in sun.items():
-                if value is not None:
-                    raise ValueError(f"LightSpec.{field} must be None for kind 'envmap', got {value!r}")
             return
         if self.source != "":
             raise ValueError(f"LightSpec.source must be '' for kind 'sunsky', got {self.source!r}")
-        for field, value in sun.items():
+        for name, value in sun.items():
             if not _is_real(value):
-                raise ValueError(f"LightSpec.{field} must be a finite number for kind 'sunsky', got {value!r}")
+                raise ValueError(f"LightSpec.{name} must be a finite number for kind 'sunsky', got {value!r}")
         if not 0.0 <= self.sun_elevation_deg <= 90.0:  # type: ignore[operator]
             raise ValueError(f"LightSpec.sun_elevation_deg must be in [0, 90], got {self.sun_elevation_deg!r}")
         if not 1.0 <= self.turbidity <= 10.0:  # type: ignore[operator]
             raise ValueError(f"LightSpec.turbidity must be in [1, 10] (sky model range), got {self.turbidity!r}")
 
     def as_dict(self) -> dict:
-        """Plain JSON-ready dict of the fields (frame JSON `light` block, minus the SH and clamp count)."""
-        return dataclasses.asdict(self)
+        """Plain JSON-ready dict of the fields (frame JSON `light` block, minus the SH and clamp count);
+        `params` only for procedural kinds."""
+        d = dataclasses.asdict(self)
+        if d["params"] is None:
+            del d["params"]
+        return d
+
+    @classmethod
+    def from_json(cls, light: Mapping, where: str, source: str | None = None) -> "LightSpec":
+        """The spec of a frame JSON's `light` block (`as_dict` plus the SH), `source` replacing the recorded
+        (base-name) one when given. Raises ValueError naming `where` (the frame JSON) for an unknown kind or a
+        bad field."""
+        keys = ("kind", "name", "source", "rotation_deg", "scale", "sun_azimuth_deg", "sun_elevation_deg",
+                "turbidity", "params")
+        try:
+            fields = {k: light.get(k) for k in keys}
+            if source is not None:
+                fields["source"] = source
+            return cls(**fields)
+        except (ValueError, TypeError, AttributeError) as exc:
+            raise ValueError(f"{where}: light: {exc}; regenerate the frame with this version of rh-generate") \
+                from None
 
 
 @dataclass(frozen=True, eq=False)  # eq=False: arrays make field-wise == ambiguous; identity semantics instead
@@ -144,6 +180,8 @@ def _readonly(a: np.ndarray) -> np.ndarray:
 def _base_map(spec: LightSpec) -> tuple[np.ndarray, int]:
     if spec.kind == "envmap":
         return load_hdri(spec.source)
+    if spec.kind in PROCEDURAL_KINDS:
+        return procedural_map(spec.kind, spec.params), 0  # type: ignore[arg-type]
     return bake_sunsky(spec.sun_azimuth_deg, spec.sun_elevation_deg, spec.turbidity), 0  # type: ignore[arg-type]
 
 
@@ -154,41 +192,6 @@ def build_light(spec: LightSpec) -> Light:
     # Project the float32 values Mitsuba will receive, then rotate the coefficients (exact, no resampling).
     coeffs = sh.rotate(sh.project_equirect(radiance), rotation_z(spec.rotation_deg))
     return Light(spec=spec, radiance=radiance, sh_world=_readonly(coeffs), negative_pixels_clamped=clamped)
-
-
-def sample_light(
-    rng: np.random.Generator,
-    library: Mapping[str, object],
-    *,
-    exposure_ev_range: tuple[float, float] = (-0.5, 0.5),
-    allow_sunsky: bool,
-) -> LightSpec:
-    """Draw a light: a map chosen uniformly among the library's maps (plus one 'sunsky' option when allowed),
-    rotation uniform in [0, 360), scale = normalised_scale(map) · 2**ev with ev uniform in `exposure_ev_range`.
-
-    Sunsky: azimuth uniform in [0, 360), elevation in SUNSKY_ELEVATION_RANGE_DEG, turbidity in
-    SUNSKY_TURBIDITY_RANGE. Draw order is fixed (choice, rotation, ev, then sun parameters), so a seed
-    reproduces the spec.
-    """
-    names = sorted(library)
-    n_options = len(names) + (1 if allow_sunsky else 0)
-    if n_options == 0:
-        raise ValueError("sample_light: empty HDRI library and allow_sunsky=False; nothing to sample")
-    lo, hi = exposure_ev_range
-    if not (_is_real(lo) and _is_real(hi) and lo <= hi):
-        raise ValueError(f"sample_light: exposure_ev_range must be (low, high) finite, got {exposure_ev_range!r}")
-    k = int(rng.integers(n_options))
-    rotation = float(rng.uniform(0.0, 360.0))
-    ev = float(rng.uniform(lo, hi))
-    if k < len(names):
-        source = str(library[names[k]])
-        base, _ = load_hdri(source)
-        return LightSpec("envmap", names[k], source, rotation, normalised_scale(base) * 2.0**ev)
-    az = float(rng.uniform(0.0, 360.0))
-    el = float(rng.uniform(*SUNSKY_ELEVATION_RANGE_DEG))
-    turb = float(rng.uniform(*SUNSKY_TURBIDITY_RANGE))
-    base = bake_sunsky(az, el, turb)
-    return LightSpec("sunsky", "sunsky", "", rotation, normalised_scale(base) * 2.0**ev, az, el, turb)
 
 
 def mitsuba_emitter_dict(light: Light) -> dict:

@@ -7,9 +7,9 @@ T-pose), and `write_test_models(folder)`, which writes SMPL_{NEUTRAL,MALE,FEMALE
 
 How it is made (every step deterministic, so the same code writes the same bytes):
 - Body: anny (topology `ANNY_TOPOLOGY`) at the gender's phenotype (anny's gender 0 = male, 1 = female, 0.5 for
-  neutral; the other five values at anny's default 0.5), posed into a T-pose with anny's own rig (`TPOSE`: upper
-  arms, forearms and hands turned onto the ±X line, palms down; each thigh turned about the forward axis so the
-  ankle is under the hip; feet back to their rest orientation), then turned into SMPL's axes.
+  neutral; the other five values at anny's default 0.5), posed into a T-pose with anny's own rig (`tpose_rotations`:
+  upper arms, forearms and hands turned onto the ±X line, palms down; each thigh turned about the forward axis so
+  the ankle is under the hip; feet back to their rest orientation), then turned into SMPL's axes.
 - Vertices: 6890 of anny's vertices (farthest-point samples on the neutral T-pose, the same ids for all genders),
   seeded with the anatomical points that smplx's `VertexJointSelector` reads and permuted onto SMPL's ids for them
   (`SMPL_VERTEX_IDS`). Faces: anny's triangles clustered onto the samples (graph-Voronoi regions along anny's
@@ -23,8 +23,10 @@ How it is made (every step deterministic, so the same code writes the same bytes
   fixed for male and female), T-posed the same way; shapedirs are the 10 principal directions of their offsets
   from the template, scaled by their standard deviation (betas ~ unit variance), so betas = 0 is the template, an
   exact anny body. posedirs are zero: anny has no pose correctives.
-The pickle carries an extra key `rh_standin` (source, note, and `anny_vertex_ids`: which anny vertex each stand-in
-vertex is), which SMPL readers ignore.
+The pickle carries an extra key `rh_standin` (source, note, joint residuals, and `anny_vertex_ids`: which anny
+vertex each stand-in vertex is), which SMPL readers ignore. `anny_tpose_bodies` gives any anny body as the stand-in
+sees it (a shape fit's target); `standin_pose.py` poses anny as the stand-in is posed (the comparison's other side).
+The built models are cached per process and shared: treat their arrays as read-only.
 """
 from __future__ import annotations
 
@@ -39,10 +41,10 @@ from rh_dataset.characters.body import PHENOTYPE_LABELS, body_topology, sample_p
 from rh_dataset.poses.rig import Rig
 from rh_dataset.smpl.model import GENDERS, MODEL_FILE_NAMES, BodyModel, write_smpl_pickle
 
-__all__ = ["build_standin", "write_test_models", "standin_report", "tpose_deltas", "tpose_rotations",
-           "anny_pose_from_smpl", "example_pose", "default_phenotype", "shape_phenotypes", "bone_joint_map",
-           "SMPL_JOINT_NAMES", "SMPL_PARENTS", "JOINT_BONES", "SMPL_VERTEX_IDS", "ANNY_TO_SMPL", "N_VERTICES",
-           "StandinReport"]
+__all__ = ["build_standin", "write_test_models", "standin_report", "anny_tpose_bodies", "tpose_deltas",
+           "tpose_rotations", "local_ref_deltas", "default_phenotype", "shape_phenotypes", "bone_joint_map",
+           "to_smpl_axes", "SMPL_JOINT_NAMES", "SMPL_PARENTS", "JOINT_BONES", "SMPL_VERTEX_IDS", "ANNY_TO_SMPL",
+           "N_VERTICES", "StandinReport"]
 
 N_VERTICES = 6890
 N_BETAS = 10
@@ -128,10 +130,10 @@ def _frame(along: np.ndarray, across: np.ndarray) -> np.ndarray:
 
 def tpose_deltas(rig: Rig) -> np.ndarray:
     """anny 'local-ref' deltas (J,4,4) that put `rig`'s body (reference A-pose) into SMPL's T-pose."""
-    return _deltas(rig.parents, tpose_rotations(rig))
+    return local_ref_deltas(rig.parents, tpose_rotations(rig))
 
 
-def _deltas(parents: np.ndarray, G: np.ndarray) -> np.ndarray:
+def local_ref_deltas(parents: np.ndarray, G: np.ndarray) -> np.ndarray:
     """'local-ref' deltas from world rotations relative to the reference pose: D_c = G_parent^T G_c."""
     D = np.tile(np.eye(4), (len(parents), 1, 1))
     for c in range(len(parents)):
@@ -181,46 +183,6 @@ def tpose_rotations(rig: Rig) -> np.ndarray:
     return G
 
 
-def anny_pose_from_smpl(rig: Rig, full_pose: np.ndarray) -> dict[str, np.ndarray]:
-    """anny 'local-ref' deltas (label -> 4x4) that pose `rig`'s body as the stand-in poses it for SMPL's
-    parent-relative axis-angle `full_pose` (24,3: global_orient, then joints 1-23); translation not included.
-
-    Each bone turns with its SMPL joint's world rotation (SMPL axes turned into anny's) on top of its T-pose
-    rotation. Exact, up to the J_regressor's residual, wherever a joint's group hangs from one bone; the foot and
-    hand joints turn five toes / four fingers, each about its own base in anny but about their mean in the
-    stand-in, so keep those two joints near zero when comparing the two."""
-    from scipy.spatial.transform import Rotation
-
-    R = Rotation.from_rotvec(np.asarray(full_pose, np.float64).reshape(-1, 3)).as_matrix()
-    Gs = np.empty_like(R)
-    for k, p in enumerate(SMPL_PARENTS):
-        Gs[k] = R[k] if p < 0 else Gs[p] @ R[k]
-    Ga = np.einsum("ba,kbc,cd->kad", ANNY_TO_SMPL, Gs, ANNY_TO_SMPL)  # C^T Gs C: the same turn in anny's axes
-    owner = bone_joint_map(rig.bone_labels, rig.parents)
-    G = np.einsum("cab,cbd->cad", Ga[owner], tpose_rotations(rig))
-    D = _deltas(rig.parents, G)
-    return {label: D[i] for i, label in enumerate(rig.bone_labels)}
-
-
-def example_pose() -> np.ndarray:
-    """A moderate SMPL pose, parent-relative axis-angle (24,3): a walk-like step, bent elbows and knees, a turned
-    torso and head, the foot and hand joints at zero (see `anny_pose_from_smpl`). What the tests and
-    bench/smpl_standin.py compare the stand-in against anny with."""
-    p = np.zeros((24, 3))
-    n = {k: i for i, k in enumerate(SMPL_JOINT_NAMES)}
-    p[n["pelvis"]] = (0.1, 0.4, 0.0)
-    p[n["L_hip"]], p[n["R_hip"]] = (-0.5, 0.0, 0.1), (0.3, 0.0, -0.1)
-    p[n["L_knee"]], p[n["R_knee"]] = (0.8, 0.0, 0.0), (0.3, 0.0, 0.0)
-    p[n["L_ankle"]] = (0.2, 0.1, 0.0)
-    p[n["spine1"]], p[n["spine2"]], p[n["spine3"]] = (0.1, 0.1, 0.0), (0.05, 0.1, 0.05), (0.0, 0.1, 0.0)
-    p[n["neck"]], p[n["head"]] = (0.2, -0.2, 0.0), (0.1, -0.2, 0.1)
-    p[n["L_collar"]], p[n["R_collar"]] = (0.0, 0.0, 0.1), (0.0, 0.0, -0.1)
-    p[n["L_shoulder"]], p[n["R_shoulder"]] = (0.0, -0.3, -0.9), (0.2, 0.3, 1.0)
-    p[n["L_elbow"]], p[n["R_elbow"]] = (0.0, -1.2, 0.0), (0.0, 0.7, 0.0)
-    p[n["L_wrist"]], p[n["R_wrist"]] = (0.3, 0.0, 0.2), (-0.2, 0.0, 0.0)
-    return p
-
-
 def _rigs(phenotypes: list[dict[str, float]]) -> list[Rig]:
     """One numpy rig per phenotype, anny run once as a batch (one thread: bitwise reproducible)."""
     import torch
@@ -248,7 +210,13 @@ def _tposed(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     heads = W[:, :3, 3]
     idx = rig.index
     joints = np.stack([heads[[idx[b] for b in JOINT_BONES[j]]].mean(0) for j in SMPL_JOINT_NAMES])
-    return verts @ ANNY_TO_SMPL.T, heads @ ANNY_TO_SMPL.T, joints @ ANNY_TO_SMPL.T
+    return to_smpl_axes(verts), to_smpl_axes(heads), to_smpl_axes(joints)
+
+
+def to_smpl_axes(points: np.ndarray) -> np.ndarray:
+    """anny's axes to SMPL's (`ANNY_TO_SMPL`) by moving coordinates, exactly: (x, y, z) -> (x, z, -y)."""
+    p = np.asarray(points)
+    return np.stack([p[..., 0], p[..., 2], -p[..., 1]], -1)
 
 
 def default_phenotype(gender: str) -> dict[str, float]:
@@ -317,10 +285,12 @@ def _shape_space(template: np.ndarray, bodies: np.ndarray) -> tuple[np.ndarray, 
     by its standard deviation, the sign fixed so the largest entry is positive; and the variance share kept."""
     X = (bodies - template[None]).reshape(len(bodies), -1)
     # Through the small (P,P) Gram matrix: the same directions as an SVD of X, at a fraction of its cost.
-    ev, U = np.linalg.eigh(X @ X.T)
+    # einsum, not BLAS: OpenBLAS's threaded products change the last bits with the core count, the file's bytes
+    # must not.
+    ev, U = np.linalg.eigh(np.einsum("ik,jk->ij", X, X))
     ev, U = np.maximum(ev[::-1], 0.0), U[:, ::-1]
     s = np.sqrt(ev)
-    Vt = (U[:, :N_BETAS].T @ X) / s[:N_BETAS, None]
+    Vt = np.einsum("pb,pk->bk", U[:, :N_BETAS], X) / s[:N_BETAS, None]
     dirs = Vt * (s[:N_BETAS, None] / np.sqrt(len(bodies)))
     sign = np.sign(dirs[np.arange(N_BETAS), np.argmax(np.abs(dirs), axis=1)])
     dirs = dirs * sign[:, None]
@@ -346,9 +316,7 @@ def _build(gender: str) -> tuple[BodyModel, StandinReport]:
     rigs = _rigs(phenos)
     mesh = _resampled()
     ids = mesh.anny_ids
-    posed = [_tposed(r) for r in rigs]
-    bodies = np.stack([p[0][ids] for p in posed])
-    joints = np.stack([p[2] for p in posed])
+    bodies, joints = _tposed_bodies(rigs, ids)
     template = bodies[0]
     shapedirs, kept = _shape_space(template, bodies[1:])
     rig = rigs[0]
@@ -375,6 +343,17 @@ def _build(gender: str) -> tuple[BodyModel, StandinReport]:
                       posedirs=np.zeros((len(ids), 3, 9 * (len(SMPL_PARENTS) - 1))), J_regressor=J_regressor,
                       weights=weights, parents=SMPL_PARENTS.copy(), faces=mesh.faces.astype(np.int64), extra=extra)
     return model, report
+
+
+def _tposed_bodies(rigs: list[Rig], ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    posed = [_tposed(r) for r in rigs]
+    return np.stack([p[0][ids] for p in posed]), np.stack([p[2] for p in posed])
+
+
+def anny_tpose_bodies(phenotypes: list[dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """anny bodies of `phenotypes` as the stand-in sees them: T-posed, in SMPL's axes, at the stand-in's vertices
+    (P,6890,3), with their mapped joints (P,24,3). What a shape fit of the stand-in to anny aims at."""
+    return _tposed_bodies(_rigs(list(phenotypes)), _resampled().anny_ids)
 
 
 @functools.lru_cache(maxsize=3)
