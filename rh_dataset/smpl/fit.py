@@ -346,8 +346,6 @@ def _optimise(inp: FitInput):
                     theta, beta, cost, lam = theta + dth, beta + db, new, max(lam / 3.0, 1e-7)
                     break
                 lam *= 4.0
-            if _DEBUG:
-                print(f"  LM cost {cost:.4e} lambda {lam:.1e}")
 
     fit_beta = inp.betas is None
     t_joints = model_tensors(model, dt, vertex_ids=np.zeros(0, np.int64))
@@ -397,6 +395,3 @@ def _optimise(inp: FitInput):
         R = (rodrigues(theta[:, :3]) @ R0).numpy()
     th = theta.numpy()
     return beta.numpy().copy(), [(_rotvec(R[i]), th[i, 3:P - 3].copy(), th[i, P - 3:].copy()) for i in range(B)]
-
-
-_DEBUG = bool(__import__("os").environ.get("RH_FIT_DEBUG"))
