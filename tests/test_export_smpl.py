@@ -166,3 +166,15 @@ def test_usd_stage_carries_the_smpl_mesh(rh_export, models, tmp_path):
     w2c = np.asarray(read_json(rh_out / "test" / "subject_01" / "frame_000001.json")["rh"]["camera"]["world_to_camera"])
     rh = read_json(rh_out / "test" / "subject_01" / "frame_000001.json")["skeleton_0"]["smpl_data"]
     assert np.abs(points @ w2c[:3, :3].T + w2c[:3, 3] - np.asarray(rh["vertices"]) / 1000.0).max() < 1e-5
+
+
+def test_a_frame_above_the_threshold_is_refused_by_name(rh_export, models):
+    """A limit below the fit's error: the cached fit is judged again (no refit) and the first frame is named."""
+    import dataclasses
+
+    from rh_dataset.export import ExportError
+
+    ds, out, _ = rh_export
+    strict = dataclasses.replace(QUICK, max_mean_mm=0.001)
+    with pytest.raises(ExportError, match=r"frame subject_000/\w+/\d{6}: the SMPL fit is too far .*--smpl-max-mean-mm"):
+        export_dataset(ds, "a", "relighting-humans", out, smpl_model=models, smpl_settings=strict)
