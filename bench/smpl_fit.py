@@ -67,7 +67,8 @@ def main() -> None:
         with torch.no_grad():
             V, J = camera_frame(model, t(fit.betas), t(pose), t(ff.global_orient), t(ff.global_trans))
         q0 = measure_quality(V[0].numpy(), model.faces, J[0].numpy(), target)
-        print(f"{f.index:5d}  {poses[f.index].label[:11]:11s}  {q.model_to_anny_mean_mm:8.2f} / {q.model_to_anny_max_mm:6.1f}"
+        print(f"{f.index:5d}  {poses[f.index].label[:11]:11s}  "
+              f"{q.model_to_anny_mean_mm:8.2f} / {q.model_to_anny_max_mm:6.1f}"
               f"        {q.anny_to_model_mean_mm:8.2f} / {q.anny_to_model_max_mm:6.1f}       "
               f"{q.joint_mean_mm:6.1f} / {q.joint_max_mm:5.1f}    | {q0.model_to_anny_mean_mm:6.2f} / "
               f"{q0.anny_to_model_mean_mm:6.2f}")

@@ -72,7 +72,8 @@ def test_bitwise_deterministic_and_shared_betas(standin):
 def test_refuses_a_frame_above_the_thresholds():
     good = FitQuality(2.0, 30.0, 2.0, 30.0, 5.0, 10.0)
     check_quality([("subject_000/train/000001", good)], FitSettings())
-    for bad in (dataclasses.replace(good, anny_to_model_mean_mm=40.0), dataclasses.replace(good, model_to_anny_max_mm=300.0)):
+    for bad in (dataclasses.replace(good, anny_to_model_mean_mm=40.0),
+                dataclasses.replace(good, model_to_anny_max_mm=300.0)):
         with pytest.raises(FitRefused, match=r"subject_000/train/000001: .*--smpl-max-mean-mm"):
             check_quality([("subject_000/train/000000", good), ("subject_000/train/000001", bad)], FitSettings())
 

@@ -80,7 +80,8 @@ def _inputs_sha256(frames: list[FrameRef]) -> str:
 
     h = hashlib.sha256()
     for f in frames:
-        h.update(json.dumps([_key(f), f.meta.get("body"), f.meta["camera"]["world_to_camera"]], sort_keys=True).encode())
+        record = [_key(f), f.meta.get("body"), f.meta["camera"]["world_to_camera"]]
+        h.update(json.dumps(record, sort_keys=True).encode())
     return h.hexdigest()
 
 

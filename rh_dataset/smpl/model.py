@@ -335,7 +335,8 @@ def forward(model: BodyModel, betas, body_pose, global_orient, transl=None, tens
     n_b = betas.shape[1]
     V = t["v_template"].shape[0]
     # Matrix products on flat views (no permuted copies of the (V,3,S) and (V,3,P) arrays; einsum made those).
-    v_shaped = t["v_template"][None] + (betas @ t["shapedirs"].reshape(V * 3, t["shapedirs"].shape[2])[:, :n_b].T).reshape(B, V, 3)
+    S = t["shapedirs"].reshape(V * 3, t["shapedirs"].shape[2])[:, :n_b]
+    v_shaped = t["v_template"][None] + (betas @ S.T).reshape(B, V, 3)
     # Joints from the regressed template and shape directions: J_regressor · (T + S·β) = J_regressor·T +
     # (J_regressor·S)·β, which holds for any vertex subset in `tensors` (model_tensors(vertex_ids=...)).
     J = t["J_template"][None] + torch.einsum("bs,jcs->bjc", betas, t["J_shapedirs"][..., :n_b])
@@ -343,7 +344,8 @@ def forward(model: BodyModel, betas, body_pose, global_orient, transl=None, tens
     R = rodrigues(full)                                                         # (B,J,3,3)
     eye = torch.eye(3, dtype=R.dtype, device=R.device)
     pose_feature = (R[:, 1:] - eye).reshape(B, -1)
-    v_posed = v_shaped + (pose_feature @ t["posedirs"].reshape(V * 3, t["posedirs"].shape[2]).T).reshape(B, V, 3)
+    P = t["posedirs"].reshape(V * 3, t["posedirs"].shape[2])
+    v_posed = v_shaped + (pose_feature @ P.T).reshape(B, V, 3)
     parents = model.parents
     rel = J.clone()
     rel[:, 1:] = J[:, 1:] - J[:, parents[1:]]
