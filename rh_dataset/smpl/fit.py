@@ -14,12 +14,12 @@ without translation and J0 its root joint (`camera_frame`).
 Method (docs/INTEROP.md "SMPL fitted to every frame"): (1) initialise every frame from anny's joints: a rigid
 Kabsch fit of the torso joints gives the root, then each joint turns its bone(s) onto anny's (the shortest
 rotation, or a Kabsch fit over several children); (2) Levenberg-Marquardt on the joints alone (shape and pose);
-(3) rounds of Levenberg-Marquardt on the surface: strided model vertices to the tangent plane of their nearest anny vertex,
-strided anny vertices to the tangent plane of their nearest model vertex, plus a weak joint term and small pose and
-shape priors, correspondences refreshed between rounds. Each frame's Jacobian block comes from forward-mode
-autodiff (one tangent per parameter, shared by the frames); the shared betas are solved through the Schur
-complement. Every count is fixed and torch runs on a fixed number of threads (`rh_common.threads`), so the result
-is bitwise deterministic.
+(3) rounds of Levenberg-Marquardt on the surface: strided model vertices to the tangent plane of their nearest
+anny vertex, strided anny vertices to the tangent plane of their nearest model vertex, plus a weak joint term and
+small pose and shape priors, correspondences refreshed between rounds. Each frame's Jacobian block comes from
+forward-mode autodiff (one tangent per parameter, shared by the frames); the shared betas are solved through the
+Schur complement. Every count is fixed and torch runs on a fixed number of threads (`rh_common.threads`), so the
+result is bitwise deterministic.
 """
 from __future__ import annotations
 
