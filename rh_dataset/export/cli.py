@@ -20,7 +20,7 @@ FORMATS = ("relighting-humans", "zju-mocap", "usd")
 EXPORT_FORMAT = "rh-export/1"
 
 
-def _prepare_out(out: Path, fmt: str, dataset: Path, protocol: str) -> None:
+def _prepare_out(out: Path, fmt: str, dataset: Path, protocol: str, smpl: dict | None = None) -> None:
     rec_path = out / "export.json"
     if rec_path.is_file():
         rec = read_json(rec_path)
@@ -39,23 +39,41 @@ def _prepare_out(out: Path, fmt: str, dataset: Path, protocol: str) -> None:
         "export": EXPORT_FORMAT, "format": fmt, "protocol": protocol, "source": str(dataset.resolve()),
         "source_dataset_json": read_json(dataset / layout.DATASET_JSON),
         "source_files": len(manifest), "generator_version": __version__,
+        **({"smpl": smpl} if smpl else {}),
     })
 
 
 def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path, *, subjects: int | None = None,
                    splits: tuple[str, ...] | None = None, usd_ext: str = "usdc", zju_vertices: bool = True,
-                   progress: bool = False) -> dict:
-    """Export every frame of `protocol` (optionally the first `subjects`, some `splits`); returns counts."""
+                   progress: bool = False, smpl_model: str | Path | None = None, smpl_gender: str = "neutral",
+                   smpl_settings=None) -> dict:
+    """Export every frame of `protocol` (optionally the first `subjects`, some `splits`); returns counts.
+    `smpl_model`: the folder of the user's SMPL files; every frame then carries SMPL fitted to its anny body
+    (export/smpl.py), one betas per subject fitted over all its frames of the protocol."""
     dataset, out = Path(dataset), Path(out)
     if fmt not in FORMATS:
         raise ExportError(f"unknown --format {fmt!r}; choose one of {', '.join(FORMATS)}")
     ds = check_dataset(dataset, protocol)
+    model = None
+    if smpl_model is not None:
+        from .smpl import load_model
+
+        model = load_model(smpl_model, smpl_gender)  # before anything is written: a bad file stops here
     out.mkdir(parents=True, exist_ok=True)
-    _prepare_out(out, fmt, dataset, protocol)
+    _prepare_out(out, fmt, dataset, protocol, None if model is None else {
+        "model_file": Path(model.path).name, "model_sha256": model.sha256, "gender": model.gender,
+        "standin": bool(model.extra.get("rh_standin"))})
     hdri_folder = ds["protocols"][layout.protocol_dir(protocol)]["spec"].get("hdri_folder")
     frames = list(iter_frames(dataset, protocol, splits, subjects))
     if not frames:
         raise ExportError(f"{dataset}: no frames of protocol {protocol!r} to export")
+    fits = None
+    if model is not None:
+        from .smpl import SmplFits
+
+        # Every split of the exported subjects: the betas must not depend on --split.
+        fits = SmplFits(model, out, list(iter_frames(dataset, protocol, None, subjects)), smpl_settings,
+                        log=lambda line: print(f"rh-export: {line}", flush=True))
     from tqdm import tqdm
 
     t0 = time.perf_counter()
@@ -68,16 +86,19 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
             from .relighting_humans import export_frame
 
             files += len(export_frame(f, out, layout.protocol_dir(protocol)[len("protocol_"):],
-                                      hdri_folder=hdri_folder, baked=baked))
+                                      hdri_folder=hdri_folder, baked=baked,
+                                      smpl=None if fits is None else fits.rh_block(f)))
         elif fmt == "zju-mocap":
             from .zju_mocap import export_frame
 
-            files += len(export_frame(f, out, protocol, vertices=zju_vertices))
+            files += len(export_frame(f, out, protocol, vertices=zju_vertices,
+                                      smpl=None if fits is None else fits.zju_params(f)))
             sequences[(f.subject, f.split)].append(f)
         else:
             from .usd import export_frame
 
-            files += len(export_frame(f, out, protocol, dataset=dataset, hdri_folder=hdri_folder, ext=usd_ext))
+            files += len(export_frame(f, out, protocol, dataset=dataset, hdri_folder=hdri_folder, ext=usd_ext,
+                                      smpl=None if fits is None else fits.usd_mesh(f)))
     if fmt == "zju-mocap":
         from .zju_mocap import sequence_dir, write_annots
 
@@ -87,9 +108,12 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
     if fmt == "relighting-humans":
         from .relighting_humans import write_readme
 
-        limits = write_readme(out, layout.protocol_dir(protocol)[len("protocol_"):], frames, baked)
+        limits = write_readme(out, layout.protocol_dir(protocol)[len("protocol_"):], frames, baked, smpl=model)
         files += 1 + 2 * len(baked)
-    return {"frames": len(frames), "files": files, "seconds": time.perf_counter() - t0, "limits": limits}
+    counts = {"frames": len(frames), "files": files, "seconds": time.perf_counter() - t0, "limits": limits}
+    if fits is not None:
+        counts["smpl_fit_seconds"], counts["smpl_fitted_frames"] = fits.seconds, fits.fitted_frames
+    return counts
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -110,6 +134,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--usd-ext", default="usdc", choices=["usda", "usdc", "usd"],
                    help="USD file type: usda (text) or usdc (binary crate, ~4x smaller)")
     p.add_argument("--no-vertices", action="store_true", help="zju-mocap: skip vertices/<i>.npy (posed body)")
+    p.add_argument("--smpl-model", type=Path, default=None, metavar="DIR",
+                   help="folder holding your own SMPL_NEUTRAL.pkl / SMPL_MALE.pkl / SMPL_FEMALE.pkl (SMPL's licence: "
+                        "never bundled or downloaded): fit SMPL to every frame's unclothed anny body and write its "
+                        "numbers (relighting-humans, zju-mocap; usd adds the SMPL mesh); the fit is cached in "
+                        "OUT/smpl_fit/")
+    p.add_argument("--smpl-gender", default="neutral", choices=["neutral", "male", "female"],
+                   help="which SMPL file to fit (the clients name it in `gender`; Gaussian Shadow Casting always "
+                        "loads the neutral one)")
+    p.add_argument("--smpl-max-mean-mm", type=float, default=None,
+                   help="refuse a frame whose mean SMPL-to-anny distance (either way) is above this (default 15)")
+    p.add_argument("--smpl-max-peak-mm", type=float, default=None,
+                   help="refuse a frame whose largest SMPL-to-anny distance (either way) is above this (default 100)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--write-test-smpl", type=Path, metavar="DIR",
                    help="write a stand-in model built from anny as SMPL_NEUTRAL.pkl, SMPL_MALE.pkl and "
@@ -141,14 +177,28 @@ def main(argv: list[str] | None = None) -> int:
     # Every export file is written atomically, and a rerun into the same --out replaces them all.
     on_stop(lambda: f"the files already in {args.out} are whole; a rerun rewrites the export")
     try:
+        settings = None
+        if args.smpl_max_mean_mm is not None or args.smpl_max_peak_mm is not None:
+            import dataclasses
+
+            from rh_dataset.smpl.fit import FitSettings
+
+            d = FitSettings()
+            settings = dataclasses.replace(
+                d, max_mean_mm=d.max_mean_mm if args.smpl_max_mean_mm is None else args.smpl_max_mean_mm,
+                max_max_mm=d.max_max_mm if args.smpl_max_peak_mm is None else args.smpl_max_peak_mm)
         counts = export_dataset(args.dataset, args.protocol, args.format, args.out, subjects=args.subjects,
                                 splits=tuple(args.split) if args.split else None, usd_ext=args.usd_ext,
-                                zju_vertices=not args.no_vertices, progress=not args.no_progress)
+                                zju_vertices=not args.no_vertices, progress=not args.no_progress,
+                                smpl_model=args.smpl_model, smpl_gender=args.smpl_gender, smpl_settings=settings)
     except (ExportError, ValueError, FileNotFoundError) as exc:
         print(f"rh-export: error: {exc}", file=sys.stderr)
         return 2
     print(f"rh-export: {counts['frames']} frames, {counts['files']} files written in {counts['seconds']:.1f} s; "
           f"{args.format} export in {args.out}")
+    if counts.get("smpl_fitted_frames"):
+        n, sec = counts["smpl_fitted_frames"], counts["smpl_fit_seconds"]
+        print(f"rh-export: SMPL fit {n} frames in {sec:.1f} s ({sec / n:.2f} s per frame)")
     for line in counts["limits"]:
         print(f"rh-export: note: {line}")
     return 0

@@ -12,6 +12,8 @@ In: the frames of one protocol of a finished dataset. Out (docs/INTEROP.md "Reli
     <out>/README.md                                       what this export can and cannot serve
 
 Protocol a maps to train_p1/ + test/, protocol b to train_p2_p3/ + test/, as the published folders are named.
+With --smpl-model, `skeleton_0.smpl_data` holds SMPL fitted to the frame's anny body (export/smpl.py) and anny's
+numbers move to `anny_*` keys; without it, anny's numbers stand in SMPL's keys and the README says who fails.
 """
 from __future__ import annotations
 
@@ -56,9 +58,11 @@ def _copy(src: Path, dst: Path) -> None:
         tmp.write_bytes(data)
 
 
-def rh_json(f: FrameRef, bake: dict) -> dict:
-    """The frame JSON in the published key layout (anny in place of SMPL), plus our full record under 'rh'.
-    `bake` is the frame's baked light (`rh_light.bake_frame_light`)."""
+def rh_json(f: FrameRef, bake: dict, smpl: dict | None = None) -> dict:
+    """The frame JSON in the published key layout, plus our full record under 'rh'. `bake` is the frame's baked
+    light (`rh_light.bake_frame_light`). `smpl`: the frame's SMPL block (export/smpl.py `SmplFits.rh_block`); then
+    `smpl_data` holds SMPL's numbers and anny's keep their place under `anny_*` names; without it, anny's numbers
+    stand in SMPL's keys (and the README says which clients that cannot serve)."""
     m = f.meta
     K = client_K(m["camera"]["K"])
     w2c = np.array(m["camera"]["world_to_camera"], dtype=np.float64)
@@ -84,6 +88,9 @@ def rh_json(f: FrameRef, bake: dict) -> dict:
         "global_trans": t_cam.tolist(),
         "scale": 1.0,
     }
+    if smpl is not None:
+        anny = {f"anny_{k}": v for k, v in smpl_data.items() if k not in ("model", "K", "scale")}
+        smpl_data = {**smpl, "K": K.tolist(), **anny}
     rec = {k: v for k, v in m.items() if k != "files"}
     out = {
         "format": "rh-export/relighting-humans/1",
@@ -109,8 +116,9 @@ def rh_json(f: FrameRef, bake: dict) -> dict:
 
 
 def export_frame(f: FrameRef, out: Path, protocol: str, *, hdri_folder: str | None = None,
-                 baked: dict | None = None) -> list[Path]:
-    """Write one frame; `baked` (stem → record) is shared by the frames of one export so each light bakes once."""
+                 baked: dict | None = None, smpl: dict | None = None) -> list[Path]:
+    """Write one frame; `baked` (stem → record) is shared by the frames of one export so each light bakes once;
+    `smpl` as in `rh_json`."""
     d = Path(out) / split_folder(protocol, f.split) / subject_folder(f.subject)
     stem = f"frame_{f.index:06d}"
     written = []
@@ -132,7 +140,7 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, hdri_folder: str | No
         written.append(d / f"{stem}_normals.png")
     bake = bake_frame_light(f.meta, hdri_folder, Path(out), {} if baked is None else baked,
                             str(layout.frame_json_path(f.split_dir, f.index)))
-    write_json(d / f"{stem}.json", rh_json(f, bake))
+    write_json(d / f"{stem}.json", rh_json(f, bake, smpl))
     written.append(d / f"{stem}.json")
     return written
 
@@ -140,12 +148,21 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, hdri_folder: str | No
 _CLIENTS = "IntrinsicAvatar and DNF-Avatar (scripts/preprocess_RANA.py), Gaussian Shadow Casting (rana_to_h5.ipynb)"
 
 
-def write_readme(out: Path, protocol: str, frames: list[FrameRef], baked: dict) -> list[str]:
+def write_readme(out: Path, protocol: str, frames: list[FrameRef], baked: dict, smpl=None) -> list[str]:
     """`<out>/README.md`: the layout, and plainly which published clients this export cannot serve and why.
-    Returns those limits (one line each), which the CLI also prints."""
-    limits = ["no SMPL parameters: `skeleton_0.smpl_data` holds anny's body (6 phenotype values, 309 pose values), "
-              f"so {_CLIENTS} stop where they evaluate SMPL (the SMPL fit, issue #15 part 1, is not written yet); "
-              "`joints` and `vertices` are absent"]
+    `smpl`: the SMPL model the frames were fitted with (a `BodyModel`), or None. Returns those limits (one line
+    each), which the CLI also prints."""
+    if smpl is None:
+        limits = ["no SMPL parameters: `skeleton_0.smpl_data` holds anny's body (6 phenotype values, 309 pose "
+                  f"values), so {_CLIENTS} stop where they evaluate SMPL; `joints` and `vertices` are absent "
+                  "(export with --smpl-model DIR, the folder of your own SMPL files, to fit SMPL to every frame)"]
+    elif smpl.extra.get("rh_standin"):
+        limits = [f"`skeleton_0.smpl_data` was fitted with the stand-in model {Path(smpl.path).name} (sha256 "
+                  f"{smpl.sha256[:12]}…, rh-export --write-test-smpl): a body built from anny in SMPL's file format, "
+                  "NOT SMPL; the clients run with it, but nothing measured with it is an SMPL result (export with "
+                  "your own SMPL files for that)"]
+    else:
+        limits = []
     no_gt = sorted({split_folder(protocol, f.split) for f in frames
                     if not (f.layer("albedo.exr").is_file() and f.layer("normal.png").is_file())})
     if no_gt:

@@ -7,6 +7,7 @@ Stage: upAxis Z, metersPerUnit 1 (our world, docs/ARCHITECTURE.md). Prims:
     /World                       default prim; customData holds the frame's K, world_to_camera, exposure, light
     /World/Character/<part>      UsdGeom.Mesh (points, normals and st per vertex, subdivisionScheme none)
     /World/Looks/<material>      UsdPreviewSurface ← UsdUVTexture(albedo PNG, sRGB) ← UsdPrimvarReader_float2(st)
+    /World/SMPL                  with --smpl-model: the SMPL fit (UsdGeom.Mesh, world metres, purpose guide)
     /World/Camera                UsdGeom.Camera matching K and world_to_camera
     /World/DomeLight             UsdLux.DomeLight, texture = the HDRI file, intensity = light scale
 
@@ -159,7 +160,9 @@ def _light_texture(f: FrameRef, stage_dir: Path, hdri_folder: str | None) -> tup
 
 
 def export_frame(f: FrameRef, out: Path, protocol: str, *, dataset: Path, hdri_folder: str | None = None,
-                 ext: str = "usdc") -> list[Path]:
+                 ext: str = "usdc", smpl: tuple[np.ndarray, np.ndarray, dict] | None = None) -> list[Path]:
+    """Write one frame's stage. `smpl`: (world vertices (6890, 3), faces, record) of the frame's SMPL fit
+    (export/smpl.py), written as /World/SMPL beside the clothed character, purpose 'guide' (not rendered)."""
     from rh_dataset.characters import pose_character
     from rh_dataset.poses import BodyPose
 
@@ -212,6 +215,16 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, dataset: Path, hdri_f
                                                          UsdGeom.Tokens.vertex)
             st.Set(Vt.Vec2fArray.FromNumpy(np.asarray(mesh.uvs, dtype=np.float32)))  # v up, as USD's st
             UsdShade.MaterialBindingAPI.Apply(prim.GetPrim()).Bind(materials[k])
+
+        if smpl is not None:
+            V, F, record = smpl
+            body = UsdGeom.Mesh.Define(stage, "/World/SMPL")
+            body.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(np.asarray(V, dtype=np.float32)))
+            body.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(F), 3, dtype=np.int32)))
+            body.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(F, np.int32).ravel()))
+            body.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+            body.CreatePurposeAttr(UsdGeom.Tokens.guide)  # the fitted body under the clothes: shown, not rendered
+            body.GetPrim().SetCustomDataByKey("rh_smpl", record)
 
         cam = UsdGeom.Camera.Define(stage, "/World/Camera")
         for name, value in camera_attributes(m["camera"]["K"], m["width"], m["height"]).items():

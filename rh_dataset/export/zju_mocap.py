@@ -7,6 +7,9 @@ One sequence per (subject, split), one camera ('Camera_B1', our fixed per-subjec
                             mask/Camera_B1/000000.png, mask_cihp/...  0/255, coverage > 0.5
                             params/0.npy          {'poses','Rh','Th','shapes', ...} (anny, see docs/INTEROP.md)
                             vertices/0.npy        (V, 3) float32 posed anny body in world metres
+    with --smpl-model:      params/0.npy          SMPL: poses (1,72) root zero, Rh, Th, shapes (1,10); anny_* keys
+                            vertices/0.npy        (6890, 3) float32 that SMPL body in world metres
+                            vertices_anny/0.npy   the posed anny body
                             rh/frame_000000.json  our frame record (light, SH, exposure)
 
 As in ZJU-MoCap, cams['T'] is in millimetres (NeuralBody divides it by 1000), R/T map world to OpenCV camera
@@ -73,7 +76,11 @@ def posed_body_vertices(meta: dict) -> np.ndarray:
     return pose.apply_root_transform(v).astype(np.float32)
 
 
-def export_frame(f: FrameRef, out: Path, protocol: str, *, vertices: bool = True) -> list[Path]:
+def export_frame(f: FrameRef, out: Path, protocol: str, *, vertices: bool = True,
+                 smpl: tuple[dict, np.ndarray] | None = None) -> list[Path]:
+    """Write one frame. `smpl`: (params, (6890, 3) world vertices) of the frame's SMPL fit (export/smpl.py
+    `SmplFits.zju_params`); then params/ and vertices/ hold SMPL as NeuralBody reads them, and anny's numbers move
+    to `anny_*` keys and vertices_anny/."""
     d = sequence_dir(out, f)
     name = f"{f.index:06d}.png"
     img = d / CAMERA / name
@@ -82,11 +89,19 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, vertices: bool = True
     mask = np.where(read_png(f.layer("mask.png")) >= 128, 255, 0).astype(np.uint8)
     write_png(d / "mask" / CAMERA / name, mask)
     write_png(d / "mask_cihp" / CAMERA / name, mask)
-    save_npy(d / "params" / f"{f.index}.npy", frame_params(f.meta))
+    params = frame_params(f.meta)
+    anny_vertices = "vertices"
+    if smpl is not None:
+        params = {**smpl[0], **{f"anny_{k}": v for k, v in params.items() if k != "model"}}
+        anny_vertices = "vertices_anny"
+    save_npy(d / "params" / f"{f.index}.npy", params)
     written = [img, d / "mask" / CAMERA / name, d / "mask_cihp" / CAMERA / name, d / "params" / f"{f.index}.npy"]
     if vertices:
-        save_npy(d / "vertices" / f"{f.index}.npy", posed_body_vertices(f.meta))
-        written.append(d / "vertices" / f"{f.index}.npy")
+        save_npy(d / anny_vertices / f"{f.index}.npy", posed_body_vertices(f.meta))
+        written.append(d / anny_vertices / f"{f.index}.npy")
+        if smpl is not None:
+            save_npy(d / "vertices" / f"{f.index}.npy", smpl[1])
+            written.append(d / "vertices" / f"{f.index}.npy")
     write_json(d / "rh" / layout.frame_json_name(f.index), {k: v for k, v in f.meta.items() if k != "files"})
     return written
 

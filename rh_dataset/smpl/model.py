@@ -47,6 +47,7 @@ MODEL_FILE_NAMES = {
 }
 
 JOINT_COUNTS = {"smpl": 24, "smplx": 55}
+_KEPT_EXTRAS = ("rh_standin",)  # the stand-in's own record (standin.py), so exports can say it is not SMPL
 
 
 class SmplModelError(ValueError):
@@ -265,7 +266,7 @@ def load_body_model(path: str | Path, kind: str = "smpl", gender: str = "neutral
         raise SmplModelError(f"{path}: kintree_table's parents are not ordered root-first; not a {kind.upper()} model")
     return BodyModel(kind=kind, gender=gender, v_template=v_template, shapedirs=shapedirs, posedirs=posedirs,
                      J_regressor=J_regressor, weights=weights, parents=parents, faces=faces, path=str(path),
-                     sha256=_sha256(path))
+                     sha256=_sha256(path), extra={k: arrays[k] for k in _KEPT_EXTRAS if k in arrays})
 
 
 def find_model_file(folder: str | Path, kind: str = "smpl", gender: str = "neutral") -> Path:
@@ -332,13 +333,19 @@ def forward(model: BodyModel, betas, body_pose, global_orient, transl=None, tens
     t = tensors if tensors is not None else model_tensors(model, dtype=betas.dtype)
     B = betas.shape[0]
     n_b = betas.shape[1]
-    v_shaped = t["v_template"][None] + torch.einsum("bs,vcs->bvc", betas, t["shapedirs"][..., :n_b])
-    J = torch.einsum("jv,bvc->bjc", t["J_regressor"], v_shaped)
+    V = t["v_template"].shape[0]
+    # Matrix products on flat views (no permuted copies of the (V,3,S) and (V,3,P) arrays; einsum made those).
+    S = t["shapedirs"].reshape(V * 3, t["shapedirs"].shape[2])[:, :n_b]
+    v_shaped = t["v_template"][None] + (betas @ S.T).reshape(B, V, 3)
+    # Joints from the regressed template and shape directions: J_regressor · (T + S·β) = J_regressor·T +
+    # (J_regressor·S)·β, which holds for any vertex subset in `tensors` (model_tensors(vertex_ids=...)).
+    J = t["J_template"][None] + torch.einsum("bs,jcs->bjc", betas, t["J_shapedirs"][..., :n_b])
     full = torch.cat([global_orient.reshape(B, 1, 3), body_pose.reshape(B, -1, 3)], 1)
     R = rodrigues(full)                                                         # (B,J,3,3)
     eye = torch.eye(3, dtype=R.dtype, device=R.device)
     pose_feature = (R[:, 1:] - eye).reshape(B, -1)
-    v_posed = v_shaped + torch.einsum("bp,vcp->bvc", pose_feature, t["posedirs"])
+    P = t["posedirs"].reshape(V * 3, t["posedirs"].shape[2])
+    v_posed = v_shaped + (pose_feature @ P.T).reshape(B, V, 3)
     parents = model.parents
     rel = J.clone()
     rel[:, 1:] = J[:, 1:] - J[:, parents[1:]]
@@ -351,8 +358,9 @@ def forward(model: BodyModel, betas, body_pose, global_orient, transl=None, tens
     posed_joints = G[:, :, :3, 3]
     # Remove the rest joint location so each transform acts on rest-pose coordinates.
     offset = posed_joints - torch.einsum("bjik,bjk->bji", G[:, :, :3, :3], J)
-    T_rot = torch.einsum("vj,bjik->bvik", t["weights"], G[:, :, :3, :3])
-    T_off = torch.einsum("vj,bji->bvi", t["weights"], offset)
+    n_j = R.shape[1]
+    T_rot = (t["weights"] @ G[:, :, :3, :3].reshape(B, n_j, 9)).reshape(B, V, 3, 3)
+    T_off = t["weights"] @ offset
     verts = torch.einsum("bvik,bvk->bvi", T_rot, v_posed) + T_off
     if transl is not None:
         verts = verts + transl[:, None]
@@ -360,10 +368,15 @@ def forward(model: BodyModel, betas, body_pose, global_orient, transl=None, tens
     return verts, posed_joints
 
 
-def model_tensors(model: BodyModel, dtype=None) -> dict:
-    """The model's arrays as torch tensors (float64 unless `dtype`), for repeated `forward` calls."""
+def model_tensors(model: BodyModel, dtype=None, vertex_ids=None) -> dict:
+    """The model's arrays as torch tensors (float64 unless `dtype`), for repeated `forward` calls. With
+    `vertex_ids`, `forward` poses only those vertices (in that order); the joints still come from the whole mesh."""
     import torch
 
     dtype = dtype or torch.float64
-    return {k: torch.as_tensor(getattr(model, k), dtype=dtype)
-            for k in ("v_template", "shapedirs", "posedirs", "J_regressor", "weights")}
+    idx = slice(None) if vertex_ids is None else np.asarray(vertex_ids, np.int64)
+    t = {k: torch.as_tensor(np.ascontiguousarray(getattr(model, k)[idx]), dtype=dtype)
+         for k in ("v_template", "shapedirs", "posedirs", "weights")}
+    t["J_template"] = torch.as_tensor(model.J_regressor @ model.v_template, dtype=dtype)
+    t["J_shapedirs"] = torch.as_tensor(np.einsum("jv,vcs->jcs", model.J_regressor, model.shapedirs), dtype=dtype)
+    return t
