@@ -14,7 +14,8 @@ E_f, the exact irradiance of a surface facing the light: the SH error at that fa
 all normals (theory for a point source: 3/32 = 9.4% at grazing), the mean error over all normals, the share of
 normals where SH irradiance is negative, and the largest |SH irradiance| on the normals that see none of the light.
 Theory for a point source (order-2 clamped cosine K₂(t) = 1/4 + t/2 + (5/32)(3t² − 1)): +6.25% facing, 9.4% at
-grazing, negative for t in (−0.824, −0.243), i.e. 29.1% of the sphere, 6.25% of E_f straight behind.
+grazing, negative for t in (−0.824, −0.243), i.e. 29.1% of the sphere; on the dark side up to 9.4% just past the
+terminator and 6.25% straight behind.
 """
 from __future__ import annotations
 

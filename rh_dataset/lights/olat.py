@@ -156,14 +156,9 @@ def olat_map(params: dict, height: int = OLAT_HEIGHT) -> np.ndarray:
 
 
 def _facing_irradiance(radiance: np.ndarray, d: np.ndarray) -> np.ndarray:
-    # E(d) = Σ L max(0, d·ω) Ω over the map's pixel centres (what `light.brute_force_irradiance` computes), rows
-    # restricted to the lit ones so it stays cheap at full size.
-    L = np.asarray(radiance, dtype=np.float64)
-    H, W, _ = L.shape
-    rows = np.flatnonzero(L.reshape(H, -1).max(axis=1) > 0)
-    dirs = sh.equirect_directions(H, W)[rows]
-    w = np.maximum(dirs @ d, 0.0) * sh.pixel_solid_angles(H, W)[rows]
-    return np.einsum("hwc,hw->c", L[rows], w)
+    from .light import brute_force_irradiance  # light.py builds OLAT maps from this module: import when called
+
+    return brute_force_irradiance(radiance, np.asarray(d, dtype=np.float64)[None])[0]
 
 
 def olat_scale(params: dict) -> float:
