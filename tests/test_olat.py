@@ -187,3 +187,16 @@ def test_export_bakes_an_olat_frame_light_keeping_its_power(tmp_path):
     dA = np.cos(lat)[:, None] * (math.pi / (H - 1)) * (2 * math.pi / (W - 1))
     power = luminance(np.einsum("hwc,hw->c", baked, np.broadcast_to(dA, (H, W))))
     assert power == pytest.approx(light.spec.scale * olat.solid_angle(3.0), rel=0.03)
+
+
+def test_olat_frames_pose_the_body_as_the_test_split_does():
+    from rh_dataset.generate.subjects import AnnySubjects, Subject
+
+    for proto in "ab":
+        spec = load_protocol(f"olat_{proto}")
+        source = AnnySubjects(DatasetPlan(out=Path("x"), spec=spec, settings=RenderSettings(), seed=3))
+        subject = Subject(index=1, character=None, record={}, camera=None)  # random poses need only the index
+        olat_pose = source.pose(subject, spec.split("olat"), 16 + 7)  # pose 1, direction 7
+        test_pose = source.pose(subject, spec.split("test"), 1)
+        assert json.dumps(olat_pose.to_json()) == json.dumps(test_pose.to_json()), proto
+        assert json.dumps(source.pose(subject, spec.split("test"), 0).to_json()) != json.dumps(test_pose.to_json())
