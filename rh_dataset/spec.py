@@ -19,6 +19,7 @@ __all__ = [
     "SpecError",
     "SplitSpec",
     "MotionSpec",
+    "OlatSpec",
     "CharacterSource",
     "ProtocolSpec",
     "Preset",
@@ -33,8 +34,8 @@ __all__ = [
 # once had, is not installed and `rh-generate --protocol a` found no protocols outside a source checkout.
 SCENES_DIR = Path(__file__).resolve().parent / "scenes"
 
-POSE_SOURCES = ("turntable", "random", "train", "motion")
-LIGHT_SOURCES = ("fixed", "random")
+POSE_SOURCES = ("turntable", "random", "train", "test", "motion")
+LIGHT_SOURCES = ("fixed", "random", "olat")
 KNOWN_LAYERS = ("image", "mask", "albedo", "normal", "depth")
 
 
@@ -95,13 +96,42 @@ class MotionSpec:
 
 
 @dataclass(frozen=True)
+class OlatSpec:
+    """The lights of an 'olat' split (rh_dataset.lights.olat): every pose of the split under each direction of the
+    named set in turn, a disc of angular radius `radius_deg` and linear Rec.709 `colour`; frame i shows pose
+    i // len(directions) under direction i % len(directions)."""
+
+    directions: str
+    radius_deg: float = 3.0
+    colour: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    def __post_init__(self) -> None:
+        from rh_dataset.lights.olat import check_colour, check_radius, olat_directions
+
+        try:
+            olat_directions(self.directions)
+            check_radius(self.radius_deg, "olat radius_deg")
+            check_colour(list(self.colour), "olat colour")
+        except ValueError as exc:
+            raise SpecError(str(exc)) from None
+
+    @property
+    def n_directions(self) -> int:
+        from rh_dataset.lights.olat import olat_directions
+
+        return len(olat_directions(self.directions))
+
+
+@dataclass(frozen=True)
 class SplitSpec:
     name: str
     frames: int
     poses: str
-    """turntable (A-pose, 360 degrees), random (pose prior), or train (the same poses as this protocol's train split)."""
+    """turntable (A-pose, 360 degrees), random (pose prior), train or test (the same poses as this protocol's train
+    or test split)."""
     light: str
-    """fixed (one light for the whole split) or random (a new light per frame)."""
+    """fixed (one light for the whole split), random (a new light per frame) or olat (each pose under each of the
+    `olat` block's directions)."""
     layers: tuple[str, ...]
     motion: MotionSpec | None = None
     """The captured motion when poses is 'motion' (None otherwise)."""
@@ -111,6 +141,8 @@ class SplitSpec:
     max_depth: int | None = None
     """The scene class's path depth, resolved on load (so a changed class table changes the spec's digest and a
     resumed run refuses to mix depths). None for splits that do not path-trace."""
+    olat: OlatSpec | None = None
+    """The OLAT lights when light is 'olat' (None otherwise)."""
 
     @property
     def path_traced(self) -> bool:
@@ -127,6 +159,9 @@ class SplitSpec:
             raise SpecError(f"split {self.name}: poses must be one of {POSE_SOURCES}, got {self.poses!r}")
         if self.light not in LIGHT_SOURCES:
             raise SpecError(f"split {self.name}: light must be one of {LIGHT_SOURCES}, got {self.light!r}")
+        if (self.light == "olat") != (self.olat is not None):
+            raise SpecError(f"split {self.name}: light 'olat' and an 'olat' block go together (got light "
+                            f"{self.light!r} {'with' if self.olat else 'without'} an olat block)")
         bad = [x for x in self.layers if x not in KNOWN_LAYERS]
         if bad or not self.layers:
             raise SpecError(f"split {self.name}: layers must be a non-empty subset of {KNOWN_LAYERS}, got {bad or '[]'}")
@@ -201,13 +236,17 @@ class ProtocolSpec:
         if len(set(names)) != len(names) or not names:
             raise SpecError(f"{self.source or self.name}: split names must be unique and non-empty: {names}")
         for s in self.splits:
-            if s.poses == "train":
-                if "train" not in names or names.index("train") > names.index(s.name):
-                    raise SpecError(f"split {s.name}: poses 'train' needs a train split before it")
-                train = self.splits[names.index("train")]
-                if train.frames < s.frames:
-                    raise SpecError(f"split {s.name} reuses train poses but has more frames ({s.frames}) than train "
-                                    f"({train.frames})")
+            if s.poses in ("train", "test"):
+                if s.poses not in names or names.index(s.poses) >= names.index(s.name):
+                    raise SpecError(f"split {s.name}: poses {s.poses!r} needs a {s.poses} split before it")
+                src = self.splits[names.index(s.poses)]
+                if src.light == "olat":
+                    raise SpecError(f"split {s.name}: poses {s.poses!r} names an olat split; reuse the poses of a "
+                                    f"split with one pose per frame")
+                n_poses = -(-s.frames // s.olat.n_directions) if s.olat else s.frames
+                if src.frames < n_poses:
+                    raise SpecError(f"split {s.name} reuses {s.poses} poses but has more poses ({n_poses}) than "
+                                    f"{s.poses} has frames ({src.frames})")
         lo, hi = self.exposure_ev_range
         if not lo <= hi:
             raise SpecError(f"exposure_ev_range must be [low, high] with low <= high, got {self.exposure_ev_range}")
@@ -267,6 +306,8 @@ class ProtocolSpec:
             d.pop("light_mixture")
         d["splits"] = [dataclasses.asdict(s) for s in self.splits]
         for split, out in zip(self.splits, d["splits"]):
+            if split.olat is None:
+                out.pop("olat")  # splits without OLAT lights keep the record (and digest) they always had
             if split.motion is None:
                 out.pop("motion")  # datasets without motion keep the record (and digest) they always had
             else:
@@ -313,8 +354,9 @@ class SceneClass:
 
 _PROTOCOL_KEYS = {"format", "name", "protocol", "description", "subjects", "character_pool", "resolution",
                   "fov_y_deg", "splits", "lights"}
-_SPLIT_KEYS = {"frames", "poses", "light", "layers", "motion", "scene_class"}
+_SPLIT_KEYS = {"frames", "poses", "light", "layers", "motion", "scene_class", "olat"}
 _MOTION_KEYS = {"file", "start", "stride", "heading", "in_place"}
+_OLAT_KEYS = {"directions", "radius_deg", "colour"}
 _LIGHT_KEYS = {"sunsky", "exposure_ev_range", "hdri_folder", "mixture"}
 
 
@@ -330,7 +372,7 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
     if not isinstance(data["splits"], dict):
         raise SpecError(f"{where}: splits must be an object of split name -> split")
     for name, s in data["splits"].items():
-        _check_keys(f"{where}: split {name}", s, _SPLIT_KEYS, _SPLIT_KEYS - {"motion", "scene_class"})
+        _check_keys(f"{where}: split {name}", s, _SPLIT_KEYS, _SPLIT_KEYS - {"motion", "scene_class", "olat"})
         motion = None
         if "motion" in s:
             m = s["motion"]
@@ -344,9 +386,19 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
         if cls is not None and cls not in classes:
             raise SpecError(f"{where}: split {name}: unknown scene_class {cls!r}; known: {sorted(classes)} "
                             f"(rh_dataset/scenes/presets.json)")
+        olat = None
+        if "olat" in s:
+            _check_keys(f"{where}: split {name}: olat", s["olat"], _OLAT_KEYS, {"directions"})
+            o = dict(s["olat"])
+            if "colour" in o:
+                o["colour"] = tuple(o["colour"]) if isinstance(o["colour"], list) else o["colour"]
+            try:
+                olat = OlatSpec(**o)
+            except SpecError as exc:
+                raise SpecError(f"{where}: split {name}: {exc}") from None
         splits.append(SplitSpec(name=name, frames=s["frames"], poses=s["poses"], light=s["light"],
                                 layers=tuple(s["layers"]), motion=motion, scene_class=cls,
-                                max_depth=classes[cls].max_depth if cls is not None else None))
+                                max_depth=classes[cls].max_depth if cls is not None else None, olat=olat))
     lights = data.get("lights", {})
     _check_keys(f"{where}: lights", lights, _LIGHT_KEYS, set())
     return ProtocolSpec(

@@ -105,10 +105,10 @@ def test_envmap_frame_json_has_no_params_key() -> None:
 
 def test_unknown_kind_and_bad_params_are_one_line_errors() -> None:
     with pytest.raises(ValueError) as info:
-        L.LightSpec.from_json({"kind": "olat", "name": "x", "source": "", "rotation_deg": 0.0, "scale": 1.0},
+        L.LightSpec.from_json({"kind": "disco", "name": "x", "source": "", "rotation_deg": 0.0, "scale": 1.0},
                               "/data/subject_0000/test/frame_000001.json")
     msg = str(info.value)
-    assert "/data/subject_0000/test/frame_000001.json" in msg and "'olat'" in msg and "\n" not in msg
+    assert "/data/subject_0000/test/frame_000001.json" in msg and "'disco'" in msg and "\n" not in msg
     with pytest.raises(ValueError, match="unknown procedural light kind 'disco'"):
         L.sample_params("disco", np.random.default_rng(0))
     p = L.sample_params("studio", np.random.default_rng(0))
@@ -144,7 +144,7 @@ def test_mixture_draw_order_and_determinism(library: dict[str, Path]) -> None:
     assert L.check_mixture({"studio": 1, "real": 3}) == {"real": 0.75, "studio": 0.25}
 
 
-@pytest.mark.parametrize("bad, match", [({"real": 1, "olat": 1}, "unknown kind 'olat'"), ({"real": -1}, "weight"),
+@pytest.mark.parametrize("bad, match", [({"real": 1, "disco": 1}, "unknown kind 'disco'"), ({"real": -1}, "weight"),
                                         ({"real": 0}, "sum to 0"), ({}, "non-empty")])
 def test_bad_mixture_rejected(bad: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):

@@ -1,4 +1,5 @@
-"""A convex diffuse sphere under each bundled HDRI (and each procedural kind) renders albedo * E / pi, E the brute-force cosine convolution.
+"""A convex diffuse sphere under each bundled HDRI (and each procedural kind, and OLAT lights) renders albedo * E / pi, E the
+brute-force cosine convolution.
 
 This ties together the renderer, the environment mapping (Mitsuba's envmap vs our equirect convention), light
 scale and rotation, and the normal layer: a mistake in any of them moves the rendered radiance off the integral.
@@ -11,8 +12,8 @@ import pytest
 from analytic_scenes import uv_sphere
 from rh_common.colourspace import luminance
 from rh_dataset.lights import (PROCEDURAL_KINDS, LightSpec, brute_force_irradiance, build_light, bundled_hdris,
-                               downsample_equirect, load_hdri, mitsuba_emitter_dict, normalised_scale, procedural_map,
-                               sample_params)
+                               downsample_equirect, load_hdri, mitsuba_emitter_dict, normalised_scale, olat_params,
+                               olat_scale, procedural_map, sample_params)
 from rh_common.camera import Camera
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
@@ -40,6 +41,14 @@ def test_diffuse_sphere_under_procedural_map_matches_cosine_convolution(kind):
     params = sample_params(kind, np.random.default_rng(2))
     base = procedural_map(kind, params)
     _check_diffuse_sphere(build_light(LightSpec(kind, kind, "", rotation_deg=90.0, scale=normalised_scale(base),
+                                                params=params)))
+
+
+@pytest.mark.parametrize("az, el", [(300.0, 30.0), (90.0, -25.0)])
+def test_diffuse_sphere_under_olat_light_matches_cosine_convolution(az, el):
+    # One small disc (3 degrees): the lit half follows the cosine law, the other half is black, the terminator sharp.
+    params = olat_params(az, el, 3.0)
+    _check_diffuse_sphere(build_light(LightSpec("olat", "olat", "", rotation_deg=0.0, scale=olat_scale(params),
                                                 params=params)))
 
 

@@ -68,7 +68,7 @@ def test_mixed_scenes_keep_their_protocols_splits_and_add_only_the_mixture():
 
 
 @pytest.mark.parametrize("lights, message", [
-    ({"mixture": {"real": 1, "olat": 1}}, "unknown kind 'olat'"),
+    ({"mixture": {"real": 1, "disco": 1}}, "unknown kind 'disco'"),
     ({"mixture": {"real": 0}}, "sum to 0"),
     ({"sunsky": True, "mixture": {"real": 1}}, "weight in the mixture"),
 ])

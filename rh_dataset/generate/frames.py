@@ -21,7 +21,7 @@ import numpy as np
 from rh_common import layout, sh
 from rh_dataset import __version__
 from rh_dataset.generate.folder import keep_character_record
-from rh_dataset.generate.plan import DatasetPlan, FrameTask, light_library
+from rh_dataset.generate.plan import DatasetPlan, FrameTask, light_library, olat_frame
 from rh_dataset.generate.seeding import rng_for
 from rh_dataset.generate.subjects import Subject, SubjectSource
 from rh_dataset.render.scene import RenderSettings
@@ -29,8 +29,8 @@ from rh_dataset.variant import select_variant
 from rh_dataset.spec import SplitSpec
 from rh_dataset.writer import contact_sheet, write_frame
 
-__all__ = ["FrameResult", "OnFrame", "render_frame_to_disk", "run_subject", "light_for", "exposure_for",
-           "frame_meta", "versions"]
+__all__ = ["FrameResult", "OnFrame", "render_frame_to_disk", "run_subject", "light_for", "olat_light",
+           "exposure_for", "frame_meta", "versions"]
 
 OnFrame = Callable[[FrameTask, bool], None]
 """Called once per frame of a run: (the frame, whether it was already complete and skipped)."""
@@ -47,10 +47,12 @@ class FrameResult:
 
 
 def light_for(plan: DatasetPlan, split: SplitSpec, s: int, i: int, library: dict):
-    """The frame's light: one per (subject, split) for a 'fixed' split, else one per frame (from the protocol's
-    light mixture when it has one)."""
+    """The frame's light: one per (subject, split) for a 'fixed' split, the frame's direction of the set for an
+    'olat' split (no random draw), else one per frame (from the protocol's light mixture when it has one)."""
     from rh_dataset.lights import build_light, sample_light
 
+    if split.light == "olat":
+        return olat_light(split, i)
     protocol_key = plan.spec.protocol
     if split.light == "fixed":
         rng = rng_for(plan.seed, "light", s, protocol_key, split.name)
@@ -62,12 +64,31 @@ def light_for(plan: DatasetPlan, split: SplitSpec, s: int, i: int, library: dict
     return build_light(spec)
 
 
+def olat_light(split: SplitSpec, i: int):
+    """The OLAT light of frame i of an olat split: the set's direction i % n, at the strength `olat_scale` gives."""
+    from rh_dataset.lights import LightSpec, build_light, olat_directions, olat_params, olat_scale
+
+    o = split.olat
+    k = olat_frame(split, i)[1]
+    az, el = olat_directions(o.directions)[k]
+    params = olat_params(az, el, o.radius_deg, o.colour)
+    return build_light(LightSpec("olat", f"{o.directions}_{k:02d}", "", 0.0, olat_scale(params), params=params))
+
+
 def exposure_for(light) -> float:
     """Display exposure of a light: the reciprocal of the map's mean radiance over the sphere.
 
     It depends on the light only, so every frame under one fixed light shares one exposure (a training video
     does not flicker), and the random EV jitter of the light is undone for display while the HDR keeps it.
+    An OLAT light instead gets π / luminance(E_facing), E_facing the irradiance on a surface facing it, so a
+    white surface facing it displays at 1 (the mean-radiance rule would put it at 4 for any small source).
     """
+    if light.spec.kind == "olat":
+        from rh_dataset.lights import olat_record
+
+        from rh_common.colourspace import luminance
+
+        return float(np.pi / float(luminance(np.asarray(olat_record(light, "", 0)["irradiance_facing"]))))
     H, W = light.radiance.shape[:2]
     w = sh.pixel_solid_angles(H, W)
     lum = light.radiance @ np.array([0.2126, 0.7152, 0.0722])
@@ -103,9 +124,9 @@ def light_spec_json(spec) -> dict:
 
 
 def frame_meta(protocol: str, settings: RenderSettings, subject: Subject, split_name: str, body: dict, light,
-               render_seed: int, exposure: float) -> dict:
+               render_seed: int, exposure: float, olat: dict | None = None) -> dict:
     """The frame JSON without its file checksums (the writer adds those). `settings` are the split's own
-    (`RenderSettings.for_split`)."""
+    (`RenderSettings.for_split`); `olat` is an OLAT frame's `light.olat` block (`lights.olat_record`)."""
     cam = subject.camera
     R = cam.world_to_opengl_rotation()
     sh_world = np.asarray(light.sh_world, dtype=np.float64)
@@ -118,7 +139,7 @@ def frame_meta(protocol: str, settings: RenderSettings, subject: Subject, split_
         "camera": cam.to_json(),
         "body": body,
         "light": {**light_spec_json(light.spec), "sh_world": sh_world, "sh_camera": sh.rotate(sh_world, R),
-                  "negative_pixels_clamped": int(light.negative_pixels_clamped)},
+                  "negative_pixels_clamped": int(light.negative_pixels_clamped), **({"olat": olat} if olat else {})},
         "exposure": exposure,
         "render": {**dataclasses.asdict(settings), "seed": render_seed, "variant": select_variant(None),
                    "denoised": bool(settings.denoise)},
@@ -153,8 +174,13 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
                           hidden=source.hidden_faces(subject) if settings.cull else None)
     seconds.update(result.seconds)
     t = time.perf_counter()
+    olat = None
+    if split.light == "olat":
+        from rh_dataset.lights import olat_record
+
+        olat = olat_record(light, split.olat.directions, olat_frame(split, index)[1])
     meta = frame_meta(plan.spec.protocol, settings, subject, split.name,
-                      source.body_record(subject, split, index, pose), light, render_seed, exposure)
+                      source.body_record(subject, split, index, pose), light, render_seed, exposure, olat)
     meta["render"]["scene_model"] = result.info
     seconds["meta"] = time.perf_counter() - t
     t = time.perf_counter()

@@ -16,7 +16,7 @@ from rh_dataset.render.scene import RenderSettings
 from rh_dataset.spec import ProtocolSpec, SplitSpec
 
 __all__ = ["DatasetPlan", "FrameTask", "GenerateError", "DATASET_FORMAT", "frame_tasks",
-           "resolve_plan", "pose_source", "motion_frame", "light_library"]
+           "resolve_plan", "pose_source", "pose_frame", "olat_frame", "motion_frame", "light_library"]
 
 DATASET_FORMAT = "rh-dataset/1"
 
@@ -56,8 +56,24 @@ def frame_tasks(spec: ProtocolSpec) -> list[FrameTask]:
 
 
 def pose_source(spec: ProtocolSpec, split: SplitSpec) -> SplitSpec:
-    """The split whose pose source a split uses ('train' reuses the train split's)."""
-    return spec.split("train") if split.poses == "train" else split
+    """The split whose pose source a split uses ('train' and 'test' reuse that split's, and so on down the chain:
+    protocol b's test reuses train's, so an olat split reusing test's poses shows train's)."""
+    return pose_frame(spec, split, 0)[0]
+
+
+def olat_frame(split: SplitSpec, i: int) -> tuple[int, int]:
+    """(pose index, direction index) of frame i of an olat split: pose-major, every direction of a pose in turn."""
+    n = split.olat.n_directions
+    return i // n, i % n
+
+
+def pose_frame(spec: ProtocolSpec, split: SplitSpec, i: int) -> tuple[SplitSpec, int]:
+    """The split that draws the pose frame i of `split` shows, and that pose's frame index there."""
+    if split.olat is not None:
+        i = olat_frame(split, i)[0]
+    while split.poses in ("train", "test"):
+        split = spec.split(split.poses)
+    return split, i
 
 
 def motion_frame(motion_spec, i: int) -> int:

@@ -15,7 +15,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from rh_dataset.generate.plan import DatasetPlan, GenerateError, motion_frame, pose_source
+from rh_dataset.generate.plan import DatasetPlan, GenerateError, motion_frame, pose_frame
 from rh_dataset.generate.seeding import rng_for
 from rh_common.camera import Camera, frame_body
 from rh_dataset.spec import SplitSpec
@@ -60,13 +60,13 @@ def subject_source(plan: DatasetPlan) -> SubjectSource:
 
 def _base_motion_record(plan: DatasetPlan, split: SplitSpec, i: int) -> dict | None:
     """For a pose from captured motion: the file (name, sha256), its frame and how the clip was sampled."""
-    source = pose_source(plan.spec, split)
+    source, j = pose_frame(plan.spec, split, i)
     if split.poses == "turntable" or source.poses != "motion":
         return None
     from rh_dataset.poses.motion import read_motion_cached
 
     ms = source.motion
-    record = read_motion_cached(ms.file, ms.sha256).record(motion_frame(ms, i))
+    record = read_motion_cached(ms.file, ms.sha256).record(motion_frame(ms, j))
     record.update(start=ms.start, stride=ms.stride, heading=ms.heading, in_place=ms.in_place)
     return record
 
@@ -109,7 +109,9 @@ class AnnySubjects:
 
         if split.poses == "turntable":
             return turntable(split.frames)[i]
-        source = pose_source(self.plan.spec, split)
+        source, j = pose_frame(self.plan.spec, split, i)  # an olat split's frame i shows pose j of its source
+        if source.poses == "turntable":
+            return turntable(source.frames)[j]
         if source.poses == "motion":
             from rh_dataset.poses.motion import read_motion_cached
             from rh_dataset.poses.retarget import motion_to_anny
@@ -117,10 +119,9 @@ class AnnySubjects:
             ms = source.motion
             motion = read_motion_cached(ms.file, ms.sha256)
             # Retargeted onto this subject's own body, so the leg-length scaling of the root fits it.
-            return motion_to_anny(motion, subject.character.phenotype, frames=[motion_frame(ms, i)],
+            return motion_to_anny(motion, subject.character.phenotype, frames=[motion_frame(ms, j)],
                                   in_place=ms.in_place, heading=ms.heading, model=load_anny())[0]
-        key = "train" if split.poses == "train" else split.name
-        return sample_pose(rng_for(self.plan.seed, "pose", subject.index, key, i), load_anny())
+        return sample_pose(rng_for(self.plan.seed, "pose", subject.index, source.name, j), load_anny())
 
     def meshes(self, subject: Subject, pose) -> list:
         from rh_dataset.characters import pose_character
@@ -208,20 +209,19 @@ class ImportedSubjects:
         from rh_dataset.characters.imported_model import ImportedPose, motion_frames, split_pose
 
         spec = self.plan.spec
-        source = pose_source(spec, split)
+        source, j = pose_frame(spec, split, i)
         if split.poses != "turntable" and source.poses == "motion":  # --motion, retargeted onto its own rig
             from rh_dataset.poses.motion import read_motion_cached
             from rh_dataset.poses.retarget import retarget
 
             ms = source.motion
             motion = read_motion_cached(ms.file, ms.sha256)
-            frame = motion_frame(ms, i)
+            frame = motion_frame(ms, j)
             bone_map = imported_bone_map(motion.skeleton, character.skeleton, ms.file)
             pose = retarget(motion, character.skeleton, bone_map, frames=[frame], in_place=ms.in_place,
                             heading=ms.heading)[0]
             return ImportedPose(pose, label=f"motion:{Path(ms.file).name}#{frame}")
-        n = spec.split("train").frames if split.poses == "train" else split.frames
-        return split_pose(split.poses, n, i, motion_frames(character))
+        return split_pose(source.poses, source.frames, j, motion_frames(character))
 
     def meshes(self, subject: Subject, pose) -> list:
         from rh_dataset.characters.imported_model import pose_imported

@@ -1,4 +1,5 @@
-"""Lights: HDRI library, sunsky bake, procedural maps, sampling (mixtures), exposure normalisation, SH of the light, the Mitsuba emitter.
+"""Lights: HDRI library, sunsky bake, procedural maps, one-light-at-a-time (OLAT) discs, sampling (mixtures),
+exposure normalisation, SH of the light, the Mitsuba emitter.
 
 Conventions: docs/ARCHITECTURE.md ("Environment lights", "Spherical harmonics"); SH maths in `rh_common.sh`.
 `Light.radiance` is scaled but NOT rotated; the rotation lives in the Mitsuba `to_world` and in `sh_world`
@@ -28,6 +29,7 @@ from .light import (
     rotate_equirect,
     sh_truncation_error,
 )
+from .olat import DIRECTION_SETS, olat_directions, olat_map, olat_params, olat_record, olat_scale
 from .procedural import PROCEDURAL_KINDS, check_params, procedural_map, sample_params
 from .sampling import MIXTURE_KEYS, check_mixture, sample_light
 from .mitsuba_env import ENVMAP_BASIS, envmap_to_world, mitsuba_envmap_array, mitsuba_envmap_data, rotation_z
@@ -35,6 +37,7 @@ from .sunsky import SUN_APERTURE_DEG, bake_sunsky, sun_direction
 
 __all__ = [
     "DEBIAN_STUDIOLIGHTS",
+    "DIRECTION_SETS",
     "ENVMAP_BASIS",
     "HdriError",
     "LIGHT_KINDS",
@@ -60,6 +63,11 @@ __all__ = [
     "mitsuba_envmap_array",
     "mitsuba_envmap_data",
     "normalised_scale",
+    "olat_directions",
+    "olat_map",
+    "olat_params",
+    "olat_record",
+    "olat_scale",
     "procedural_map",
     "rotate_equirect",
     "rotation_z",

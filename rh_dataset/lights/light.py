@@ -23,6 +23,7 @@ from rh_common.colourspace import luminance
 from ..variant import ensure_variant
 from .library import load_hdri
 from .mitsuba_env import envmap_to_world, mitsuba_envmap_array, rotation_z
+from .olat import check_olat_params, olat_map
 from .procedural import PROCEDURAL_KINDS, check_params, procedural_map
 from .sunsky import bake_sunsky
 
@@ -51,7 +52,7 @@ def _is_real(x: object) -> bool:
     return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool) and math.isfinite(x)
 
 
-LIGHT_KINDS = ("envmap", "sunsky", *PROCEDURAL_KINDS)
+LIGHT_KINDS = ("envmap", "sunsky", *PROCEDURAL_KINDS, "olat")
 
 
 @dataclass(frozen=True)
@@ -63,11 +64,12 @@ class LightSpec:
     'envmap', '' otherwise. rotation_deg: about +Z, counter-clockwise from above. scale: multiplier applied to the
     map (includes the exposure normalisation). sun_*: degrees, azimuth counter-clockwise from +X, elevation above
     the horizon in [0, 90]; turbidity in [1, 10]; only for 'sunsky'. params: the procedural map's JSON-ready
-    description (`procedural.check_params`), only for procedural kinds; `as_dict` leaves it out when None, so
-    the frame JSON of an envmap or sunsky light is what it was before procedural kinds existed.
+    description (`procedural.check_params`), only for procedural kinds, or the disc of an 'olat' light (one small
+    light at infinity, `olat.check_olat_params`); `as_dict` leaves it out when None, so the frame JSON of an envmap
+    or sunsky light is what it was before procedural kinds existed.
     """
 
-    kind: Literal["envmap", "sunsky", "studio", "window", "outdoor"]
+    kind: Literal["envmap", "sunsky", "studio", "window", "outdoor", "olat"]
     name: str
     source: str
     rotation_deg: float
@@ -94,10 +96,13 @@ class LightSpec:
             for name, value in sun.items():
                 if value is not None:
                     raise ValueError(f"LightSpec.{name} must be None for kind {self.kind!r}, got {value!r}")
-        if self.kind in PROCEDURAL_KINDS:
+        if self.kind in PROCEDURAL_KINDS or self.kind == "olat":
             if self.source != "":
                 raise ValueError(f"LightSpec.source must be '' for kind {self.kind!r}, got {self.source!r}")
-            check_params(self.kind, self.params)
+            if self.kind == "olat":
+                check_olat_params(self.params)
+            else:
+                check_params(self.kind, self.params)
             return
         if self.params is not None:
             raise ValueError(f"LightSpec.params must be None for kind {self.kind!r}, got {self.params!r}")
@@ -182,6 +187,8 @@ def _base_map(spec: LightSpec) -> tuple[np.ndarray, int]:
         return load_hdri(spec.source)
     if spec.kind in PROCEDURAL_KINDS:
         return procedural_map(spec.kind, spec.params), 0  # type: ignore[arg-type]
+    if spec.kind == "olat":
+        return olat_map(spec.params), 0  # type: ignore[arg-type]
     return bake_sunsky(spec.sun_azimuth_deg, spec.sun_elevation_deg, spec.turbidity), 0  # type: ignore[arg-type]
 
 
