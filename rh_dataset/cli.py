@@ -49,6 +49,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spp", type=int, default=None, help="samples per pixel of the beauty pass (overrides the preset)")
     p.add_argument("--aov-spp", type=int, default=None,
                    help="samples per pixel of the albedo/normal/mask/depth pass (overrides the preset)")
+    p.add_argument("--sampler", default=None,
+                   help="Mitsuba sampler of both passes (overrides the preset): independent, stratified, multijitter, "
+                        "orthogonal or ldsampler; some take only certain sample counts (docs/TRADEOFFS.md)")
     p.add_argument("--max-depth", type=int, default=None,
                    help="longest light path; 2 = direct light only (overrides the preset; by default the draft and "
                         "standard presets take each split's scene_class depth from rh_dataset/scenes/presets.json)")
@@ -137,15 +140,16 @@ def options_from_args(args: argparse.Namespace):
         subjects=subjects, frames=args.frames, resolution=args.resolution, hdri_folder=args.hdri_folder,
         motion=motion, character=character)
     settings = render_settings(args.preset, spp=args.spp, aov_spp=args.aov_spp, max_depth=args.max_depth,
-                               denoise=bool(args.denoise), cull=not args.no_cull)
+                               sampler=args.sampler, denoise=bool(args.denoise), cull=not args.no_cull)
     plan = DatasetPlan(out=args.out, spec=spec, settings=settings, seed=args.seed, variant=args.variant,
                        overwrite=args.overwrite, character_path=args.character)
     return plan, backend_from_args(args)
 
 
 def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None = None, max_depth: int | None = None,
-                    denoise: bool = False, cull: bool = True):
+                    sampler: str | None = None, denoise: bool = False, cull: bool = True):
     """RenderSettings of a preset of scenes/presets.json, with the given fields overridden (None: the preset's)."""
+    from rh_dataset.render.sampler import SAMPLERS
     from rh_dataset.render.scene import RenderSettings
     from rh_dataset.spec import SpecError, load_presets
 
@@ -153,11 +157,14 @@ def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None 
     if preset not in presets:
         raise SpecError(f"unknown --preset {preset!r}; choose one of {sorted(presets)}")
     pr = presets[preset]
-    overridden = any(v is not None for v in (spp, aov_spp, max_depth))
+    overridden = any(v is not None for v in (spp, aov_spp, max_depth, sampler))
+    if sampler is not None and sampler not in SAMPLERS:
+        raise SpecError(f"unknown --sampler {sampler!r}; choose one of {', '.join(SAMPLERS)}")
     return RenderSettings(
         spp=spp if spp is not None else pr.spp,
         aov_spp=aov_spp if aov_spp is not None else pr.aov_spp,
         max_depth=max_depth if max_depth is not None else pr.max_depth,
+        sampler=sampler if sampler is not None else pr.sampler,
         preset=f"{pr.name}+overrides" if overridden else pr.name,
         denoise=denoise,
         cull=cull,

@@ -16,6 +16,7 @@ import numpy as np
 from rh_common.camera import Camera
 
 from .cull import drop_faces, outside_frustum
+from .sampler import check_spp
 from .scene import MeshLike, RenderSettings, scene_dict
 from ..variant import load_mitsuba, require_variant
 
@@ -72,6 +73,11 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
         raise ValueError("render_frame: max_depth is None; resolve it from the split's scene class first "
                          "(RenderSettings.for_split)")
     require_variant()
+    if path_traced:
+        for n in sorted(set(_chunks(settings.spp))):
+            check_spp(settings.sampler, n, "spp" if n == settings.spp else "spp (one render call's chunk)")
+    if _AOV_LAYERS & set(layers) or (settings.denoise and path_traced):
+        check_spp(settings.sampler, settings.aov_spp, "aov_spp")
     out: dict[str, np.ndarray] = {}
     seconds: dict[str, float] = {}
     culled = {"hidden_under_clothes": 0, "outside_frustum": 0}
@@ -91,7 +97,7 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
     else:
         integrator = _AOV_INTEGRATOR
     scene = mi.load_dict(scene_dict(meshes, emitter if path_traced else None, camera, integrator, settings.spp,
-                                    pixel_format="rgba"))
+                                    pixel_format="rgba", sampler=settings.sampler))
     seconds["load"] = time.perf_counter() - t
     try:
         if path_traced:
@@ -176,10 +182,16 @@ def count_fireflies(image: np.ndarray, k: float = FIREFLY_K, window: int = FIREF
 MAX_SPP_PER_CALL = 256
 
 
+def _chunks(spp: int) -> list[int]:
+    if spp <= MAX_SPP_PER_CALL:
+        return [spp]
+    return [MAX_SPP_PER_CALL] * (spp // MAX_SPP_PER_CALL) + ([spp % MAX_SPP_PER_CALL] if spp % MAX_SPP_PER_CALL else [])
+
+
 def _render_chunked(mi, scene, spp: int, seed: int) -> np.ndarray:
     if spp <= MAX_SPP_PER_CALL:
         return np.array(mi.render(scene, spp=spp, seed=seed), dtype=np.float32)
-    chunks = [MAX_SPP_PER_CALL] * (spp // MAX_SPP_PER_CALL) + ([spp % MAX_SPP_PER_CALL] if spp % MAX_SPP_PER_CALL else [])
+    chunks = _chunks(spp)
     acc = None
     for k, n in enumerate(chunks):
         part = np.array(mi.render(scene, spp=n, seed=seed + 1000003 * (k + 1)), dtype=np.float64) * (n / spp)
