@@ -22,7 +22,7 @@ errors. A QMC reference could hide a bias that every chunk shares, so an `indepe
 chunks) is rendered too and the two are compared: mean over the box of (r_ld - r_ind)^2, over the mean of
 var_ld + var_ind, is ~1 when both estimate the same image and >> 1 if one is biased.
 
-Floors. Each --floor preset:sampler:spp renders the beauty pass at 512x512 (--floor-resolution) twice with
+Floors. Each --floor preset:sampler:spp[:env_spp] renders the beauty pass at 512x512 (--floor-resolution) twice with
 independent seeds; for two independent unbiased renders E|x1 - x2|^2 = 2 MSE(x), so the PSNR against a converged
 reference is PSNR(x1 vs x2) + 3.01 dB (display space, rh-eval's PSNR over the evaluator's default region, exactly
 what bench_tradeoff's presets table reports). The sweep run checks this estimate against its deep reference at the
@@ -47,11 +47,14 @@ SAMPLER_NAMES = ("independent", "stratified", "multijitter", "orthogonal", "ldsa
 RELMSE_EPS = 0.01
 
 
-def _render(scene, sampler: str, spp: int, depth: int, seed: int, layers=("image",), aov_spp: int = 4):
+def _render(scene, sampler: str, spp: int, depth: int, seed: int, layers=("image",), aov_spp: int = 4,
+            env_spp: int | None = None):
     from rh_dataset.render.passes import render_frame
     from rh_dataset.render.scene import RenderSettings
 
-    st = RenderSettings(spp=spp, aov_spp=aov_spp, max_depth=depth, sampler=sampler)
+    st = RenderSettings(spp=spp, aov_spp=aov_spp, max_depth=depth, sampler=sampler, env_spp=env_spp)
+    if env_spp is not None:
+        layers = tuple(layers) + ("mask",)  # the focused beauty pass takes its coverage from the AOV pass
     out = render_frame(scene.meshes, scene.emitter, scene.camera, st, list(layers), seed)
     return out.layers, out.seconds.get("beauty", 0.0)
 
@@ -112,12 +115,13 @@ def table(title: str, header: list[str], rows: list[list]) -> str:
     return _table(title, header, rows)
 
 
-def pair_psnr(scene, sampler: str, spp: int, depth: int, seeds: tuple[int, int], mask: np.ndarray):
+def pair_psnr(scene, sampler: str, spp: int, depth: int, seeds: tuple[int, int], mask: np.ndarray,
+              env_spp: int | None = None, aov_spp: int = 4):
     """PSNR vs a converged reference estimated from two independent renders (+3.01 dB); and beauty seconds."""
     from bench_tradeoff import Scorer
 
-    a, ta = _render(scene, sampler, spp, depth, seeds[0])
-    b, tb = _render(scene, sampler, spp, depth, seeds[1])
+    a, ta = _render(scene, sampler, spp, depth, seeds[0], env_spp=env_spp, aov_spp=aov_spp)
+    b, tb = _render(scene, sampler, spp, depth, seeds[1], env_spp=env_spp, aov_spp=aov_spp)
     sc = Scorer({"image": b["image"], "mask": mask}, scene.exposure)
     return sc.psnr(a["image"]) + 10 * math.log10(2.0), (ta + tb) / 2, a["image"]
 
@@ -198,18 +202,20 @@ def floors(args, results: dict, report: list) -> None:
         scene = build_scene(name, args.floor_resolution, args.seed)
         mask, _ = _render(scene, "ldsampler", 4, 2, seed=31, layers=("mask",), aov_spp=64)
         for item in args.floor:
-            pname, smp, spp = item.split(":")
+            pname, smp, spp, *rest = item.split(":")
+            env_spp = int(rest[0]) if rest else None
             depth = presets[pname].depth_for(SCENE_CLASS[name])
-            _render(scene, smp, 1, depth, 0)  # warm-up
-            psnr, secs, _ = pair_psnr(scene, smp, int(spp), depth, (4242, 4243), mask["mask"])
+            aov_spp = presets[pname].aov_spp if presets[pname].sampler == smp else 4
+            _render(scene, smp, int(spp), depth, 0, env_spp=env_spp, aov_spp=aov_spp)  # warm-up: compile, untimed
+            psnr, secs, _ = pair_psnr(scene, smp, int(spp), depth, (4242, 4243), mask["mask"], env_spp, aov_spp)
             results["floors"].append({"scene": name, "preset": pname, "sampler": smp, "spp": int(spp),
-                                      "depth": depth, "psnr": psnr, "beauty_seconds": secs,
+                                      "env_spp": env_spp, "depth": depth, "psnr": psnr, "beauty_seconds": secs,
                                       "resolution": args.floor_resolution})
-            rows.append([name, pname, smp, int(spp), depth, secs, psnr])
-            print(f"  {name} {pname} {smp} {spp} spp: {psnr:.2f} dB, beauty {secs:.2f} s", flush=True)
+            rows.append([name, pname, smp, int(spp), env_spp or "-", depth, secs, psnr])
+            print(f"  {name} {pname} {smp} {spp} spp (env {env_spp}): {psnr:.2f} dB, beauty {secs:.2f} s", flush=True)
     report.append(table(f"noise floor at {args.floor_resolution}x{args.floor_resolution}: PSNR vs a converged "
                         f"reference, estimated from two independent renders (+3.01 dB)",
-                        ["scene", "preset", "sampler", "spp", "depth", "beauty s", "PSNR dB (person)"], rows))
+                        ["scene", "preset", "sampler", "spp", "env spp", "depth", "beauty s", "PSNR dB (person)"], rows))
 
 
 def main(argv=None) -> dict:
@@ -227,7 +233,8 @@ def main(argv=None) -> dict:
     p.add_argument("--floor", nargs="*", default=["draft:independent:16", "draft:multijitter:16",
                                                   "standard:independent:128", "standard:multijitter:48",
                                                   "standard:multijitter:64"],
-                   help="preset:sampler:spp triples whose noise floor is measured at --floor-resolution")
+                   help="preset:sampler:spp[:env_spp] whose noise floor is measured at --floor-resolution (env_spp: "
+                        "the focused beauty pass, rh_dataset.render.focus)")
     p.add_argument("--floor-resolution", type=int, default=512)
     p.add_argument("--skip-sweep", action="store_true")
     p.add_argument("--skip-floor", action="store_true")

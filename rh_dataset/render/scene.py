@@ -49,6 +49,10 @@ class RenderSettings:
     sampler: str = "independent"
     """Mitsuba's sample generator for both passes (`rh_dataset.render.sampler.SAMPLERS`); the presets choose theirs
     by measurement (bench/bench_sampler.py). Some round their sample count: a count they would round is refused."""
+    env_spp: int | None = None
+    """Samples per pixel where the AOV pass sees no person (the environment seen directly); the person's pixels get
+    `spp` (`rh_dataset.render.focus`: unbiased either way). None: every pixel gets `spp`. Needs an AOV layer in the
+    frame (the coverage comes from that pass); a frame without one renders every pixel at `spp`."""
     denoise: bool = False
     """Opt-in: run Intel Open Image Denoise (pyoidn, HDR mode, guided by the albedo and normal AOVs) on the beauty
     image. Biased (docs/TRADEOFFS.md measures it); recorded in the frame JSON as `render.denoise`/`render.denoised`."""
@@ -67,6 +71,9 @@ class RenderSettings:
                 raise ValueError(f"render setting {name} must be a positive integer, got {v!r}")
         if self.sampler not in SAMPLERS:
             raise ValueError(f"render setting sampler must be one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
+        if self.env_spp is not None and (not isinstance(self.env_spp, int) or not 1 <= self.env_spp <= self.spp):
+            raise ValueError(f"render setting env_spp must be None or an integer in [1, spp={self.spp}], "
+                             f"got {self.env_spp!r}")
         if self.max_depth is not None and (not isinstance(self.max_depth, int) or self.max_depth < 2):
             raise ValueError(f"render setting max_depth must be an integer >= 2 or None, got {self.max_depth!r}")
 
