@@ -174,6 +174,20 @@ def sweep(args, scene_name: str, results: dict, report: list) -> None:
         s, c = fit([p["spp"] for p in pts], [p["relmse"] for p in pts])
         fits[smp] = (s, c)
         R["samplers"][smp] = {"points": pts, "slope": s, "relmse_at_1spp": c}
+    # AOV pass: coverage (mask) error vs aov spp, against the ldsampler AOV pass at --ref-aov-spp
+    ref_cov, _ = _render(scene, "ldsampler", 4, depth, seed=77, layers=("mask",), aov_spp=args.ref_aov_spp)
+    ref_cov = ref_cov["mask"].astype(np.float64)
+    arows = []
+    for smp in args.samplers:
+        for n in sorted({taken_spp(smp, t) for t in (4, 16, 64)}):
+            errs = []
+            for k in range(args.seeds):
+                lay, _ = _render(scene, smp, 4, depth, seed=3000 + 31 * n + k, layers=("mask",), aov_spp=n)
+                errs.append(float(np.mean((lay["mask"][sl] - ref_cov[sl]) ** 2)))
+            R["samplers"][smp].setdefault("aov_mask_mse", {})[n] = float(np.mean(errs))
+            arows.append([smp, n, float(np.mean(errs))])
+    report.append(table(f"{scene_name}: AOV pass, coverage MSE over the box vs ldsampler at {args.ref_aov_spp} aov spp",
+                        ["sampler", "aov spp (taken)", "mask MSE"], arows))
     report.append(table(f"{scene_name}: beauty relMSE vs spp, {args.resolution}x{args.resolution}, depth {depth}, "
                         f"mean of {args.seeds} seeds, reference noise removed",
                         ["sampler", "spp (taken)", "beauty s", "Msamples/s", "relMSE", "ref floor / relMSE",
@@ -229,6 +243,7 @@ def main(argv=None) -> dict:
     p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--ref-chunks", type=int, default=256, help="ldsampler reference: number of chunks")
     p.add_argument("--ref-chunk-spp", type=int, default=256)
+    p.add_argument("--ref-aov-spp", type=int, default=1024, help="ldsampler AOV reference (coverage)")
     p.add_argument("--check-chunks", type=int, default=64, help="independent reference for the bias check: chunks")
     p.add_argument("--floor", nargs="*", default=["draft:independent:16", "draft:multijitter:16",
                                                   "standard:independent:128", "standard:multijitter:48",
