@@ -88,3 +88,17 @@ def test_sampler_names_are_mitsubas():
 
     for name in SAMPLERS:
         assert mi.load_dict({"type": name, "sample_count": 4}) is not None
+
+
+def test_env_spp_is_checked_in_a_presets_file_and_a_frame_without_coverage_renders_every_pixel(tmp_path):
+    data = json.loads((SCENES_DIR / "presets.json").read_text())
+    data["presets"]["draft"]["env_spp"] = data["presets"]["draft"]["spp"] + 1
+    bad = tmp_path / "presets.json"
+    bad.write_text(json.dumps(data))
+    with pytest.raises(SpecError, match=r"preset draft: env_spp must be an integer in \[1, spp\]"):
+        load_presets(bad)
+    st = RenderSettings(spp=4, aov_spp=4, max_depth=2, sampler="multijitter", env_spp=1)
+    image_only = render_frame([uv_sphere()], ENV, _cam(8), st, ["image"], seed=0)
+    assert "focus" not in image_only.info  # no AOV pass ran, so no coverage: every pixel got spp
+    with_mask = render_frame([uv_sphere()], ENV, _cam(8), st, ["image", "mask"], seed=0)
+    assert with_mask.info["focus"]["env_spp"] == 1 and with_mask.info["focus"]["pixels"] > 0
