@@ -1,6 +1,7 @@
 """Seconds per frame of each render preset, through the frame function `rh-generate` renders with.
 
     python bench/bench_generate.py [--resolution 512] [--presets draft standard reference] [--repeats 2]
+    python bench/bench_generate.py --presets standard --also standard:independent:128   # before/after, one run
 
 Renders frame 0 of subject 0's test split of protocol a (a random pose under a random bundled HDRI, every test
 layer: beauty pass + AOV pass) with `rh_dataset.generate.render_frame_to_disk`, the function the local and Ray
@@ -32,6 +33,9 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--protocol", default="a")
+    p.add_argument("--also", nargs="*", default=[],
+                   help="extra rows preset:sampler:spp[:env_spp] (a preset with those overrides; no env_spp: every "
+                        "pixel at spp), e.g. standard:independent:128 for the settings before bench_sampler")
     args = p.parse_args()
 
     from rh_dataset.cli import render_settings
@@ -63,12 +67,14 @@ def main() -> None:
               "JSON+write s | s / frame | beauty Msamples/s | kernels / frame | compiled / frame | compile s / frame |")
         print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
         px = args.resolution * args.resolution
-        for name in args.presets:
-            settings = render_settings(name)
+        rows = [(name, render_settings(name)) for name in args.presets]
+        for item in args.also:
+            pname, smp, spp, *env = item.split(":")
+            rows.append((f"{pname} ({smp} {spp}{' env ' + env[0] if env else ''})",
+                         render_settings(pname, sampler=smp, spp=int(spp), env_spp=int(env[0]) if env else 0)))
+        for name, settings in rows:
             plan = dataclasses.replace(plan, settings=settings)
-            warm = dataclasses.replace(plan, settings=dataclasses.replace(settings, spp=1, aov_spp=1))
-            render_frame_to_disk(warm, source, subject, split, 0)
-            render_frame_to_disk(plan, source, subject, split, 0)  # warm-up at the preset's own counts
+            render_frame_to_disk(plan, source, subject, split, 0)  # warm-up: compiles (or loads) its kernels
             dr.kernel_history()  # clears it
             runs, kernels = [], []
             for _ in range(args.repeats):
