@@ -169,11 +169,19 @@ def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None 
         aov_spp=aov_spp if aov_spp is not None else pr.aov_spp,
         max_depth=max_depth if max_depth is not None else pr.max_depth,
         sampler=sampler if sampler is not None else pr.sampler,
-        env_spp=(env_spp or None) if env_spp is not None else pr.env_spp,
+        env_spp=(env_spp or None) if env_spp is not None else _preset_env_spp(pr.env_spp, spp),
         preset=f"{pr.name}+overrides" if overridden else pr.name,
         denoise=denoise,
         cull=cull,
     )
+
+
+def _preset_env_spp(env_spp: int | None, spp: int | None) -> int | None:
+    """The preset's env_spp under a --spp override: never above the override (at or above it, focusing saves nothing:
+    None)."""
+    if env_spp is None or spp is None:
+        return env_spp
+    return env_spp if env_spp < spp else None
 
 
 def backend_from_args(args: argparse.Namespace):
