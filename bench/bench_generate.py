@@ -1,7 +1,7 @@
 """Seconds per frame of each render preset, through the frame function `rh-generate` renders with.
 
     python bench/bench_generate.py [--resolution 512] [--presets draft standard reference] [--repeats 2]
-    python bench/bench_generate.py --presets standard --also standard:independent:128   # before/after, one run
+    python bench/bench_generate.py --presets standard --also standard:independent:128::16   # before/after, one run
 
 Renders frame 0 of subject 0's test split of protocol a (a random pose under a random bundled HDRI, every test
 layer: beauty pass + AOV pass) with `rh_dataset.generate.render_frame_to_disk`, the function the local and Ray
@@ -34,8 +34,9 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--protocol", default="a")
     p.add_argument("--also", nargs="*", default=[],
-                   help="extra rows preset:sampler:spp[:env_spp] (a preset with those overrides; no env_spp: every "
-                        "pixel at spp), e.g. standard:independent:128 for the settings before bench_sampler")
+                   help="extra rows preset:sampler:spp[:env_spp[:aov_spp]] (a preset with those overrides; no or empty "
+                        "env_spp: every pixel at spp), e.g. standard:independent:128::16 for the settings before "
+                        "bench_sampler")
     args = p.parse_args()
 
     from rh_dataset.cli import render_settings
@@ -69,9 +70,11 @@ def main() -> None:
         px = args.resolution * args.resolution
         rows = [(name, render_settings(name)) for name in args.presets]
         for item in args.also:
-            pname, smp, spp, *env = item.split(":")
-            rows.append((f"{pname} ({smp} {spp}{' env ' + env[0] if env else ''})",
-                         render_settings(pname, sampler=smp, spp=int(spp), env_spp=int(env[0]) if env else 0)))
+            pname, smp, spp, *rest = item.split(":")
+            env = int(rest[0]) if rest and rest[0] else 0
+            aov = int(rest[1]) if len(rest) > 1 else None
+            rows.append((f"{pname} ({smp} {spp}{f' env {env}' if env else ''}{f' aov {aov}' if aov else ''})",
+                         render_settings(pname, sampler=smp, spp=int(spp), env_spp=env, aov_spp=aov)))
         for name, settings in rows:
             plan = dataclasses.replace(plan, settings=settings)
             render_frame_to_disk(plan, source, subject, split, 0)  # warm-up: compiles (or loads) its kernels

@@ -150,6 +150,31 @@ def sweep(args, scene_name: str, results: dict, report: list) -> None:
           f"{args.ref_chunks} x {args.ref_chunk_spp} spp ({'cached' if cached else 'rendered'}), its relMSE floor "
           f"{box.floor:.2e}; ldsampler vs independent ({args.check_chunks} x {args.ref_chunk_spp}) reference: mean "
           f"normalised squared difference {chi:.3f} (1 = same image)", flush=True)
+    # AOV pass: coverage, albedo and normal errors vs aov spp, against the ldsampler AOV pass at --ref-aov-spp
+    from bench_tradeoff import Scorer
+
+    aov_layers = ("mask", "albedo", "normal")
+    ref_aov, _ = _render(scene, "ldsampler", 4, depth, seed=77, layers=aov_layers, aov_spp=args.ref_aov_spp)
+    ref_cov = ref_aov["mask"].astype(np.float64)
+    aov_scorer = Scorer({"image": mean.astype(np.float32), **ref_aov}, scene.exposure)
+    arows = []
+    for smp in args.samplers:
+        for n in sorted({taken_spp(smp, t) for t in args.aov_targets}):
+            errs, alb, nrm = [], [], []
+            for k in range(args.seeds):
+                lay, _ = _render(scene, smp, 4, depth, seed=3000 + 31 * n + k, layers=aov_layers, aov_spp=n)
+                errs.append(float(np.mean((lay["mask"][sl] - ref_cov[sl]) ** 2)))
+                e = aov_scorer.aovs(lay)
+                alb.append(e["albedo_psnr"])
+                nrm.append(e["normal_deg"])
+            R["samplers"].setdefault(smp, {}).setdefault("aov", {})[n] = {
+                "mask_mse": float(np.mean(errs)), "albedo_psnr": float(np.mean(alb)), "normal_deg": float(np.mean(nrm))}
+            arows.append([smp, n, float(np.mean(errs)), float(np.mean(alb)), float(np.mean(nrm))])
+    report.append(table(f"{scene_name}: AOV pass vs ldsampler at {args.ref_aov_spp} aov spp (coverage MSE over the box; "
+                        f"albedo PSNR and normal error inside the mask, as bench_tradeoff)",
+                        ["sampler", "aov spp (taken)", "mask MSE", "albedo PSNR dB", "normal err deg"], arows))
+    if args.aov_only:
+        return
     rows, fits = [], {}
     for smp in args.samplers:
         counts = sorted({taken_spp(smp, t) for t in args.targets})
@@ -173,21 +198,7 @@ def sweep(args, scene_name: str, results: dict, report: list) -> None:
                          box.floor / e, vs_ref, pair])
         s, c = fit([p["spp"] for p in pts], [p["relmse"] for p in pts])
         fits[smp] = (s, c)
-        R["samplers"][smp] = {"points": pts, "slope": s, "relmse_at_1spp": c}
-    # AOV pass: coverage (mask) error vs aov spp, against the ldsampler AOV pass at --ref-aov-spp
-    ref_cov, _ = _render(scene, "ldsampler", 4, depth, seed=77, layers=("mask",), aov_spp=args.ref_aov_spp)
-    ref_cov = ref_cov["mask"].astype(np.float64)
-    arows = []
-    for smp in args.samplers:
-        for n in sorted({taken_spp(smp, t) for t in (4, 16, 64)}):
-            errs = []
-            for k in range(args.seeds):
-                lay, _ = _render(scene, smp, 4, depth, seed=3000 + 31 * n + k, layers=("mask",), aov_spp=n)
-                errs.append(float(np.mean((lay["mask"][sl] - ref_cov[sl]) ** 2)))
-            R["samplers"][smp].setdefault("aov_mask_mse", {})[n] = float(np.mean(errs))
-            arows.append([smp, n, float(np.mean(errs))])
-    report.append(table(f"{scene_name}: AOV pass, coverage MSE over the box vs ldsampler at {args.ref_aov_spp} aov spp",
-                        ["sampler", "aov spp (taken)", "mask MSE"], arows))
+        R["samplers"].setdefault(smp, {}).update(points=pts, slope=s, relmse_at_1spp=c)
     report.append(table(f"{scene_name}: beauty relMSE vs spp, {args.resolution}x{args.resolution}, depth {depth}, "
                         f"mean of {args.seeds} seeds, reference noise removed",
                         ["sampler", "spp (taken)", "beauty s", "Msamples/s", "relMSE", "ref floor / relMSE",
@@ -243,7 +254,9 @@ def main(argv=None) -> dict:
     p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--ref-chunks", type=int, default=256, help="ldsampler reference: number of chunks")
     p.add_argument("--ref-chunk-spp", type=int, default=256)
-    p.add_argument("--ref-aov-spp", type=int, default=1024, help="ldsampler AOV reference (coverage)")
+    p.add_argument("--ref-aov-spp", type=int, default=1024, help="ldsampler AOV reference")
+    p.add_argument("--aov-targets", type=int, nargs="+", default=[4, 16, 64], help="requested aov spp of the AOV table")
+    p.add_argument("--aov-only", action="store_true", help="the sweep measures the AOV pass only (no beauty sweep)")
     p.add_argument("--check-chunks", type=int, default=64, help="independent reference for the bias check: chunks")
     p.add_argument("--floor", nargs="*", default=["draft:independent:16", "draft:multijitter:16",
                                                   "standard:independent:128", "standard:multijitter:48",
