@@ -1,12 +1,15 @@
 """Seconds per frame of each render preset, through the frame function `rh-generate` renders with.
 
     python bench/bench_generate.py [--resolution 512] [--presets draft standard reference] [--repeats 2]
+    python bench/bench_generate.py --presets standard --also standard:independent:128::16   # before/after, one run
 
 Renders frame 0 of subject 0's test split of protocol a (a random pose under a random bundled HDRI, every test
 layer: beauty pass + AOV pass) with `rh_dataset.generate.render_frame_to_disk`, the function the local and Ray
 backends call, into a temporary folder: the same camera fill, culling, per-split path depth and writer as a
 dataset. Prints a Markdown table of each stage's median seconds. The first render of each preset is a warm-up (JIT
-compilation, cached on disk afterwards) and is not timed; building the subject is timed once.
+compilation, cached on disk afterwards) and is not timed; building the subject is timed once. The kernel columns
+(drjit's kernel history over the timed frames) say whether a frame after the first reuses its kernels: "compiled"
+counts kernels not found in drjit's caches, and their code generation + backend time.
 """
 from __future__ import annotations
 
@@ -30,6 +33,10 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--protocol", default="a")
+    p.add_argument("--also", nargs="*", default=[],
+                   help="extra rows preset:sampler:spp[:env_spp[:aov_spp]] (a preset with those overrides; no or empty "
+                        "env_spp: every pixel at spp), e.g. standard:independent:128::16 for the settings before "
+                        "bench_sampler")
     args = p.parse_args()
 
     from rh_dataset.cli import render_settings
@@ -54,22 +61,38 @@ def main() -> None:
               f"; Mitsuba variant {variant}; {tris} triangles before culling; {args.resolution}x{args.resolution}; "
               f"protocol {spec.protocol} {split.name} split ({split.scene_class})")
         print(f"subject (build character, frame camera) {t_subject:.2f} s\n")
-        print("| preset | spp | aov spp | max depth | pose+light s | scene load s | beauty s | aov s | "
-              "JSON+write s | s / frame | beauty Msamples/s |")
-        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        import drjit as dr
+
+        dr.set_flag(dr.JitFlag.KernelHistory, True)
+        print("| preset | sampler | spp | env spp | aov spp | max depth | pose+light s | scene load s | beauty s | aov s | "
+              "JSON+write s | s / frame | beauty Msamples/s | kernels / frame | compiled / frame | compile s / frame |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
         px = args.resolution * args.resolution
-        for name in args.presets:
-            settings = render_settings(name)
+        rows = [(name, render_settings(name)) for name in args.presets]
+        for item in args.also:
+            pname, smp, spp, *rest = item.split(":")
+            env = int(rest[0]) if rest and rest[0] else 0
+            aov = int(rest[1]) if len(rest) > 1 else None
+            rows.append((f"{pname} ({smp} {spp}{f' env {env}' if env else ''}{f' aov {aov}' if aov else ''})",
+                         render_settings(pname, sampler=smp, spp=int(spp), env_spp=env, aov_spp=aov)))
+        for name, settings in rows:
             plan = dataclasses.replace(plan, settings=settings)
-            warm = dataclasses.replace(plan, settings=dataclasses.replace(settings, spp=1, aov_spp=1))
-            render_frame_to_disk(warm, source, subject, split, 0)
-            runs = [render_frame_to_disk(plan, source, subject, split, 0) for _ in range(args.repeats)]
+            render_frame_to_disk(plan, source, subject, split, 0)  # warm-up: compiles (or loads) its kernels
+            dr.kernel_history()  # clears it
+            runs, kernels = [], []
+            for _ in range(args.repeats):
+                runs.append(render_frame_to_disk(plan, source, subject, split, 0))
+                kernels += [k for k in dr.kernel_history() if k.get("type") == dr.KernelType.JIT]
+            compiled = [k for k in kernels if not k.get("cache_hit")]
+            compile_s = sum(k.get("codegen_time", 0.0) + k.get("backend_time", 0.0) for k in compiled) / 1000
             med = {k: float(np.median([r.seconds.get(k, 0.0) for r in runs])) for k in STAGES}
             total = float(np.median([sum(r.seconds.values()) for r in runs]))
-            print(f"| {name} | {settings.spp} | {settings.aov_spp} | {settings.for_split(split).max_depth} | "
+            print(f"| {name} | {settings.sampler} | {settings.spp} | {settings.env_spp or '-'} | {settings.aov_spp} | "
+                  f"{settings.for_split(split).max_depth} | "
                   f"{med['pose'] + med['light']:.2f} | {med['load']:.2f} | {med['beauty']:.2f} | {med['aov']:.2f} | "
-                  f"{med['meta'] + med['write']:.2f} | {total:.2f} | {px * settings.spp / med['beauty'] / 1e6:.1f} |",
-                  flush=True)
+                  f"{med['meta'] + med['write']:.2f} | {total:.2f} | {px * settings.spp / med['beauty'] / 1e6:.1f} | "
+                  f"{len(kernels) / args.repeats:.0f} | {len(compiled) / args.repeats:.1f} | "
+                  f"{compile_s / args.repeats:.2f} |", flush=True)
         from rh_common.imageio import read_png
 
         mask = read_png(runs[-1].json_path.with_name(runs[-1].json_path.stem + "_mask.png"))

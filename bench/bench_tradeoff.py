@@ -106,7 +106,7 @@ def build_scene(name: str, resolution: int, seed: int = 0) -> Scene:
 # ------------------------------------------------------------------------------------------------- rendering
 
 def render(scene: Scene, layers, spp: int, depth: int, seed: int, *, aov_spp: int = 1, chunk: int = 256,
-           denoise: bool = False):
+           denoise: bool = False, sampler: str = "independent"):
     """render_frame in chunks of <= `chunk` spp (averaged); returns (layers, beauty_s, aov_s, denoise_s)."""
     from rh_dataset.render.passes import render_frame
     from rh_dataset.render.scene import RenderSettings
@@ -119,7 +119,8 @@ def render(scene: Scene, layers, spp: int, depth: int, seed: int, *, aov_spp: in
         n_chunks = -(-spp // chunk)
         per = [spp // n_chunks + (1 if k < spp % n_chunks else 0) for k in range(n_chunks)]
         for k, s in enumerate(per):
-            st = RenderSettings(spp=s, aov_spp=aov_spp, max_depth=depth, denoise=denoise and n_chunks == 1)
+            st = RenderSettings(spp=s, aov_spp=aov_spp, max_depth=depth, denoise=denoise and n_chunks == 1,
+                                sampler=sampler)
             lay = ["image"] + (["mask", "albedo", "normal"] if denoise and n_chunks == 1 else [])
             out = render_frame(scene.meshes, scene.emitter, scene.camera, st, lay, seed + 7919 * k)
             beauty_s += out.seconds["beauty"]
@@ -394,16 +395,17 @@ def main(argv=None) -> dict:
             rows, psweep = [], []
             for pname, pr in load_presets().items():
                 pr = dataclasses.replace(pr, max_depth=pr.depth_for(SCENE_CLASS[name]))
-                lay, b, _, _ = render(scene, ["image"], pr.spp, pr.max_depth, seed=5000 + pr.spp, chunk=args.chunk_spp)
+                lay, b, _, _ = render(scene, ["image"], pr.spp, pr.max_depth, seed=5000 + pr.spp, chunk=args.chunk_spp,
+                                      sampler=pr.sampler)
                 e = sc.beauty(lay["image"])
                 # the reference's own variance inflates a measured MSE by (1 + spp/ref_spp) (unbiased noise)
                 corr = e["psnr"] + 10 * math.log10(1 + pr.spp / args.ref_spp)
-                psweep.append({"preset": pname, "spp": pr.spp, "max_depth": pr.max_depth, "seconds": b, **e,
+                psweep.append({"preset": pname, "sampler": pr.sampler, "spp": pr.spp, "max_depth": pr.max_depth, "seconds": b, **e,
                                "psnr_ref_noise_corrected": corr})
-                rows.append([pname, pr.spp, pr.max_depth, b, e["relmse"], e["psnr"], corr, e["flip"]])
+                rows.append([pname, pr.sampler, pr.spp, pr.max_depth, b, e["relmse"], e["psnr"], corr, e["flip"]])
             R["presets"] = psweep
             report.append(table(f"{name}: presets vs converged reference ({args.ref_spp} spp, depth {args.ref_depth})",
-                                ["preset", "spp", "max depth", "beauty s", "relMSE", "PSNR dB",
+                                ["preset", "sampler", "spp", "max depth", "beauty s", "relMSE", "PSNR dB",
                                  "PSNR dB (ref noise removed)", "FLIP"], rows))
 
         # -- denoising (pyoidn, HDR, albedo+normal guides from the frame's own AOV pass at aov_spp 16)
@@ -432,7 +434,8 @@ def main(argv=None) -> dict:
             rows, ao = [], []
             for pname in ("draft", "standard"):
                 pr = load_presets()[pname]
-                st = RenderSettings(spp=pr.spp, aov_spp=pr.aov_spp, max_depth=pr.depth_for(SCENE_CLASS[name]))
+                st = RenderSettings(spp=pr.spp, aov_spp=pr.aov_spp, max_depth=pr.depth_for(SCENE_CLASS[name]),
+                                    sampler=pr.sampler, env_spp=pr.env_spp)
                 t = time.perf_counter()
                 render_frame(scene.meshes, scene.emitter, scene.camera, st, ["mask", "albedo", "normal", "depth"], 1)
                 t_aov = time.perf_counter() - t

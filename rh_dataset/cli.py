@@ -49,6 +49,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spp", type=int, default=None, help="samples per pixel of the beauty pass (overrides the preset)")
     p.add_argument("--aov-spp", type=int, default=None,
                    help="samples per pixel of the albedo/normal/mask/depth pass (overrides the preset)")
+    p.add_argument("--sampler", default=None,
+                   help="Mitsuba sampler of both passes (overrides the preset): independent, stratified, multijitter, "
+                        "orthogonal or ldsampler; some take only certain sample counts (docs/TRADEOFFS.md)")
+    p.add_argument("--env-spp", type=int, default=None,
+                   help="samples per pixel where the AOV pass sees no person (overrides the preset; 0 = every pixel "
+                        "at --spp): the person's pixels get the full count, unbiased either way (docs/TRADEOFFS.md)")
     p.add_argument("--max-depth", type=int, default=None,
                    help="longest light path; 2 = direct light only (overrides the preset; by default the draft and "
                         "standard presets take each split's scene_class depth from rh_dataset/scenes/presets.json)")
@@ -137,15 +143,17 @@ def options_from_args(args: argparse.Namespace):
         subjects=subjects, frames=args.frames, resolution=args.resolution, hdri_folder=args.hdri_folder,
         motion=motion, character=character)
     settings = render_settings(args.preset, spp=args.spp, aov_spp=args.aov_spp, max_depth=args.max_depth,
-                               denoise=bool(args.denoise), cull=not args.no_cull)
+                               sampler=args.sampler, env_spp=args.env_spp, denoise=bool(args.denoise), cull=not args.no_cull)
     plan = DatasetPlan(out=args.out, spec=spec, settings=settings, seed=args.seed, variant=args.variant,
                        overwrite=args.overwrite, character_path=args.character)
     return plan, backend_from_args(args)
 
 
 def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None = None, max_depth: int | None = None,
-                    denoise: bool = False, cull: bool = True):
+                    sampler: str | None = None, env_spp: int | None = None, denoise: bool = False,
+                    cull: bool = True):
     """RenderSettings of a preset of scenes/presets.json, with the given fields overridden (None: the preset's)."""
+    from rh_dataset.render.sampler import SAMPLERS
     from rh_dataset.render.scene import RenderSettings
     from rh_dataset.spec import SpecError, load_presets
 
@@ -153,15 +161,27 @@ def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None 
     if preset not in presets:
         raise SpecError(f"unknown --preset {preset!r}; choose one of {sorted(presets)}")
     pr = presets[preset]
-    overridden = any(v is not None for v in (spp, aov_spp, max_depth))
+    overridden = any(v is not None for v in (spp, aov_spp, max_depth, sampler, env_spp))
+    if sampler is not None and sampler not in SAMPLERS:
+        raise SpecError(f"unknown --sampler {sampler!r}; choose one of {', '.join(SAMPLERS)}")
     return RenderSettings(
         spp=spp if spp is not None else pr.spp,
         aov_spp=aov_spp if aov_spp is not None else pr.aov_spp,
         max_depth=max_depth if max_depth is not None else pr.max_depth,
+        sampler=sampler if sampler is not None else pr.sampler,
+        env_spp=(env_spp or None) if env_spp is not None else _preset_env_spp(pr.env_spp, spp),
         preset=f"{pr.name}+overrides" if overridden else pr.name,
         denoise=denoise,
         cull=cull,
     )
+
+
+def _preset_env_spp(env_spp: int | None, spp: int | None) -> int | None:
+    """The preset's env_spp under a --spp override: never above the override (at or above it, focusing saves nothing:
+    None)."""
+    if env_spp is None or spp is None:
+        return env_spp
+    return env_spp if env_spp < spp else None
 
 
 def backend_from_args(args: argparse.Namespace):

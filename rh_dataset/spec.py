@@ -325,6 +325,10 @@ class Preset:
     aov_spp: int
     max_depth: int | None
     """None ("scene_class" in the JSON): each split's scene class chooses the depth (`SplitSpec.max_depth`)."""
+    sampler: str = "independent"
+    """Mitsuba's sample generator for both passes (`rh_dataset.render.sampler`), chosen by bench/bench_sampler.py."""
+    env_spp: int | None = None
+    """Samples per pixel where no person is (`rh_dataset.render.focus`); None: every pixel gets spp."""
     description: str = ""
 
     def depth_for(self, scene_class: str) -> int:
@@ -431,13 +435,22 @@ def load_protocol(name_or_path: str) -> ProtocolSpec:
     return _parse_protocol(path, data)
 
 
-def load_presets() -> dict[str, Preset]:
-    path = SCENES_DIR / "presets.json"
+def load_presets(path: Path | None = None) -> dict[str, Preset]:
+    """The render presets of rh_dataset/scenes/presets.json (or of `path`, a file of the same format)."""
+    from .render.sampler import SAMPLERS
+
+    path = SCENES_DIR / "presets.json" if path is None else Path(path)
     data = json.loads(path.read_text())
     out = {}
     for name, p in data["presets"].items():
-        _check_keys(f"{path}: preset {name}", p, {"spp", "aov_spp", "max_depth", "description"},
-                    {"spp", "aov_spp", "max_depth"})
+        _check_keys(f"{path}: preset {name}", p, {"spp", "aov_spp", "max_depth", "sampler", "env_spp", "description"},
+                    {"spp", "aov_spp", "max_depth", "sampler"})
+        if p["sampler"] not in SAMPLERS:
+            raise SpecError(f"{path}: preset {name}: unknown sampler {p['sampler']!r}; choose one of "
+                            f"{', '.join(SAMPLERS)}")
+        env = p.get("env_spp")
+        if env is not None and (not isinstance(env, int) or not 1 <= env <= p["spp"]):
+            raise SpecError(f"{path}: preset {name}: env_spp must be an integer in [1, spp] or absent, got {env!r}")
         p = dict(p)
         if p["max_depth"] == "scene_class":
             p["max_depth"] = None

@@ -1,6 +1,6 @@
 """The Mitsuba sensor of a pinhole `rh_common.camera.Camera`.
 
-In: a Camera and a sample count. Out: the `perspective` sensor dict for Mitsuba's scene. Mitsuba's `look_at`
+In: a Camera, a sample count and a sampler name. Out: the `perspective` sensor dict for Mitsuba's scene. Mitsuba's `look_at`
 frame has +X to the image's left and +Y up; OpenCV's has +X right and +Y down. `Camera.world_to_camera` is built
 independently from the same origin/target/up, and tests check that a rendered point lands where
 `K @ world_to_camera` projects it.
@@ -10,12 +10,14 @@ from __future__ import annotations
 from rh_common.camera import Camera
 
 from ..variant import load_mitsuba
+from .sampler import sampler_dict
 
 __all__ = ["mitsuba_sensor"]
 
 
-def mitsuba_sensor(camera: Camera, spp: int, *, pixel_format: str = "rgb") -> dict:
-    """The Mitsuba `perspective` sensor dict that renders exactly `camera` with `spp` samples per pixel."""
+def mitsuba_sensor(camera: Camera, spp: int, *, pixel_format: str = "rgb", sampler: str = "independent") -> dict:
+    """The Mitsuba `perspective` sensor dict that renders exactly `camera` with `spp` samples per pixel drawn by
+    Mitsuba's `sampler` (`rh_dataset.render.sampler`)."""
     mi = load_mitsuba()
     to_world = mi.ScalarTransform4f().look_at(
         origin=list(map(float, camera.origin)), target=list(map(float, camera.target)),
@@ -33,5 +35,5 @@ def mitsuba_sensor(camera: Camera, spp: int, *, pixel_format: str = "rgb") -> di
         "near_clip": 0.01,
         "far_clip": 1000.0,
         "film": film,
-        "sampler": {"type": "independent", "sample_count": int(spp)},
+        "sampler": sampler_dict(sampler, spp),
     }

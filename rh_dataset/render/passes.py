@@ -16,6 +16,8 @@ import numpy as np
 from rh_common.camera import Camera
 
 from .cull import drop_faces, outside_frustum
+from .focus import person_pixels, render_focused
+from .sampler import check_spp
 from .scene import MeshLike, RenderSettings, scene_dict
 from ..variant import load_mitsuba, require_variant
 
@@ -72,6 +74,13 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
         raise ValueError("render_frame: max_depth is None; resolve it from the split's scene class first "
                          "(RenderSettings.for_split)")
     require_variant()
+    if path_traced:
+        for n in sorted(set(_chunks(settings.spp))):
+            check_spp(settings.sampler, n, "spp" if n == settings.spp else "spp (one render call's chunk)")
+    if _AOV_LAYERS & set(layers) or (settings.denoise and path_traced):
+        check_spp(settings.sampler, settings.aov_spp, "aov_spp")
+        if path_traced and settings.env_spp is not None:
+            check_spp(settings.sampler, settings.env_spp, "env_spp")
     out: dict[str, np.ndarray] = {}
     seconds: dict[str, float] = {}
     culled = {"hidden_under_clothes": 0, "outside_frustum": 0}
@@ -91,21 +100,30 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
     else:
         integrator = _AOV_INTEGRATOR
     scene = mi.load_dict(scene_dict(meshes, emitter if path_traced else None, camera, integrator, settings.spp,
-                                    pixel_format="rgba"))
+                                    pixel_format="rgba", sampler=settings.sampler))
     seconds["load"] = time.perf_counter() - t
     try:
-        if path_traced:
-            t = time.perf_counter()
-            img = _render_chunked(mi, scene, settings.spp, seed)
-            out["image"] = np.ascontiguousarray(img[..., :3])
-            seconds["beauty"] = time.perf_counter() - t
+        # The AOV pass first: the beauty pass may spend its samples where the AOV coverage says the person is.
         denoise = bool(settings.denoise) and path_traced
+        aov = None
         if _AOV_LAYERS & set(layers) or denoise:
             t = time.perf_counter()
             aov = np.array(mi.render(scene, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp,
                                      seed=seed + 1), dtype=np.float32)
             seconds["aov"] = time.perf_counter() - t
             out.update(_postprocess_aovs(aov, camera, layers))
+        if path_traced:
+            t = time.perf_counter()
+            if settings.env_spp is not None and aov is not None:
+                chunks = _chunks(settings.spp)
+                img = render_focused(mi, scene, np.clip(aov[..., 3], 0.0, 1.0), chunks, settings.env_spp,
+                                     _chunk_seeds(seed, len(chunks)), seed + 2, FOCUS_MARGIN)
+                info["focus"] = {"env_spp": int(settings.env_spp), "margin_px": FOCUS_MARGIN,
+                                 "pixels": int(len(person_pixels(aov[..., 3], FOCUS_MARGIN)))}
+            else:
+                img = _render_chunked(mi, scene, settings.spp, seed)
+            out["image"] = np.ascontiguousarray(img[..., :3])
+            seconds["beauty"] = time.perf_counter() - t
     finally:
         del scene  # a live scene makes the next load recompile its kernels
     if denoise:  # opt-in (RenderSettings.denoise), recorded in the frame JSON; guided by this frame's AOVs
@@ -175,14 +193,28 @@ def count_fireflies(image: np.ndarray, k: float = FIREFLY_K, window: int = FIREF
 # and averaged, which the box filter makes equivalent to one pass with the total sample count.
 MAX_SPP_PER_CALL = 256
 
+# Pixels around the AOV pass's coverage that the focused beauty pass also renders at full spp: the AOV pass, at
+# aov_spp samples, can miss a sliver of coverage; a missed pixel is not biased (focus.py), only noisier.
+FOCUS_MARGIN = 2
+
+
+def _chunks(spp: int) -> list[int]:
+    if spp <= MAX_SPP_PER_CALL:
+        return [spp]
+    return [MAX_SPP_PER_CALL] * (spp // MAX_SPP_PER_CALL) + ([spp % MAX_SPP_PER_CALL] if spp % MAX_SPP_PER_CALL else [])
+
+
+def _chunk_seeds(seed: int, n_chunks: int) -> list[int]:
+    return [seed] if n_chunks == 1 else [seed + 1000003 * (k + 1) for k in range(n_chunks)]
+
 
 def _render_chunked(mi, scene, spp: int, seed: int) -> np.ndarray:
     if spp <= MAX_SPP_PER_CALL:
         return np.array(mi.render(scene, spp=spp, seed=seed), dtype=np.float32)
-    chunks = [MAX_SPP_PER_CALL] * (spp // MAX_SPP_PER_CALL) + ([spp % MAX_SPP_PER_CALL] if spp % MAX_SPP_PER_CALL else [])
+    chunks = _chunks(spp)
     acc = None
-    for k, n in enumerate(chunks):
-        part = np.array(mi.render(scene, spp=n, seed=seed + 1000003 * (k + 1)), dtype=np.float64) * (n / spp)
+    for n, s in zip(chunks, _chunk_seeds(seed, len(chunks))):
+        part = np.array(mi.render(scene, spp=n, seed=s), dtype=np.float64) * (n / spp)
         acc = part if acc is None else acc + part
     return acc.astype(np.float32)
 

@@ -13,6 +13,7 @@ import numpy as np
 from rh_common.camera import Camera
 
 from .camera import mitsuba_sensor
+from .sampler import SAMPLERS
 from ..variant import load_mitsuba, require_variant
 
 __all__ = ["MeshLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf"]
@@ -45,6 +46,13 @@ class RenderSettings:
     """Longest path (Mitsuba `max_depth`): 2 = direct light only; each extra unit adds one bounce. None: the split's
     scene class decides (`for_split`); a path-traced pass refuses an unresolved None."""
     preset: str = "custom"
+    sampler: str = "independent"
+    """Mitsuba's sample generator for both passes (`rh_dataset.render.sampler.SAMPLERS`); the presets choose theirs
+    by measurement (bench/bench_sampler.py). Some round their sample count: a count they would round is refused."""
+    env_spp: int | None = None
+    """Samples per pixel where the AOV pass sees no person (the environment seen directly); the person's pixels get
+    `spp` (`rh_dataset.render.focus`: unbiased either way). None: every pixel gets `spp`. Needs an AOV layer in the
+    frame (the coverage comes from that pass); a frame without one renders every pixel at `spp`."""
     denoise: bool = False
     """Opt-in: run Intel Open Image Denoise (pyoidn, HDR mode, guided by the albedo and normal AOVs) on the beauty
     image. Biased (docs/TRADEOFFS.md measures it); recorded in the frame JSON as `render.denoise`/`render.denoised`."""
@@ -61,6 +69,11 @@ class RenderSettings:
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
                 raise ValueError(f"render setting {name} must be a positive integer, got {v!r}")
+        if self.sampler not in SAMPLERS:
+            raise ValueError(f"render setting sampler must be one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
+        if self.env_spp is not None and (not isinstance(self.env_spp, int) or not 1 <= self.env_spp <= self.spp):
+            raise ValueError(f"render setting env_spp must be None or an integer in [1, spp={self.spp}], "
+                             f"got {self.env_spp!r}")
         if self.max_depth is not None and (not isinstance(self.max_depth, int) or self.max_depth < 2):
             raise ValueError(f"render setting max_depth must be an integer >= 2 or None, got {self.max_depth!r}")
 
@@ -122,13 +135,13 @@ def mitsuba_mesh(mesh: MeshLike) -> Any:
 
 
 def scene_dict(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camera, integrator: dict, spp: int,
-               *, pixel_format: str) -> dict:
+               *, pixel_format: str, sampler: str = "independent") -> dict:
     """The whole Mitsuba scene: one sensor, the environment emitter (None: no light at all, for passes that read
     only primary hits), the character's meshes."""
     d: dict[str, Any] = {
         "type": "scene",
         "integrator": integrator,
-        "sensor": mitsuba_sensor(camera, spp, pixel_format=pixel_format),
+        "sensor": mitsuba_sensor(camera, spp, pixel_format=pixel_format, sampler=sampler),
     }
     if emitter is not None:
         d["environment"] = emitter

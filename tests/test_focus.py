@@ -1,0 +1,87 @@
+"""Samples where the noise is (rh_dataset.render.focus): the pixel-list tracer is Mitsuba's own render on a full
+list, and the focused beauty image is an unbiased estimate of the same image a full-frame render estimates."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analytic_scenes import uv_sphere
+from rh_common.camera import Camera
+from rh_dataset.render.focus import padded_size, person_pixels, render_pixels
+from rh_dataset.render.passes import render_frame
+from rh_dataset.render.scene import RenderSettings, scene_dict
+from rh_dataset.variant import load_mitsuba, select_variant
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _variant():
+    select_variant("llvm_ad_rgb")
+
+
+def _env() -> dict:
+    # An environment that varies across the frame (a vertical gradient and a bright band), so the pixels around
+    # the sphere are not trivially constant and their few-sample noise is real.
+    mi = load_mitsuba()
+    v = np.linspace(0.0, 1.0, 32, dtype=np.float32)[:, None, None]
+    img = np.broadcast_to(0.2 + 1.5 * v, (32, 64, 3)).copy()
+    img[:, 20:24] = 4.0
+    return {"type": "envmap", "bitmap": mi.Bitmap(img)}
+
+
+def _cam(n=24) -> Camera:
+    return Camera(width=n, height=n, fov_y_deg=50.0, origin=(0.0, -4.0, 0.3), target=(0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("sampler", ["independent", "multijitter"])
+def test_render_pixels_on_every_pixel_is_mitsubas_render_bit_for_bit(sampler):
+    mi = load_mitsuba()
+    cam = _cam(16)
+    scene = mi.load_dict(scene_dict([uv_sphere()], _env(), cam, {"type": "path", "max_depth": 3}, 4,
+                                    pixel_format="rgba", sampler=sampler))
+    full = np.array(mi.render(scene, spp=4, seed=9), dtype=np.float32)[..., :3]
+    mine = render_pixels(mi, scene, np.arange(16 * 16, dtype=np.uint32), 4, 9)
+    assert np.array_equal(mine.reshape(16, 16, 3), full)
+    some = np.array([0, 17, 100, 255], dtype=np.uint32)  # a subset: the same values as those pixels of its own run
+    part = render_pixels(mi, scene, some, 4, 9)
+    assert part.shape == (4, 3) and np.all(np.isfinite(part))
+
+
+def test_person_pixels_grow_the_coverage_and_sizes_pad_to_few_per_octave():
+    cov = np.zeros((10, 10))
+    cov[5, 5] = 0.3
+    assert sorted(person_pixels(cov, 0)) == [55]
+    assert len(person_pixels(cov, 1)) == 9 and len(person_pixels(np.zeros((4, 4)), 2)) == 0
+    assert padded_size(1) == 1024 and padded_size(1025) == 1280 and padded_size(2049) == 2560
+    assert all(padded_size(n) >= n for n in (3000, 70_000, 262_144))
+
+
+def test_focused_beauty_is_an_unbiased_estimate_of_the_full_frame_image():
+    # Reference: the full frame at 16 x 256 spp (independent), the variance of its mean from its chunks. Focused:
+    # K frames at spp 16 / env_spp 1, each an independent estimate. If both estimate the same image, the mean
+    # squared difference of the focused mean to the reference equals the sum of their variances (ratio ~1); a
+    # bias adds to the numerator only.
+    env, cam, sphere = _env(), _cam(), [uv_sphere(albedo=(0.6, 0.5, 0.4))]
+    ref_chunks = [render_frame(sphere, env, cam, RenderSettings(spp=256, aov_spp=4, max_depth=3), ["image"],
+                               seed=100 + k).layers["image"].astype(np.float64) for k in range(16)]
+    r = np.mean(ref_chunks, axis=0)
+    var_r = np.var(ref_chunks, axis=0, ddof=1) / len(ref_chunks)
+    st = RenderSettings(spp=16, aov_spp=4, max_depth=3, env_spp=1, sampler="multijitter")
+    runs = [render_frame(sphere, env, cam, st, ["image", "mask"], seed=1000 + 7 * k) for k in range(16)]
+    assert all(run.info["focus"]["pixels"] > 50 for run in runs)
+    x = np.array([run.layers["image"] for run in runs], dtype=np.float64)
+    m, var_m = x.mean(axis=0), x.var(axis=0, ddof=1) / len(x)
+    person = person_pixels(runs[0].layers["mask"], 2).astype(int)
+    sel = np.zeros(cam.width * cam.height, bool)
+    sel[person] = True
+    sel = sel.reshape(cam.height, cam.width)
+    for where in (sel, ~sel):
+        ratio = np.mean((m - r)[where] ** 2) / np.mean((var_m + var_r)[where])
+        assert 0.5 < ratio < 1.6, ratio
+    # The person's pixels really got spp samples and the rest env_spp: their variance against that of a full frame
+    # at 1 spp (same sampler) is ~1/16 inside and ~1 outside.
+    one = np.array([render_frame(sphere, env, cam, RenderSettings(spp=1, aov_spp=4, max_depth=3, sampler="multijitter"),
+                                 ["image"], seed=5000 + k).layers["image"] for k in range(16)], dtype=np.float64)
+    v1 = one.var(axis=0, ddof=1)
+    v16 = x.var(axis=0, ddof=1)
+    assert np.mean(v16[sel]) < np.mean(v1[sel]) / 4
+    assert 0.5 < np.mean(v16[~sel]) / np.mean(v1[~sel]) < 2.0 and np.mean(v1[~sel]) > 0
