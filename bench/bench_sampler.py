@@ -129,7 +129,7 @@ def pair_psnr(scene, sampler: str, spp: int, depth: int, seeds: tuple[int, int],
 def sweep(args, scene_name: str, results: dict, report: list) -> None:
     from bench_tradeoff import build_scene, SCENE_CLASS
     from rh_dataset.render.sampler import taken_spp
-    from rh_dataset.spec import load_presets
+    from rh_dataset.presets import load_presets
 
     depth = load_presets()["standard"].depth_for(SCENE_CLASS[scene_name])
     scene = build_scene(scene_name, args.resolution, args.seed)
@@ -219,7 +219,7 @@ def sweep(args, scene_name: str, results: dict, report: list) -> None:
 
 def floors(args, results: dict, report: list) -> None:
     from bench_tradeoff import build_scene, SCENE_CLASS
-    from rh_dataset.spec import load_presets
+    from rh_dataset.presets import load_presets
 
     presets = load_presets()
     rows = []

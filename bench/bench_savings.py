@@ -140,7 +140,7 @@ def main(argv=None) -> dict:
     from rh_dataset.render.cull import HIDDEN_MARGIN_M, _hidden_faces
     from rh_dataset.render.scene import RenderSettings
     from rh_dataset.variant import select_variant
-    from rh_dataset.spec import load_presets, load_scene_classes
+    from rh_dataset.presets import load_presets, load_scene_classes
     from rh_eval.metrics import psnr
 
     variant = select_variant(None)

@@ -289,7 +289,7 @@ def main(argv=None) -> dict:
     out_dir.mkdir(parents=True, exist_ok=True)
 
     from rh_dataset.variant import select_variant
-    from rh_dataset.spec import load_presets
+    from rh_dataset.presets import load_presets
 
     variant = select_variant(None)
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average "

@@ -155,7 +155,8 @@ def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None 
     """RenderSettings of a preset of scenes/presets.json, with the given fields overridden (None: the preset's)."""
     from rh_dataset.render.sampler import SAMPLERS
     from rh_dataset.render.scene import RenderSettings
-    from rh_dataset.spec import SpecError, load_presets
+    from rh_dataset.spec import SpecError
+    from rh_dataset.presets import load_presets
 
     presets = load_presets()
     if preset not in presets:

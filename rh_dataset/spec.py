@@ -14,6 +14,8 @@ from typing import Any
 
 from rh_common.imageio import dumps_json, sha256_file
 
+from .scene_files import SCENES_DIR, SpecError, _check_keys
+
 __all__ = [
     "SCENES_DIR",
     "SpecError",
@@ -22,36 +24,14 @@ __all__ = [
     "OlatSpec",
     "CharacterSource",
     "ProtocolSpec",
-    "Preset",
     "load_protocol",
-    "load_presets",
-    "load_scene_classes",
-    "SceneClass",
     "available_protocols",
 ]
 
-# Package data (pyproject.toml's package-data), so a wheel carries it: a folder next to the package, as the repo
-# once had, is not installed and `rh-generate --protocol a` found no protocols outside a source checkout.
-SCENES_DIR = Path(__file__).resolve().parent / "scenes"
 
 POSE_SOURCES = ("turntable", "random", "train", "test", "motion")
 LIGHT_SOURCES = ("fixed", "random", "olat")
 KNOWN_LAYERS = ("image", "mask", "albedo", "normal", "depth")
-
-
-class SpecError(ValueError):
-    """An invalid scene/protocol description; the message names the file or field and the fix."""
-
-
-def _check_keys(where: str, data: dict, allowed: set[str], required: set[str]) -> None:
-    if not isinstance(data, dict):
-        raise SpecError(f"{where}: expected an object, got {type(data).__name__}")
-    unknown = set(data) - allowed
-    if unknown:
-        raise SpecError(f"{where}: unknown key(s) {sorted(unknown)}; allowed: {sorted(allowed)}")
-    missing = required - set(data)
-    if missing:
-        raise SpecError(f"{where}: missing key(s) {sorted(missing)}")
 
 
 @dataclass(frozen=True)
@@ -166,6 +146,8 @@ class SplitSpec:
         if bad or not self.layers:
             raise SpecError(f"split {self.name}: layers must be a non-empty subset of {KNOWN_LAYERS}, got {bad or '[]'}")
         if self.path_traced and self.scene_class is None:
+            from .presets import load_scene_classes
+
             raise SpecError(f"split {self.name}: a split with an 'image' layer must declare its scene_class (one of "
                             f"{sorted(load_scene_classes())}); it chooses the path depth")
         if not self.path_traced and self.scene_class is not None:
@@ -318,44 +300,6 @@ class ProtocolSpec:
         return hashlib.sha256(dumps_json(self.to_json()).encode()).hexdigest()[:16]
 
 
-@dataclass(frozen=True)
-class Preset:
-    name: str
-    spp: int
-    aov_spp: int
-    max_depth: int | None
-    """None ("scene_class" in the JSON): each split's scene class chooses the depth (`SplitSpec.max_depth`)."""
-    sampler: str = "independent"
-    """Mitsuba's sample generator for both passes (`rh_dataset.render.sampler`), chosen by bench/bench_sampler.py."""
-    env_spp: int | None = None
-    """Samples per pixel where no person is (`rh_dataset.render.focus`); None: every pixel gets spp."""
-    description: str = ""
-
-    def depth_for(self, scene_class: str) -> int:
-        """The path depth this preset renders a scene of `scene_class` with."""
-        if self.max_depth is not None:
-            return self.max_depth
-        classes = load_scene_classes()
-        if scene_class not in classes:
-            raise SpecError(f"unknown scene class {scene_class!r}; known: {sorted(classes)}")
-        return classes[scene_class].max_depth
-
-
-@dataclass(frozen=True)
-class SceneClass:
-    """A kind of scene whose light transport behaves alike, so one path depth serves all of it.
-
-    `max_depth` is the smallest depth whose truncation error (display-space PSNR over the person against the same
-    render at depth 16, same samples) is at least `tolerance_db`; `measured` records the measurement it rests on
-    (bench/bench_savings.py, docs/TRADEOFFS.md)."""
-
-    name: str
-    max_depth: int
-    tolerance_db: float
-    description: str = ""
-    measured: dict = field(default_factory=dict, compare=False)
-
-
 _PROTOCOL_KEYS = {"format", "name", "protocol", "description", "subjects", "character_pool", "resolution",
                   "fov_y_deg", "splits", "lights"}
 _SPLIT_KEYS = {"frames", "poses", "light", "layers", "motion", "scene_class", "olat"}
@@ -385,6 +329,8 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
             if not file.is_absolute():
                 file = path.parent / file  # relative to the scene file, like any path in it
             motion = MotionSpec.from_file(file, **{k: v for k, v in m.items() if k != "file"})
+        from .presets import load_scene_classes
+
         cls = s.get("scene_class")
         classes = load_scene_classes()
         if cls is not None and cls not in classes:
@@ -433,42 +379,3 @@ def load_protocol(name_or_path: str) -> ProtocolSpec:
     except json.JSONDecodeError as exc:
         raise SpecError(f"{path}: not valid JSON ({exc})") from exc
     return _parse_protocol(path, data)
-
-
-def load_presets(path: Path | None = None) -> dict[str, Preset]:
-    """The render presets of rh_dataset/scenes/presets.json (or of `path`, a file of the same format)."""
-    from .render.sampler import SAMPLERS
-
-    path = SCENES_DIR / "presets.json" if path is None else Path(path)
-    data = json.loads(path.read_text())
-    out = {}
-    for name, p in data["presets"].items():
-        _check_keys(f"{path}: preset {name}", p, {"spp", "aov_spp", "max_depth", "sampler", "env_spp", "description"},
-                    {"spp", "aov_spp", "max_depth", "sampler"})
-        if p["sampler"] not in SAMPLERS:
-            raise SpecError(f"{path}: preset {name}: unknown sampler {p['sampler']!r}; choose one of "
-                            f"{', '.join(SAMPLERS)}")
-        env = p.get("env_spp")
-        if env is not None and (not isinstance(env, int) or not 1 <= env <= p["spp"]):
-            raise SpecError(f"{path}: preset {name}: env_spp must be an integer in [1, spp] or absent, got {env!r}")
-        p = dict(p)
-        if p["max_depth"] == "scene_class":
-            p["max_depth"] = None
-        elif not isinstance(p["max_depth"], int) or p["max_depth"] < 2:
-            raise SpecError(f"{path}: preset {name}: max_depth must be an integer >= 2 or \"scene_class\"")
-        out[name] = Preset(name=name, **p)
-    return out
-
-
-def load_scene_classes() -> dict[str, SceneClass]:
-    """The scene classes of rh_dataset/scenes/presets.json, each with the path depth its measurement chose."""
-    path = SCENES_DIR / "presets.json"
-    data = json.loads(path.read_text())
-    out = {}
-    for name, c in data.get("scene_classes", {}).items():
-        _check_keys(f"{path}: scene class {name}", c, {"max_depth", "tolerance_db", "description", "measured"},
-                    {"max_depth", "tolerance_db"})
-        if not isinstance(c["max_depth"], int) or c["max_depth"] < 2:
-            raise SpecError(f"{path}: scene class {name}: max_depth must be an integer >= 2")
-        out[name] = SceneClass(name=name, **c)
-    return out

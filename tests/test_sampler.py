@@ -12,7 +12,8 @@ from rh_common.camera import Camera
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.sampler import SAMPLERS, check_spp, taken_spp
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.spec import SCENES_DIR, SpecError, load_presets
+from rh_dataset.spec import SCENES_DIR, SpecError
+from rh_dataset.presets import load_presets
 from rh_dataset.variant import select_variant
 
 

@@ -64,7 +64,8 @@ def test_aov_only_layers_are_bit_identical_to_those_of_the_full_scene():
 # ---------------------------------------------------------------------------------------------- path depth
 
 def test_the_split_scene_class_chooses_the_depth_and_the_preset_can_override_it():
-    from rh_dataset.spec import load_presets, load_protocol, load_scene_classes
+    from rh_dataset.spec import load_protocol
+    from rh_dataset.presets import load_presets, load_scene_classes
 
     classes = load_scene_classes()
     a = load_protocol("a")
@@ -87,7 +88,7 @@ def test_the_split_scene_class_chooses_the_depth_and_the_preset_can_override_it(
 def test_each_class_depth_meets_its_recorded_tolerance_and_one_less_would_not():
     # The choice rests on the measurement recorded beside it: the smallest depth whose truncation PSNR clears the
     # tolerance.
-    from rh_dataset.spec import load_scene_classes
+    from rh_dataset.presets import load_scene_classes
 
     for c in load_scene_classes().values():
         psnr = {int(k): v for k, v in c.measured["psnr_vs_depth16_db"].items()}
@@ -269,7 +270,7 @@ def test_a_clothed_character_renders_the_same_without_its_hidden_skin(character)
 def test_generated_frames_record_what_was_modelled(tmp_path, monkeypatch):
     from rh_common.imageio import read_json
     from rh_dataset.cli import main as generate_main
-    from rh_dataset.spec import load_scene_classes
+    from rh_dataset.presets import load_scene_classes
 
     # standard defers the depth to each split's scene class (draft fixes 3 for every class)
     tiny = ["--subjects", "1", "--frames", "1", "--resolution", "24", "--spp", "2", "--aov-spp", "2", "--preset",

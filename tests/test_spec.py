@@ -5,7 +5,8 @@ import json
 
 import pytest
 
-from rh_dataset.spec import SpecError, available_protocols, load_presets, load_protocol
+from rh_dataset.spec import SpecError, available_protocols, load_protocol
+from rh_dataset.presets import load_presets
 
 
 def test_shipped_protocols_match_the_paper():

@@ -79,7 +79,8 @@ def test_the_wheels_copy_runs_with_its_package_data(installed):
     venv, work, env = installed
     probe = (
         "import json, rh_common, rh_dataset, rh_eval, rana, rh_demo, rh_common.blender as rb\n"
-        "from rh_dataset.spec import SCENES_DIR, available_protocols, load_presets, load_protocol\n"
+        "from rh_dataset.spec import SCENES_DIR, available_protocols, load_protocol\n"
+        "from rh_dataset.presets import load_presets\n"
         "print(json.dumps({'files': [m.__file__ for m in (rh_common, rh_dataset, rh_eval, rana, rh_demo)],\n"
         "  'scenes': str(SCENES_DIR), 'checkout': str(rb._source_checkout()),\n"
         "  'protocols': {n: load_protocol(n).to_json() for n in available_protocols()},\n"
@@ -91,7 +92,8 @@ def test_the_wheels_copy_runs_with_its_package_data(installed):
     assert Path(got["scenes"]).is_relative_to(venv)
     assert got["checkout"] == "None"  # an installed package must not look for a repository's .blender-venv
 
-    from rh_dataset.spec import available_protocols, load_presets, load_protocol
+    from rh_dataset.spec import available_protocols, load_protocol
+    from rh_dataset.presets import load_presets
     here = {n: load_protocol(n).to_json() for n in available_protocols()}
     assert got["protocols"] == json.loads(json.dumps(here))  # the same descriptions, digests and all
     assert {"protocol_a", "protocol_b", "demo", "rana_pretrain"} <= set(got["protocols"])
