@@ -47,6 +47,7 @@ MODEL_FILE_NAMES = {
 }
 
 JOINT_COUNTS = {"smpl": 24, "smplx": 55}
+NAMES = {"smpl": "SMPL", "smplx": "SMPL-X"}
 # What SMPL-X files carry beyond the body model (facial landmarks, hand PCA): kept so a stand-in round-trips.
 SMPLX_EXTRA_KEYS = ("lmk_faces_idx", "lmk_bary_coords", "dynamic_lmk_faces_idx", "dynamic_lmk_bary_coords",
                     "hands_componentsl", "hands_componentsr", "hands_meanl", "hands_meanr")
@@ -238,7 +239,7 @@ def load_body_model(path: str | Path, kind: str = "smpl", gender: str = "neutral
     need = ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table", "f")
     missing = [k for k in need if k not in arrays]
     if missing:
-        raise SmplModelError(f"{path}: missing {', '.join(missing)}; this is not a {kind.upper()} model file")
+        raise SmplModelError(f"{path}: missing {', '.join(missing)}; this is not a {NAMES[kind]} model file")
 
     def arr(k, dtype=np.float64):
         try:
@@ -265,12 +266,12 @@ def load_body_model(path: str | Path, kind: str = "smpl", gender: str = "neutral
     ]
     for ok, what in checks:
         if not ok:
-            raise SmplModelError(f"{path}: {what} for a {kind.upper()} model with {n_joints} joints; is this the "
-                                 f"right file (a {kind.upper()} model, not another topology)?")
+            raise SmplModelError(f"{path}: {what} for a {NAMES[kind]} model with {n_joints} joints; is this the "
+                                 f"right file (a {NAMES[kind]} model, not another topology)?")
     parents = kintree[0].copy()
     parents[0] = -1
     if np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, n_joints)):
-        raise SmplModelError(f"{path}: kintree_table's parents are not ordered root-first; not a {kind.upper()} model")
+        raise SmplModelError(f"{path}: kintree_table's parents are not ordered root-first; not a {NAMES[kind]} model")
     return BodyModel(kind=kind, gender=gender, v_template=v_template, shapedirs=shapedirs, posedirs=posedirs,
                      J_regressor=J_regressor, weights=weights, parents=parents, faces=faces, path=str(path),
                      sha256=_sha256(path), extra={k: _extra(k, arrays[k]) for k in _KEPT_EXTRAS if k in arrays})
@@ -293,14 +294,14 @@ def find_model_file(folder: str | Path, kind: str = "smpl", gender: str = "neutr
     folder = Path(folder)
     if not folder.is_dir():
         raise SmplModelError(f"{folder}: no such folder; pass the folder holding your own "
-                             f"{MODEL_FILE_NAMES[kind][gender][0]} (or write a stand-in with rh-export --write-test-smpl)")
+                             f"{MODEL_FILE_NAMES[kind][gender][0]} (or write a stand-in with rh-export --write-test-{kind})")
     for sub in (folder, folder / kind):
         for name in MODEL_FILE_NAMES[kind][gender]:
             if (sub / name).is_file():
                 return sub / name
-    raise SmplModelError(f"{folder}: no {kind.upper()} {gender} model file (looked for "
+    raise SmplModelError(f"{folder}: no {NAMES[kind]} {gender} model file (looked for "
                          f"{', '.join(MODEL_FILE_NAMES[kind][gender])}); put your own copy there, or write a "
-                         "stand-in with rh-export --write-test-smpl DIR")
+                         f"stand-in with rh-export --write-test-{kind} DIR")
 
 
 def write_smpl_pickle(path: str | Path, model: BodyModel) -> None:
