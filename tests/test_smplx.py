@@ -93,6 +93,13 @@ def test_file_loads_as_smplx_and_round_trips(models, standin):
     assert np.array_equal(m.extra["rh_standin"]["anny_vertex_ids"], standin.extra["rh_standin"]["anny_vertex_ids"])
     for k in SMPLX_EXTRA_KEYS:
         assert np.array_equal(m.extra[k], standin.extra[k]), k
+    # Bitwise reproducible file (its sha256 keys the fit cache): no write time inside, unlike np.savez's zip entries.
+    import time
+
+    time.sleep(2.1)  # the zip format's clock ticks in 2 s steps
+    again = models / "again" / "SMPLX_NEUTRAL.npz"
+    write_smplx_npz(again, standin)
+    assert again.read_bytes() == path.read_bytes()
     from rh_dataset.smpl.model import SmplModelError
 
     with pytest.raises(SmplModelError, match="posedirs must be .* 207"):
@@ -161,6 +168,13 @@ def test_export_writes_smplx_data(rh_export, models):
     assert export_dataset(ds, "a", "relighting-humans", out, smplx_model=models,
                           smpl_settings=QUICK)["smplx_fitted_frames"] == 0
     assert {p: p.read_bytes() for p in paths} == before
+    import dataclasses
+
+    from rh_dataset.export import ExportError
+
+    with pytest.raises(ExportError, match=r"frame subject_000/\w+/\d{6}: the SMPL-X fit is too far"):
+        export_dataset(ds, "a", "relighting-humans", out, smplx_model=models,
+                       smpl_settings=dataclasses.replace(QUICK, max_mean_mm=0.001))
 
 
 def test_zju_params_smplx(rh_export, models, tmp_path):

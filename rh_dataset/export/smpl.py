@@ -159,7 +159,7 @@ class SmplFits:
     def _check(self, subject: str, rec: dict) -> None:
         try:
             check_quality(((k, FitQuality(**v["quality"])) for k, v in rec["frames"].items()), self.settings,
-                          where="frame ")
+                          where="frame ", name=self.label)
         except FitRefused as exc:
             raise ExportError(f"{exc} (the fit is cached in {self._cache_path(subject)})") from None
 

@@ -218,16 +218,16 @@ def measure_quality(model_vertices, model_faces, model_joints, target: FrameTarg
                       1e3 * float(d_am.max()), 1e3 * float(dj.mean()), 1e3 * float(dj.max()))
 
 
-def check_quality(qualities, settings: FitSettings, where: str = "") -> None:
+def check_quality(qualities, settings: FitSettings, where: str = "", name: str = "SMPL") -> None:
     """Raise FitRefused naming the first frame above the thresholds; `qualities`: (frame name, FitQuality) pairs."""
-    for name, q in qualities:
+    for frame, q in qualities:
         mean = max(q.model_to_anny_mean_mm, q.anny_to_model_mean_mm)
         peak = max(q.model_to_anny_max_mm, q.anny_to_model_max_mm)
         if mean > settings.max_mean_mm or peak > settings.max_max_mm:
             raise FitRefused(
-                f"{where}{name}: the SMPL fit is too far from the anny body (mean {mean:.1f} mm, limit "
+                f"{where}{frame}: the {name} fit is too far from the anny body (mean {mean:.1f} mm, limit "
                 f"{settings.max_mean_mm:g}; max {peak:.1f} mm, limit {settings.max_max_mm:g}); check that the model "
-                f"file is a SMPL body model, or raise --smpl-max-mean-mm / --smpl-max-peak-mm if this pose is known "
+                f"file is a {name} body model, or raise --smpl-max-mean-mm / --smpl-max-peak-mm if this pose is known "
                 f"to be hard")
 
 

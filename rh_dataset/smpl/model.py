@@ -325,8 +325,8 @@ def write_smpl_pickle(path: str | Path, model: BodyModel) -> None:
 
 def write_smplx_npz(path: str | Path, model: BodyModel) -> None:
     """Write `model` as a SMPL-X .npz (the keys smplx's loader and `load_body_model` read, plus the model's
-    SMPL-X extras); compressed, since the stand-in's zero pose correctives are most of its bytes. The stand-in's
-    record is stored as a JSON string so the file loads with allow_pickle=False."""
+    SMPL-X extras); compressed, since the stand-in's zero pose correctives are most of its bytes, and bitwise
+    reproducible. The stand-in's record is stored as a JSON string so the file loads with allow_pickle=False."""
     import json
 
     from rh_common.imageio import atomic_path
@@ -342,10 +342,18 @@ def write_smplx_npz(path: str | Path, model: BodyModel) -> None:
         if k == "rh_standin":
             v = np.array(json.dumps(v, sort_keys=True, default=lambda o: np.asarray(o).tolist()))
         data[k] = v
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:  # a file object: np.savez would append .npz to the temporary name
-            np.savez_compressed(fh, **data)
+    import zipfile
+
+    # np.savez_compressed's layout (one deflated NAME.npy per array), written here so every entry carries one fixed
+    # timestamp: np.savez stamps the current time, and the same model must give the same bytes (its sha256 keys
+    # the fit caches and is recorded in every export).
+    with atomic_path(Path(path)) as tmp:
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            for k, v in data.items():
+                info = zipfile.ZipInfo(f"{k}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                with zf.open(info, "w", force_zip64=True) as fh:
+                    np.lib.format.write_array(fh, np.asanyarray(v), allow_pickle=False)
 
 
 # ---------------------------------------------------------------------------------------------------------- forward
