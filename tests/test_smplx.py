@@ -227,3 +227,11 @@ def test_cli_writes_all_three(tmp_path, capsys):
     assert "not SMPL-X" in capsys.readouterr().out
     male, female = (load_body_model(tmp_path / f"SMPLX_{g}.npz", "smplx") for g in ("MALE", "FEMALE"))
     assert np.ptp(male.v_template[:, 1]) > np.ptp(female.v_template[:, 1])
+
+
+@pytest.mark.slow
+def test_an_uncached_rebuild_writes_the_same_bytes(tmp_path, models):
+    from rh_dataset.smpl.standin import _build
+
+    write_smplx_npz(tmp_path / "SMPLX_NEUTRAL.npz", _build("neutral", "smplx")[0])
+    assert (tmp_path / "SMPLX_NEUTRAL.npz").read_bytes() == (models / "SMPLX_NEUTRAL.npz").read_bytes()
