@@ -102,6 +102,11 @@ def test_file_loads_as_smplx_and_round_trips(models, standin):
     assert again.read_bytes() == path.read_bytes()
     from rh_dataset.smpl.model import SmplModelError
 
+    # SMPL-X's downloads also hold pickled object arrays (joint2num, part2num): skipped, never unpickled.
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    np.savez(models / "with_objects.npz", **arrays, joint2num=np.array({"pelvis": 0}, dtype=object))
+    assert np.array_equal(load_body_model(models / "with_objects.npz", "smplx").J_regressor, standin.J_regressor)
     with pytest.raises(SmplModelError, match="posedirs must be .* 207"):
         load_body_model(path, "smpl")  # a SMPL-X file where SMPL is expected: the wrong topology, one line
 

@@ -216,7 +216,7 @@ def _read_arrays(path: Path) -> dict:
     if raw[:2] == b"PK":  # .npz (SMPL-X's usual download)
         try:
             with np.load(io.BytesIO(raw), allow_pickle=False) as z:
-                return {k: z[k] for k in z.files}
+                return {k: v for k in z.files if (v := _npz_array(z, k)) is not None}
         except (ValueError, zipfile.BadZipFile, OSError) as e:
             raise SmplModelError(f"{path}: not a readable .npz model ({e}); download the model file again") from None
     try:
@@ -227,6 +227,17 @@ def _read_arrays(path: Path) -> dict:
     if not isinstance(data, dict):
         raise SmplModelError(f"{path}: the pickle holds a {type(data).__name__}, not a SMPL model dictionary")
     return {k: _plain(v, k, path) for k, v in data.items()}
+
+
+def _npz_array(z, key: str):
+    """One array of an .npz, or None for a pickled object array (SMPL-X's downloads carry `joint2num` and
+    `part2num` dictionaries that way): the model needs none of them, and unpickling is what the reader refuses."""
+    try:
+        return z[key]
+    except ValueError as e:
+        if "allow_pickle" in str(e):
+            return None
+        raise
 
 
 def load_body_model(path: str | Path, kind: str = "smpl", gender: str = "neutral") -> BodyModel:
