@@ -6,8 +6,8 @@ Fits one subject (a phenotype drawn from anny's calibrated distribution, seed 15
 N-1 poses from the pose prior, each seen by a camera 3 m away) jointly, as rh-export --smpl-model does, with the
 model in DIR (default: the stand-in, written to a temporary folder; a stand-in fit is NOT an SMPL result). Prints
 per frame the vertex-to-surface distances both ways (mean / max, mm) and the joint error, the same with the wrist
-and hand rotations zeroed as IntrinsicAvatar reads them (pose[57:] = 0; SMPL only), and the cost per frame. The machine is
-shared with other jobs: the load average is printed; read seconds as +-30 %.
+and hand rotations zeroed as IntrinsicAvatar reads them (pose[57:] = 0; SMPL only), and the cost per frame. The
+machine is shared with other jobs: the load average is printed; read seconds as +-30 %.
 """
 from __future__ import annotations
 

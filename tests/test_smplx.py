@@ -198,7 +198,8 @@ def test_zju_params_smplx(rh_export, models, tmp_path):
     assert p["left_hand_pose"].shape == (1, 45) and p["body_pose"].shape == (1, 63)
     V0, _ = forward(model, _t(p["shapes"]), _t(p["poses"][:, 3:]), _t(np.zeros((1, 3))))
     verts = np.load(seq / "vertices_smplx" / "1.npy")
-    assert verts.shape == (10475, 3) and np.abs(verts - (V0[0].numpy() @ rodrigues(p["Rh"][0]).T + p["Th"][0])).max() < 1e-5
+    assert verts.shape == (10475, 3)
+    assert np.abs(verts - (V0[0].numpy() @ rodrigues(p["Rh"][0]).T + p["Th"][0])).max() < 1e-5
     rh = read_json(rh_out / "test" / "subject_01" / "frame_000001.json")["skeleton_0"]["smplx_data"]
     assert p["shapes"][0].tolist() == rh["betas"]  # the same deterministic fit
     assert np.load(seq / "params" / "1.npy", allow_pickle=True).item()["model"] != "smplx"  # params/ unchanged

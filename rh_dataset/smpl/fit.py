@@ -261,7 +261,8 @@ def fit_subject(inp: FitInput, log=print) -> SubjectFit:
                                J[i].numpy().copy(), q))
     seconds = time.perf_counter() - t0
     if log:
-        log(f"{model.kind.upper()} fit: {len(frames)} frames in {seconds:.1f} s ({seconds / len(frames):.2f} s per frame, "
+        log(f"{model.kind.upper()} fit: {len(frames)} frames in {seconds:.1f} s "
+            f"({seconds / len(frames):.2f} s per frame, "
             f"{s.threads} torch thread(s)); worst mean distance "
             f"{max(max(f.quality.model_to_anny_mean_mm, f.quality.anny_to_model_mean_mm) for f in frames):.2f} mm")
     return SubjectFit(betas, 1.0, tuple(frames), seconds, model.sha256)

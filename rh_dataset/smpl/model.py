@@ -305,7 +305,8 @@ def find_model_file(folder: str | Path, kind: str = "smpl", gender: str = "neutr
     folder = Path(folder)
     if not folder.is_dir():
         raise SmplModelError(f"{folder}: no such folder; pass the folder holding your own "
-                             f"{MODEL_FILE_NAMES[kind][gender][0]} (or write a stand-in with rh-export --write-test-{kind})")
+                             f"{MODEL_FILE_NAMES[kind][gender][0]} (or write a stand-in with rh-export "
+                             f"--write-test-{kind})")
     for sub in (folder, folder / kind):
         for name in MODEL_FILE_NAMES[kind][gender]:
             if (sub / name).is_file():
