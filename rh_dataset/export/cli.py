@@ -18,9 +18,11 @@ __all__ = ["FORMATS", "export_dataset", "main"]
 
 FORMATS = ("relighting-humans", "zju-mocap", "usd")
 EXPORT_FORMAT = "rh-export/1"
+FIT_CACHES = ("smpl_fit", "smplx_fit")  # export/smpl.py CACHE_DIRS
 
 
-def _prepare_out(out: Path, fmt: str, dataset: Path, protocol: str, smpl: dict | None = None) -> None:
+def _prepare_out(out: Path, fmt: str, dataset: Path, protocol: str, smpl: dict | None = None,
+                 smplx: dict | None = None) -> None:
     rec_path = out / "export.json"
     if rec_path.is_file():
         rec = read_json(rec_path)
@@ -30,7 +32,8 @@ def _prepare_out(out: Path, fmt: str, dataset: Path, protocol: str, smpl: dict |
             # The published layout has one test/ for every protocol: two protocols in one folder would mix.
             raise ExportError(f"{out} holds protocol {rec.get('protocol')!r}; the Relighting Humans layout shares "
                               f"test/ between protocols, so export protocol {protocol!r} to another --out")
-    elif out.is_dir() and any(p for p in out.iterdir() if not p.name.startswith(".")):
+    # A fit cache copied from another export of the same dataset may be there already (export/smpl.py reuses it).
+    elif out.is_dir() and any(p for p in out.iterdir() if not p.name.startswith(".") and p.name not in FIT_CACHES):
         raise ExportError(f"{out} is not empty and holds no export.json; choose an empty or new --out folder")
     manifest = layout.read_manifest(dataset)
     from rh_dataset import __version__
@@ -39,17 +42,23 @@ def _prepare_out(out: Path, fmt: str, dataset: Path, protocol: str, smpl: dict |
         "export": EXPORT_FORMAT, "format": fmt, "protocol": protocol, "source": str(dataset.resolve()),
         "source_dataset_json": read_json(dataset / layout.DATASET_JSON),
         "source_files": len(manifest), "generator_version": __version__,
-        **({"smpl": smpl} if smpl else {}),
+        **({"smpl": smpl} if smpl else {}), **({"smplx": smplx} if smplx else {}),
     })
+
+
+def _model_record(model) -> dict | None:
+    return None if model is None else {"model_file": Path(model.path).name, "model_sha256": model.sha256,
+                                       "gender": model.gender, "standin": bool(model.extra.get("rh_standin"))}
 
 
 def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path, *, subjects: int | None = None,
                    splits: tuple[str, ...] | None = None, usd_ext: str = "usdc", zju_vertices: bool = True,
                    progress: bool = False, smpl_model: str | Path | None = None, smpl_gender: str = "neutral",
-                   smpl_settings=None) -> dict:
+                   smpl_settings=None, smplx_model: str | Path | None = None) -> dict:
     """Export every frame of `protocol` (optionally the first `subjects`, some `splits`); returns counts.
     `smpl_model`: the folder of the user's SMPL files; every frame then carries SMPL fitted to its anny body
-    (export/smpl.py), one betas per subject fitted over all its frames of the protocol."""
+    (export/smpl.py), one betas per subject fitted over all its frames of the protocol. `smplx_model`: the same
+    with the user's SMPL-X files (`skeleton_0.smplx_data`, ZJU-MoCap `params_smplx/`; not in USD stages)."""
     dataset, out = Path(dataset), Path(out)
     if fmt not in FORMATS:
         raise ExportError(f"unknown --format {fmt!r}; choose one of {', '.join(FORMATS)}")
@@ -59,21 +68,29 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
         from .smpl import load_model
 
         model = load_model(smpl_model, smpl_gender)  # before anything is written: a bad file stops here
+    model_x = None
+    if smplx_model is not None:
+        if fmt == "usd":
+            raise ExportError("--smplx-model: the USD stage carries the SMPL mesh only; export SMPL-X with --format "
+                              "relighting-humans or zju-mocap")
+        from .smpl import load_model
+
+        model_x = load_model(smplx_model, smpl_gender, kind="smplx")
     out.mkdir(parents=True, exist_ok=True)
-    _prepare_out(out, fmt, dataset, protocol, None if model is None else {
-        "model_file": Path(model.path).name, "model_sha256": model.sha256, "gender": model.gender,
-        "standin": bool(model.extra.get("rh_standin"))})
+    _prepare_out(out, fmt, dataset, protocol, _model_record(model), _model_record(model_x))
     hdri_folder = ds["protocols"][layout.protocol_dir(protocol)]["spec"].get("hdri_folder")
     frames = list(iter_frames(dataset, protocol, splits, subjects))
     if not frames:
         raise ExportError(f"{dataset}: no frames of protocol {protocol!r} to export")
-    fits = None
-    if model is not None:
+    fits = fits_x = None
+    if model is not None or model_x is not None:
         from .smpl import SmplFits
 
         # Every split of the exported subjects: the betas must not depend on --split.
-        fits = SmplFits(model, out, list(iter_frames(dataset, protocol, None, subjects)), smpl_settings,
-                        log=lambda line: print(f"rh-export: {line}", flush=True))
+        every = list(iter_frames(dataset, protocol, None, subjects))
+        log = lambda line: print(f"rh-export: {line}", flush=True)  # noqa: E731
+        fits = None if model is None else SmplFits(model, out, every, smpl_settings, log=log)
+        fits_x = None if model_x is None else SmplFits(model_x, out, every, smpl_settings, log=log)
     from tqdm import tqdm
 
     t0 = time.perf_counter()
@@ -87,12 +104,14 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
 
             files += len(export_frame(f, out, layout.protocol_dir(protocol)[len("protocol_"):],
                                       hdri_folder=hdri_folder, baked=baked,
-                                      smpl=None if fits is None else fits.rh_block(f)))
+                                      smpl=None if fits is None else fits.rh_block(f),
+                                      smplx=None if fits_x is None else fits_x.rh_block(f)))
         elif fmt == "zju-mocap":
             from .zju_mocap import export_frame
 
             files += len(export_frame(f, out, protocol, vertices=zju_vertices,
-                                      smpl=None if fits is None else fits.zju_params(f)))
+                                      smpl=None if fits is None else fits.zju_params(f),
+                                      smplx=None if fits_x is None else fits_x.zju_params(f)))
             sequences[(f.subject, f.split)].append(f)
         else:
             from .usd import export_frame
@@ -108,11 +127,13 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
     if fmt == "relighting-humans":
         from .relighting_humans import write_readme
 
-        limits = write_readme(out, layout.protocol_dir(protocol)[len("protocol_"):], frames, baked, smpl=model)
+        limits = write_readme(out, layout.protocol_dir(protocol)[len("protocol_"):], frames, baked, smpl=model,
+                              smplx=model_x)
         files += 1 + 2 * len(baked)
     counts = {"frames": len(frames), "files": files, "seconds": time.perf_counter() - t0, "limits": limits}
-    if fits is not None:
-        counts["smpl_fit_seconds"], counts["smpl_fitted_frames"] = fits.seconds, fits.fitted_frames
+    for key, fit in (("smpl", fits), ("smplx", fits_x)):
+        if fit is not None:
+            counts[f"{key}_fit_seconds"], counts[f"{key}_fitted_frames"] = fit.seconds, fit.fitted_frames
     return counts
 
 
@@ -123,7 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "Relighting Humans folders, ZJU-MoCap (NeuralBody family), or one USD stage per frame. "
                     "docs/INTEROP.md lists what each holds and how it differs from the original.",
         formatter_class=HelpFormatter)
-    # --dataset, --format and --out are required unless --write-test-smpl is given (checked in main).
+    # --dataset, --format and --out are required unless --write-test-smpl(x) is given (checked in main).
     p.add_argument("--dataset", type=Path, help="dataset folder made by rh-generate (required)")
     p.add_argument("--protocol", default="a", help="protocol to export: a or b")
     p.add_argument("--format", choices=FORMATS, help="output layout (required)")
@@ -139,9 +160,13 @@ def build_parser() -> argparse.ArgumentParser:
                         "never bundled or downloaded): fit SMPL to every frame's unclothed anny body and write its "
                         "numbers (relighting-humans, zju-mocap; usd adds the SMPL mesh); the fit is cached in "
                         "OUT/smpl_fit/")
+    p.add_argument("--smplx-model", type=Path, default=None, metavar="DIR",
+                   help="folder holding your own SMPLX_NEUTRAL.npz / SMPLX_MALE.npz / SMPLX_FEMALE.npz (or .pkl; "
+                        "also DIR/smplx/): fit SMPL-X to every frame as well and write it as skeleton_0.smplx_data "
+                        "(relighting-humans) and params_smplx/ + vertices_smplx/ (zju-mocap); cached in OUT/smplx_fit/")
     p.add_argument("--smpl-gender", default="neutral", choices=["neutral", "male", "female"],
-                   help="which SMPL file to fit (the clients name it in `gender`; Gaussian Shadow Casting always "
-                        "loads the neutral one)")
+                   help="which SMPL (and SMPL-X) file to fit (the clients name it in `gender`; Gaussian Shadow "
+                        "Casting always loads the neutral one)")
     p.add_argument("--smpl-max-mean-mm", type=float, default=None,
                    help="refuse a frame whose mean SMPL-to-anny distance (either way) is above this (default 15)")
     p.add_argument("--smpl-max-peak-mm", type=float, default=None,
@@ -151,6 +176,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write a stand-in model built from anny as SMPL_NEUTRAL.pkl, SMPL_MALE.pkl and "
                         "SMPL_FEMALE.pkl into DIR, then exit (no dataset needed): it lets the SMPL path be tried "
                         "without SMPL's own files. It is NOT SMPL: results with it are not SMPL results")
+    p.add_argument("--write-test-smplx", type=Path, metavar="DIR",
+                   help="the same in SMPL-X's layout: SMPLX_NEUTRAL.npz, SMPLX_MALE.npz, SMPLX_FEMALE.npz (10,475 "
+                        "vertices, 55 joints), then exit. It is NOT SMPL-X")
     add_debug_flag(p)
     return p
 
@@ -159,17 +187,21 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.write_test_smpl is not None:
+    if args.write_test_smpl is not None or args.write_test_smplx is not None:
         from rh_dataset.smpl.standin import write_test_models
 
-        try:
-            paths = write_test_models(args.write_test_smpl)
-        except OSError as exc:
-            print(f"rh-export: error: {args.write_test_smpl}: cannot write the stand-in model files "
-                  f"({exc.strerror or exc}); pass a folder you can write to", file=sys.stderr)
-            return 2
-        for path in paths:
-            print(f"rh-export: wrote {path} (a stand-in built from anny, not SMPL)")
+        for kind, folder in (("smpl", args.write_test_smpl), ("smplx", args.write_test_smplx)):
+            if folder is None:
+                continue
+            try:
+                paths = write_test_models(folder, kind)
+            except OSError as exc:
+                print(f"rh-export: error: {folder}: cannot write the stand-in model files "
+                      f"({exc.strerror or exc}); pass a folder you can write to", file=sys.stderr)
+                return 2
+            for path in paths:
+                name = "SMPL" if kind == "smpl" else "SMPL-X"
+                print(f"rh-export: wrote {path} (a stand-in built from anny, not {name})")
         return 0
     missing = [f"--{k}" for k in ("dataset", "format", "out") if getattr(args, k) is None]
     if missing:
@@ -190,15 +222,17 @@ def main(argv: list[str] | None = None) -> int:
         counts = export_dataset(args.dataset, args.protocol, args.format, args.out, subjects=args.subjects,
                                 splits=tuple(args.split) if args.split else None, usd_ext=args.usd_ext,
                                 zju_vertices=not args.no_vertices, progress=not args.no_progress,
-                                smpl_model=args.smpl_model, smpl_gender=args.smpl_gender, smpl_settings=settings)
+                                smpl_model=args.smpl_model, smpl_gender=args.smpl_gender, smpl_settings=settings,
+                                smplx_model=args.smplx_model)
     except (ExportError, ValueError, FileNotFoundError) as exc:
         print(f"rh-export: error: {exc}", file=sys.stderr)
         return 2
     print(f"rh-export: {counts['frames']} frames, {counts['files']} files written in {counts['seconds']:.1f} s; "
           f"{args.format} export in {args.out}")
-    if counts.get("smpl_fitted_frames"):
-        n, sec = counts["smpl_fitted_frames"], counts["smpl_fit_seconds"]
-        print(f"rh-export: SMPL fit {n} frames in {sec:.1f} s ({sec / n:.2f} s per frame)")
+    for key, name in (("smpl", "SMPL"), ("smplx", "SMPL-X")):
+        if counts.get(f"{key}_fitted_frames"):
+            n, sec = counts[f"{key}_fitted_frames"], counts[f"{key}_fit_seconds"]
+            print(f"rh-export: {name} fit {n} frames in {sec:.1f} s ({sec / n:.2f} s per frame)")
     for line in counts["limits"]:
         print(f"rh-export: note: {line}")
     return 0

@@ -14,6 +14,7 @@ In: the frames of one protocol of a finished dataset. Out (docs/INTEROP.md "Reli
 Protocol a maps to train_p1/ + test/, protocol b to train_p2_p3/ + test/, as the published folders are named.
 With --smpl-model, `skeleton_0.smpl_data` holds SMPL fitted to the frame's anny body (export/smpl.py) and anny's
 numbers move to `anny_*` keys; without it, anny's numbers stand in SMPL's keys and the README says who fails.
+With --smplx-model, `skeleton_0.smplx_data` holds SMPL-X fitted the same way (beside smpl_data, which is unchanged).
 """
 from __future__ import annotations
 
@@ -58,11 +59,12 @@ def _copy(src: Path, dst: Path) -> None:
         tmp.write_bytes(data)
 
 
-def rh_json(f: FrameRef, bake: dict, smpl: dict | None = None) -> dict:
+def rh_json(f: FrameRef, bake: dict, smpl: dict | None = None, smplx: dict | None = None) -> dict:
     """The frame JSON in the published key layout, plus our full record under 'rh'. `bake` is the frame's baked
     light (`rh_light.bake_frame_light`). `smpl`: the frame's SMPL block (export/smpl.py `SmplFits.rh_block`); then
     `smpl_data` holds SMPL's numbers and anny's keep their place under `anny_*` names; without it, anny's numbers
-    stand in SMPL's keys (and the README says which clients that cannot serve)."""
+    stand in SMPL's keys (and the README says which clients that cannot serve). `smplx`: the frame's SMPL-X block,
+    written as `skeleton_0.smplx_data` (with the client camera's K)."""
     m = f.meta
     K = client_K(m["camera"]["K"])
     w2c = np.array(m["camera"]["world_to_camera"], dtype=np.float64)
@@ -94,7 +96,8 @@ def rh_json(f: FrameRef, bake: dict, smpl: dict | None = None) -> dict:
     rec = {k: v for k, v in m.items() if k != "files"}
     out = {
         "format": "rh-export/relighting-humans/1",
-        "skeleton_0": {"smpl_data": smpl_data},
+        "skeleton_0": {"smpl_data": smpl_data,
+                       **({} if smplx is None else {"smplx_data": {**smplx, "K": K.tolist()}})},
         "camera": {
             # The loaders build the test camera as f = 0.5 · width / tan(fov / 2): the horizontal fov, radians.
             "fov": 2.0 * math.atan(0.5 * m["width"] / K[0, 0]),
@@ -116,9 +119,9 @@ def rh_json(f: FrameRef, bake: dict, smpl: dict | None = None) -> dict:
 
 
 def export_frame(f: FrameRef, out: Path, protocol: str, *, hdri_folder: str | None = None,
-                 baked: dict | None = None, smpl: dict | None = None) -> list[Path]:
+                 baked: dict | None = None, smpl: dict | None = None, smplx: dict | None = None) -> list[Path]:
     """Write one frame; `baked` (stem → record) is shared by the frames of one export so each light bakes once;
-    `smpl` as in `rh_json`."""
+    `smpl`, `smplx` as in `rh_json`."""
     d = Path(out) / split_folder(protocol, f.split) / subject_folder(f.subject)
     stem = f"frame_{f.index:06d}"
     written = []
@@ -140,7 +143,7 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, hdri_folder: str | No
         written.append(d / f"{stem}_normals.png")
     bake = bake_frame_light(f.meta, hdri_folder, Path(out), {} if baked is None else baked,
                             str(layout.frame_json_path(f.split_dir, f.index)))
-    write_json(d / f"{stem}.json", rh_json(f, bake, smpl))
+    write_json(d / f"{stem}.json", rh_json(f, bake, smpl, smplx))
     written.append(d / f"{stem}.json")
     return written
 
@@ -148,7 +151,7 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, hdri_folder: str | No
 _CLIENTS = "IntrinsicAvatar and DNF-Avatar (scripts/preprocess_RANA.py), Gaussian Shadow Casting (rana_to_h5.ipynb)"
 
 
-def write_readme(out: Path, protocol: str, frames: list[FrameRef], baked: dict, smpl=None) -> list[str]:
+def write_readme(out: Path, protocol: str, frames: list[FrameRef], baked: dict, smpl=None, smplx=None) -> list[str]:
     """`<out>/README.md`: the layout, and plainly which published clients this export cannot serve and why.
     `smpl`: the SMPL model the frames were fitted with (a `BodyModel`), or None. Returns those limits (one line
     each), which the CLI also prints."""
@@ -163,6 +166,10 @@ def write_readme(out: Path, protocol: str, frames: list[FrameRef], baked: dict, 
                   "your own SMPL files for that)"]
     else:
         limits = []
+    if smplx is not None and smplx.extra.get("rh_standin"):
+        limits.append(f"`skeleton_0.smplx_data` was fitted with the stand-in model {Path(smplx.path).name} (sha256 "
+                      f"{smplx.sha256[:12]}…, rh-export --write-test-smplx): a body built from anny in SMPL-X's file "
+                      "format, NOT SMPL-X; nothing measured with it is an SMPL-X result")
     no_gt = sorted({split_folder(protocol, f.split) for f in frames
                     if not (f.layer("albedo.exr").is_file() and f.layer("normal.png").is_file())})
     if no_gt:

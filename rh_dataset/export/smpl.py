@@ -1,16 +1,19 @@
-"""SMPL numbers for the exports (`rh-export --smpl-model DIR`): the fit of every frame's anny body, cached.
+"""SMPL and SMPL-X numbers for the exports (`rh-export --smpl-model DIR`, `--smplx-model DIR`): the fit of every
+frame's anny body, cached.
 
 In: the frames of the exported protocol, the user's model folder, a gender. Out: `SmplFits`, which gives for each
-frame the Relighting Humans `smpl_data` block (`rh_block`), the ZJU-MoCap params and vertices (`zju_params`) and
-the USD stage's SMPL mesh (`usd_mesh`).
+frame the Relighting Humans `smpl_data` (or `smplx_data`) block (`rh_block`), the ZJU-MoCap params and vertices
+(`zju_params`) and the USD stage's SMPL mesh (`usd_mesh`). A SMPL-X block also splits the fitted pose the way
+smplx's forward takes it (`smplx_pose_parts`: body_pose 63, jaw/leye/reye_pose 3, left/right_hand_pose 45) and
+carries a zero `expression` (10).
 
 The fit (`rh_dataset.smpl.fit`) runs once per subject over ALL its frames of the protocol (every split, whatever
 --split / --subjects select), so its one `betas` does not depend on what is exported. Each subject's result is
-cached in `<out>/smpl_fit/<subject>.json` (atomic write; floats in JSON's exact round-trip form, so the cached
-betas are bit-identical), keyed by the model file's sha256, the gender, the fit settings and a hash of what the fit
-reads of the frames (bodies, cameras): a rerun reuses it
-and refits nothing. Posed vertices and joints are always recomputed from the cached parameters, one frame at a
-time, so a fresh run and a rerun write the same numbers.
+cached in `<out>/smpl_fit/<subject>.json` (SMPL-X: `smplx_fit/`; atomic write; floats in JSON's exact round-trip
+form, so the cached betas are bit-identical), keyed by the model file's sha256, the gender, the fit settings and a
+hash of what the fit reads of the frames (bodies, cameras): a rerun reuses it and refits nothing. Posed vertices
+and joints are always recomputed from the cached parameters, one frame at a time, so a fresh run and a rerun write
+the same numbers.
 """
 from __future__ import annotations
 
@@ -28,9 +31,12 @@ from rh_dataset.smpl.model import BodyModel, SmplModelError, find_model_file, lo
 
 from .common import ExportError, FrameRef, axis_angle, rodrigues
 
-__all__ = ["SmplFits", "frame_target", "load_model", "CACHE_DIR", "VERTEX_DECIMALS_MM"]
+__all__ = ["SmplFits", "frame_target", "load_model", "smplx_pose_parts", "CACHE_DIR", "CACHE_DIRS",
+           "VERTEX_DECIMALS_MM"]
 
 CACHE_DIR = "smpl_fit"
+CACHE_DIRS = {"smpl": CACHE_DIR, "smplx": "smplx_fit"}
+N_VERTICES = {"smpl": 6890, "smplx": 10475}
 CACHE_FORMAT = "rh-export/smpl-fit/1"
 VERTEX_DECIMALS_MM = 4  # vertices/joints in the frame JSON: 0.1 µm, far below the fit error, a third of the text
 
@@ -41,14 +47,23 @@ def load_model(folder: str | Path, gender: str = "neutral", kind: str = "smpl") 
         model = load_body_model(find_model_file(folder, kind, gender), kind, gender)
     except SmplModelError as exc:
         raise ExportError(str(exc)) from None
-    if kind == "smpl" and model.n_vertices != 6890:
-        raise ExportError(f"{model.path}: {model.n_vertices} vertices, not SMPL's 6890 (the clients pick joints at "
-                          "fixed vertex ids); pass the folder holding SMPL_NEUTRAL.pkl of SMPL itself, or write the "
-                          "stand-in with rh-export --write-test-smpl DIR")
+    if model.n_vertices != N_VERTICES[kind]:
+        name, flag = ("SMPL", "smpl") if kind == "smpl" else ("SMPL-X", "smplx")
+        raise ExportError(f"{model.path}: {model.n_vertices} vertices, not {name}'s {N_VERTICES[kind]} (the clients "
+                          f"pick joints at fixed vertex ids); pass the folder holding "
+                          f"{find_model_file(folder, kind, gender).name} of {name} itself, or write the stand-in "
+                          f"with rh-export --write-test-{flag} DIR")
     return model
 
 
-def frame_target(f: FrameRef) -> FrameTarget:
+def smplx_pose_parts(pose) -> dict:
+    """A SMPL-X pose of joints 1-54 (162 values) split as smplx's forward takes it."""
+    p = [float(x) for x in pose]
+    return {"body_pose": p[:63], "jaw_pose": p[63:66], "leye_pose": p[66:69], "reye_pose": p[69:72],
+            "left_hand_pose": p[72:117], "right_hand_pose": p[117:162]}
+
+
+def frame_target(f: FrameRef, kind: str = "smpl") -> FrameTarget:
     """The frame's posed unclothed anny body and its SMPL-ordered joints, in the frame's OpenCV camera frame."""
     from rh_dataset.characters.body import body_topology, run_anny
     from rh_dataset.poses import BodyPose
@@ -66,7 +81,7 @@ def frame_target(f: FrameRef) -> FrameTarget:
         return pose.apply_root_transform(x) @ w2c[:3, :3].T + w2c[:3, 3]
 
     return FrameTarget(_key(f), cam(out["vertices"]), np.asarray(topo.faces),
-                       anny_joints(cam(out["bone_poses"][:, :3, 3]), topo.bone_labels))
+                       anny_joints(cam(out["bone_poses"][:, :3, 3]), topo.bone_labels, kind))
 
 
 def _key(f: FrameRef) -> str:
@@ -97,10 +112,11 @@ class SmplFits:
         self._subjects: dict[str, dict] = {}
         self.seconds = 0.0
         self.fitted_frames = 0
+        self.label = "SMPL" if model.kind == "smpl" else "SMPL-X"
 
     # ------------------------------------------------------------------ cache
     def _cache_path(self, subject: str) -> Path:
-        return self.out / CACHE_DIR / f"{subject}.json"
+        return self.out / CACHE_DIRS[self.model.kind] / f"{subject}.json"
 
     def _identity(self) -> dict:
         s = asdict(self.settings)
@@ -114,20 +130,20 @@ class SmplFits:
             return self._subjects[subject]
         frames = self._frames.get(subject)
         if not frames:
-            raise ExportError(f"{subject}: no frames to fit SMPL to")
+            raise ExportError(f"{subject}: no frames to fit {self.model.kind.upper()} to")
         path = self._cache_path(subject)
         rec = read_json(path) if path.is_file() else None
         inputs = _inputs_sha256(frames)
         if rec and {k: rec.get(k) for k in self._identity()} == self._identity() and rec.get("inputs_sha256") == inputs:
-            self.log(f"SMPL fit of {subject}: cached in {path} (delete it to refit)")
+            self.log(f"{self.label} fit of {subject}: cached in {path} (delete it to refit)")
         else:
             t0 = time.perf_counter()
-            targets = tuple(frame_target(f) for f in frames)
+            targets = tuple(frame_target(f, self.model.kind) for f in frames)
             fit = fit_subject(FitInput(self.model, targets, self.settings), log=None)
             self.seconds += time.perf_counter() - t0
             self.fitted_frames += len(frames)
             seconds = time.perf_counter() - t0
-            self.log(f"SMPL fit of {subject}: {len(frames)} frames in {seconds:.1f} s "
+            self.log(f"{self.label} fit of {subject}: {len(frames)} frames in {seconds:.1f} s "
                      f"({seconds / len(frames):.2f} s per frame)")
             rec = {**self._identity(), "inputs_sha256": inputs, "model_file": Path(self.model.path).name,
                    "betas": fit.betas.tolist(),
@@ -143,7 +159,7 @@ class SmplFits:
     def _check(self, subject: str, rec: dict) -> None:
         try:
             check_quality(((k, FitQuality(**v["quality"])) for k, v in rec["frames"].items()), self.settings,
-                          where="frame ")
+                          where="frame ", name=self.label)
         except FitRefused as exc:
             raise ExportError(f"{exc} (the fit is cached in {self._cache_path(subject)})") from None
 
@@ -162,9 +178,11 @@ class SmplFits:
         return fr, betas, V[0].numpy(), J[0].numpy()
 
     def rh_block(self, f: FrameRef) -> dict:
-        """The SMPL keys of `skeleton_0.smpl_data` (docs/research/clients_relighting_humans.md §7.4)."""
+        """The SMPL keys of `skeleton_0.smpl_data` (docs/research/clients_relighting_humans.md §7.4); for SMPL-X
+        the same keys (`pose`: joints 1-54, 162 values) plus the pose split as smplx takes it and `expression`."""
         fr, betas, V, J = self.posed(f)
         rec = self._subjects[f.subject]
+        parts = {} if self.model.kind == "smpl" else {**smplx_pose_parts(fr["pose"]), "expression": [0.0] * 10}
         return {
             "model": self.model.kind, "gender": self.model.gender, "model_file": rec["model_file"],
             "model_sha256": self.model.sha256, "standin": bool(self.model.extra.get("rh_standin")),
@@ -173,7 +191,7 @@ class SmplFits:
             "vertices": np.round(V * 1000.0, VERTEX_DECIMALS_MM).tolist(),
             "joints": np.round(J * 1000.0, VERTEX_DECIMALS_MM).tolist(),
             "units": {"vertices": "mm", "joints": "mm", "global_trans": "m"},
-            "fit": fr["quality"],
+            "fit": fr["quality"], **parts,
         }
 
     def zju_params(self, f: FrameRef) -> tuple[dict, np.ndarray]:
@@ -197,6 +215,9 @@ class SmplFits:
                   "Rh": axis_angle(R)[None], "Th": Th[None], "shapes": betas[None].copy(),
                   "model": self.model.kind, "gender": self.model.gender, "model_sha256": self.model.sha256,
                   "fit": fr["quality"]}
+        if self.model.kind == "smplx":
+            params.update({k: np.asarray(v)[None] for k, v in smplx_pose_parts(fr["pose"]).items()})
+            params["expression"] = np.zeros((1, 10))
         return params, verts
 
     def usd_mesh(self, f: FrameRef) -> tuple[np.ndarray, np.ndarray, dict]:

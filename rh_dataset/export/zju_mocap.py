@@ -10,6 +10,9 @@ One sequence per (subject, split), one camera ('Camera_B1', our fixed per-subjec
     with --smpl-model:      params/0.npy          SMPL: poses (1,72) root zero, Rh, Th, shapes (1,10); anny_* keys
                             vertices/0.npy        (6890, 3) float32 that SMPL body in world metres
                             vertices_anny/0.npy   the posed anny body
+    with --smplx-model:     params_smplx/0.npy    SMPL-X: poses (1,165) root zero, Rh, Th, shapes (1,10), expression
+                                                  (1,10), and the pose split as smplx takes it (body_pose, ...)
+                            vertices_smplx/0.npy  (10475, 3) float32 that SMPL-X body in world metres
                             rh/frame_000000.json  our frame record (light, SH, exposure)
 
 As in ZJU-MoCap, cams['T'] is in millimetres (NeuralBody divides it by 1000), R/T map world to OpenCV camera
@@ -77,10 +80,11 @@ def posed_body_vertices(meta: dict) -> np.ndarray:
 
 
 def export_frame(f: FrameRef, out: Path, protocol: str, *, vertices: bool = True,
-                 smpl: tuple[dict, np.ndarray] | None = None) -> list[Path]:
+                 smpl: tuple[dict, np.ndarray] | None = None, smplx: tuple[dict, np.ndarray] | None = None
+                 ) -> list[Path]:
     """Write one frame. `smpl`: (params, (6890, 3) world vertices) of the frame's SMPL fit (export/smpl.py
     `SmplFits.zju_params`); then params/ and vertices/ hold SMPL as NeuralBody reads them, and anny's numbers move
-    to `anny_*` keys and vertices_anny/."""
+    to `anny_*` keys and vertices_anny/. `smplx`: the same for SMPL-X, in params_smplx/ and vertices_smplx/."""
     d = sequence_dir(out, f)
     name = f"{f.index:06d}.png"
     img = d / CAMERA / name
@@ -102,6 +106,12 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, vertices: bool = True
         if smpl is not None:
             save_npy(d / "vertices" / f"{f.index}.npy", smpl[1])
             written.append(d / "vertices" / f"{f.index}.npy")
+    if smplx is not None:
+        save_npy(d / "params_smplx" / f"{f.index}.npy", smplx[0])
+        written.append(d / "params_smplx" / f"{f.index}.npy")
+        if vertices:
+            save_npy(d / "vertices_smplx" / f"{f.index}.npy", smplx[1])
+            written.append(d / "vertices_smplx" / f"{f.index}.npy")
     write_json(d / "rh" / layout.frame_json_name(f.index), {k: v for k, v in f.meta.items() if k != "files"})
     return written
 

@@ -20,6 +20,8 @@ small pose and shape priors, correspondences refreshed between rounds. Each fram
 forward-mode autodiff (one tangent per parameter, shared by the frames); the shared betas are solved through the
 Schur complement. Every count is fixed and torch runs on a fixed number of threads (`rh_common.threads`), so the
 result is bitwise deterministic.
+SMPL-X (55 joints) is fitted the same way: its body and finger joints from anny's bones (`skeletons.SMPLX`), the
+jaw and eyes held at zero rotation (`Skeleton.held`; anny has no jaw and no eyeballs).
 """
 from __future__ import annotations
 
@@ -31,26 +33,29 @@ import numpy as np
 from rh_common.threads import torch_threads
 
 from .model import BodyModel, forward, model_tensors, rodrigues
-from .standin import JOINT_BONES, SMPL_JOINT_NAMES
+from .skeletons import SKELETONS
 
 __all__ = ["FrameTarget", "FitInput", "FitSettings", "FitQuality", "FrameFit", "SubjectFit", "FitRefused",
            "fit_subject", "camera_frame", "measure_quality", "check_quality", "ANNY_JOINT_BONES",
            "anny_joints"]
 
-# The anny bones whose mean head stands for each SMPL joint: the stand-in's own map (standin.JOINT_BONES). It
+# The anny bones whose mean head stands for each SMPL joint: the stand-in's own map (skeletons.JOINT_BONES). It
 # starts the fit and is a weak prior; a real SMPL's joints sit a little elsewhere inside the body, so a real-SMPL
-# fit's joint error measures that difference as well as the fit.
-ANNY_JOINT_BONES: tuple[tuple[str, ...], ...] = tuple(JOINT_BONES[j] for j in SMPL_JOINT_NAMES)
+# fit's joint error measures that difference as well as the fit. SMPL-X: skeletons.SMPLX.joint_bones, the same
+# way (its fingers from anny's finger bones).
+ANNY_JOINT_BONES: tuple[tuple[str, ...], ...] = tuple(SKELETONS["smpl"].joint_bones[j]
+                                                      for j in SKELETONS["smpl"].joint_names)
 
 # Joints whose rigid fit gives the root's first orientation: they move little with the pose.
 _TORSO = (0, 1, 2, 3, 6, 9)
 
 
-def anny_joints(bone_heads: np.ndarray, bone_labels) -> np.ndarray:
-    """(24, 3) SMPL-ordered joints from anny's posed bone heads (B, 3) labelled `bone_labels`."""
+def anny_joints(bone_heads: np.ndarray, bone_labels, kind: str = "smpl") -> np.ndarray:
+    """(J, 3) joints in the model's order (SMPL's 24 or SMPL-X's 55) from anny's posed bone heads (B, 3)."""
     index = {b: i for i, b in enumerate(bone_labels)}
     heads = np.asarray(bone_heads, np.float64)
-    return np.stack([heads[[index[b] for b in bones]].mean(0) for bones in ANNY_JOINT_BONES])
+    skel = SKELETONS[kind]
+    return np.stack([heads[[index[b] for b in skel.joint_bones[j]]].mean(0) for j in skel.joint_names])
 
 
 class FitRefused(ValueError):
@@ -213,16 +218,16 @@ def measure_quality(model_vertices, model_faces, model_joints, target: FrameTarg
                       1e3 * float(d_am.max()), 1e3 * float(dj.mean()), 1e3 * float(dj.max()))
 
 
-def check_quality(qualities, settings: FitSettings, where: str = "") -> None:
+def check_quality(qualities, settings: FitSettings, where: str = "", name: str = "SMPL") -> None:
     """Raise FitRefused naming the first frame above the thresholds; `qualities`: (frame name, FitQuality) pairs."""
-    for name, q in qualities:
+    for frame, q in qualities:
         mean = max(q.model_to_anny_mean_mm, q.anny_to_model_mean_mm)
         peak = max(q.model_to_anny_max_mm, q.anny_to_model_max_mm)
         if mean > settings.max_mean_mm or peak > settings.max_max_mm:
             raise FitRefused(
-                f"{where}{name}: the SMPL fit is too far from the anny body (mean {mean:.1f} mm, limit "
+                f"{where}{frame}: the {name} fit is too far from the anny body (mean {mean:.1f} mm, limit "
                 f"{settings.max_mean_mm:g}; max {peak:.1f} mm, limit {settings.max_max_mm:g}); check that the model "
-                f"file is a SMPL body model, or raise --smpl-max-mean-mm / --smpl-max-peak-mm if this pose is known "
+                f"file is a {name} body model, or raise --smpl-max-mean-mm / --smpl-max-peak-mm if this pose is known "
                 f"to be hard")
 
 
@@ -232,9 +237,10 @@ def fit_subject(inp: FitInput, log=print) -> SubjectFit:
     """Fit one subject's frames jointly (shared betas) and measure each frame; see the module docstring."""
     if not inp.frames:
         raise ValueError("fit_subject: no frames to fit")
-    if inp.model.n_joints != len(ANNY_JOINT_BONES):
+    skel = SKELETONS.get(inp.model.kind)
+    if skel is None or inp.model.n_joints != skel.n_joints:
         raise ValueError(f"fit_subject: {inp.model.path or 'the model'} has {inp.model.n_joints} joints; the fit "
-                         f"maps anny onto SMPL's {len(ANNY_JOINT_BONES)}")
+                         f"maps anny onto SMPL's 24 or SMPL-X's 55 joints")
     import torch
 
     t0 = time.perf_counter()
@@ -255,7 +261,8 @@ def fit_subject(inp: FitInput, log=print) -> SubjectFit:
                                J[i].numpy().copy(), q))
     seconds = time.perf_counter() - t0
     if log:
-        log(f"SMPL fit: {len(frames)} frames in {seconds:.1f} s ({seconds / len(frames):.2f} s per frame, "
+        log(f"{model.kind.upper()} fit: {len(frames)} frames in {seconds:.1f} s "
+            f"({seconds / len(frames):.2f} s per frame, "
             f"{s.threads} torch thread(s)); worst mean distance "
             f"{max(max(f.quality.model_to_anny_mean_mm, f.quality.anny_to_model_mean_mm) for f in frames):.2f} mm")
     return SubjectFit(betas, 1.0, tuple(frames), seconds, model.sha256)
@@ -272,6 +279,13 @@ def _optimise(inp: FitInput):
     n_b = min(10, model.n_betas)
     B, nj = len(inp.frames), model.n_joints
     P = 3 + 3 * (nj - 1) + 3  # per frame: root turn δ, body pose, translation
+    # Joints held at their initial zero (SMPL-X's jaw and eyes: anny has no jaw and no eyeballs to fit them to):
+    # their rows and columns of the normal equations become the identity's, their gradient zero, so their step is
+    # exactly zero and the other parameters' step is the one without them.
+    free = torch.ones(P, dtype=dt)
+    for j in SKELETONS[model.kind].held:
+        free[3 * j:3 * j + 3] = 0.0
+    fixed = torch.diag(1.0 - free)
     beta0 = np.zeros(n_b) if inp.betas is None else np.asarray(inp.betas, np.float64)[:n_b]
     rest = model.J_regressor @ (model.v_template + model.shapedirs[..., :n_b] @ beta0)
     init = [_initial_pose(rest, f.joints, model.parents) for f in inp.frames]
@@ -325,9 +339,10 @@ def _optimise(inp: FitInput):
                     Htb.append(Jt.transpose(1, 2) @ Jb)
                     Hbb += torch.einsum("bmi,bmj->ij", Jb, Jb)
                     gb += torch.einsum("bmi,bm->i", Jb, r)
-            Htt, gt = torch.cat(Htt), torch.cat(gt)
+            Htt = torch.cat(Htt) * (free[:, None] * free[None]) + fixed
+            gt = torch.cat(gt) * free
             if fit_beta:
-                Htb = torch.cat(Htb)
+                Htb = torch.cat(Htb) * free[:, None]
                 Hbb += w_shape * torch.eye(n_b, dtype=dt)
                 gb += w_shape * beta
             for _try in range(4):

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["BodyModel", "SmplModelError", "load_body_model", "find_model_file", "forward", "write_smpl_pickle",
-           "rodrigues", "MODEL_FILE_NAMES", "GENDERS"]
+           "write_smplx_npz", "rodrigues", "MODEL_FILE_NAMES", "GENDERS", "SMPLX_EXTRA_KEYS"]
 
 GENDERS = ("neutral", "male", "female")
 
@@ -47,7 +47,12 @@ MODEL_FILE_NAMES = {
 }
 
 JOINT_COUNTS = {"smpl": 24, "smplx": 55}
-_KEPT_EXTRAS = ("rh_standin",)  # the stand-in's own record (standin.py), so exports can say it is not SMPL
+NAMES = {"smpl": "SMPL", "smplx": "SMPL-X"}
+# What SMPL-X files carry beyond the body model (facial landmarks, hand PCA): kept so a stand-in round-trips.
+SMPLX_EXTRA_KEYS = ("lmk_faces_idx", "lmk_bary_coords", "dynamic_lmk_faces_idx", "dynamic_lmk_bary_coords",
+                    "hands_componentsl", "hands_componentsr", "hands_meanl", "hands_meanr")
+# ... and the stand-in's own record (standin.py), so exports can say it is not SMPL.
+_KEPT_EXTRAS = ("rh_standin", *SMPLX_EXTRA_KEYS)
 
 
 class SmplModelError(ValueError):
@@ -85,9 +90,12 @@ class BodyModel:
 
     @property
     def n_betas(self) -> int:
-        """Shape directions only (SMPL-X stores 300 shape + 100 expression; the clients use the first 10)."""
+        """Shape directions only: SMPL-X stores 300 shape + 100 expression (v1.1) or 10 + 10 (v1.0, and the
+        stand-in), as smplx reads them; the clients use the first 10."""
         n = int(self.shapedirs.shape[2])
-        return min(n, 300) if self.kind == "smplx" else n
+        if self.kind != "smplx":
+            return n
+        return 300 if n >= 400 else min(n, 10)
 
 
 # ---------------------------------------------------------------------------------------------------------- reading
@@ -208,7 +216,7 @@ def _read_arrays(path: Path) -> dict:
     if raw[:2] == b"PK":  # .npz (SMPL-X's usual download)
         try:
             with np.load(io.BytesIO(raw), allow_pickle=False) as z:
-                return {k: z[k] for k in z.files}
+                return {k: v for k in z.files if (v := _npz_array(z, k)) is not None}
         except (ValueError, zipfile.BadZipFile, OSError) as e:
             raise SmplModelError(f"{path}: not a readable .npz model ({e}); download the model file again") from None
     try:
@@ -221,6 +229,17 @@ def _read_arrays(path: Path) -> dict:
     return {k: _plain(v, k, path) for k, v in data.items()}
 
 
+def _npz_array(z, key: str):
+    """One array of an .npz, or None for a pickled object array (SMPL-X's downloads carry `joint2num` and
+    `part2num` dictionaries that way): the model needs none of them, and unpickling is what the reader refuses."""
+    try:
+        return z[key]
+    except ValueError as e:
+        if "allow_pickle" in str(e):
+            return None
+        raise
+
+
 def load_body_model(path: str | Path, kind: str = "smpl", gender: str = "neutral") -> BodyModel:
     """Read a SMPL (kind 'smpl', 24 joints, 6890 vertices) or SMPL-X (kind 'smplx', 55 joints, 10475 vertices)
     model file and check its arrays agree with each other."""
@@ -231,7 +250,7 @@ def load_body_model(path: str | Path, kind: str = "smpl", gender: str = "neutral
     need = ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table", "f")
     missing = [k for k in need if k not in arrays]
     if missing:
-        raise SmplModelError(f"{path}: missing {', '.join(missing)}; this is not a {kind.upper()} model file")
+        raise SmplModelError(f"{path}: missing {', '.join(missing)}; this is not a {NAMES[kind]} model file")
 
     def arr(k, dtype=np.float64):
         try:
@@ -258,15 +277,27 @@ def load_body_model(path: str | Path, kind: str = "smpl", gender: str = "neutral
     ]
     for ok, what in checks:
         if not ok:
-            raise SmplModelError(f"{path}: {what} for a {kind.upper()} model with {n_joints} joints; is this the "
-                                 f"right file (a {kind.upper()} model, not another topology)?")
+            raise SmplModelError(f"{path}: {what} for a {NAMES[kind]} model with {n_joints} joints; is this the "
+                                 f"right file (a {NAMES[kind]} model, not another topology)?")
     parents = kintree[0].copy()
     parents[0] = -1
     if np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, n_joints)):
-        raise SmplModelError(f"{path}: kintree_table's parents are not ordered root-first; not a {kind.upper()} model")
+        raise SmplModelError(f"{path}: kintree_table's parents are not ordered root-first; not a {NAMES[kind]} model")
     return BodyModel(kind=kind, gender=gender, v_template=v_template, shapedirs=shapedirs, posedirs=posedirs,
                      J_regressor=J_regressor, weights=weights, parents=parents, faces=faces, path=str(path),
-                     sha256=_sha256(path), extra={k: arrays[k] for k in _KEPT_EXTRAS if k in arrays})
+                     sha256=_sha256(path), extra={k: _extra(k, arrays[k]) for k in _KEPT_EXTRAS if k in arrays})
+
+
+def _extra(key: str, value):
+    """The stand-in's record comes back from a .npz as a JSON string (npz holds arrays only, read without pickle)."""
+    if key == "rh_standin" and isinstance(value, np.ndarray) and value.dtype.kind == "U" and value.ndim == 0:
+        import json
+
+        rec = json.loads(str(value))
+        if "anny_vertex_ids" in rec:
+            rec["anny_vertex_ids"] = np.asarray(rec["anny_vertex_ids"], np.int64)
+        return rec
+    return value
 
 
 def find_model_file(folder: str | Path, kind: str = "smpl", gender: str = "neutral") -> Path:
@@ -274,14 +305,15 @@ def find_model_file(folder: str | Path, kind: str = "smpl", gender: str = "neutr
     folder = Path(folder)
     if not folder.is_dir():
         raise SmplModelError(f"{folder}: no such folder; pass the folder holding your own "
-                             f"{MODEL_FILE_NAMES[kind][gender][0]} (or write a stand-in with rh-export --write-test-smpl)")
+                             f"{MODEL_FILE_NAMES[kind][gender][0]} (or write a stand-in with rh-export "
+                             f"--write-test-{kind})")
     for sub in (folder, folder / kind):
         for name in MODEL_FILE_NAMES[kind][gender]:
             if (sub / name).is_file():
                 return sub / name
-    raise SmplModelError(f"{folder}: no {kind.upper()} {gender} model file (looked for "
+    raise SmplModelError(f"{folder}: no {NAMES[kind]} {gender} model file (looked for "
                          f"{', '.join(MODEL_FILE_NAMES[kind][gender])}); put your own copy there, or write a "
-                         "stand-in with rh-export --write-test-smpl DIR")
+                         f"stand-in with rh-export --write-test-{kind} DIR")
 
 
 def write_smpl_pickle(path: str | Path, model: BodyModel) -> None:
@@ -301,6 +333,39 @@ def write_smpl_pickle(path: str | Path, model: BodyModel) -> None:
     with atomic_path(Path(path)) as tmp:
         with open(tmp, "wb") as fh:
             pickle.dump(data, fh, protocol=2)
+
+
+def write_smplx_npz(path: str | Path, model: BodyModel) -> None:
+    """Write `model` as a SMPL-X .npz (the keys smplx's loader and `load_body_model` read, plus the model's
+    SMPL-X extras); compressed, since the stand-in's zero pose correctives are most of its bytes, and bitwise
+    reproducible. The stand-in's record is stored as a JSON string so the file loads with allow_pickle=False."""
+    import json
+
+    from rh_common.imageio import atomic_path
+
+    data = {
+        "v_template": model.v_template, "shapedirs": model.shapedirs, "posedirs": model.posedirs,
+        "J_regressor": model.J_regressor, "weights": model.weights,
+        "kintree_table": np.stack([np.where(model.parents < 0, 4294967295, model.parents),
+                                   np.arange(model.n_joints)]).astype(np.int64),
+        "f": model.faces.astype(np.uint32), "J": model.J_regressor @ model.v_template,
+    }
+    for k, v in model.extra.items():
+        if k == "rh_standin":
+            v = np.array(json.dumps(v, sort_keys=True, default=lambda o: np.asarray(o).tolist()))
+        data[k] = v
+    import zipfile
+
+    # np.savez_compressed's layout (one deflated NAME.npy per array), written here so every entry carries one fixed
+    # timestamp: np.savez stamps the current time, and the same model must give the same bytes (its sha256 keys
+    # the fit caches and is recorded in every export).
+    with atomic_path(Path(path)) as tmp:
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            for k, v in data.items():
+                info = zipfile.ZipInfo(f"{k}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                with zf.open(info, "w", force_zip64=True) as fh:
+                    np.lib.format.write_array(fh, np.asanyarray(v), allow_pickle=False)
 
 
 # ---------------------------------------------------------------------------------------------------------- forward
@@ -344,8 +409,11 @@ def forward(model: BodyModel, betas, body_pose, global_orient, transl=None, tens
     R = rodrigues(full)                                                         # (B,J,3,3)
     eye = torch.eye(3, dtype=R.dtype, device=R.device)
     pose_feature = (R[:, 1:] - eye).reshape(B, -1)
-    P = t["posedirs"].reshape(V * 3, t["posedirs"].shape[2])
-    v_posed = v_shaped + (pose_feature @ P.T).reshape(B, V, 3)
+    if t["posedirs"] is None:  # all zero (the stand-in): the same result without the largest product
+        v_posed = v_shaped
+    else:
+        P = t["posedirs"].reshape(V * 3, t["posedirs"].shape[2])
+        v_posed = v_shaped + (pose_feature @ P.T).reshape(B, V, 3)
     parents = model.parents
     rel = J.clone()
     rel[:, 1:] = J[:, 1:] - J[:, parents[1:]]
@@ -376,7 +444,9 @@ def model_tensors(model: BodyModel, dtype=None, vertex_ids=None) -> dict:
     dtype = dtype or torch.float64
     idx = slice(None) if vertex_ids is None else np.asarray(vertex_ids, np.int64)
     t = {k: torch.as_tensor(np.ascontiguousarray(getattr(model, k)[idx]), dtype=dtype)
-         for k in ("v_template", "shapedirs", "posedirs", "weights")}
+         for k in ("v_template", "shapedirs", "weights")}
+    t["posedirs"] = (torch.as_tensor(np.ascontiguousarray(model.posedirs[idx]), dtype=dtype)
+                     if model.posedirs.any() else None)
     t["J_template"] = torch.as_tensor(model.J_regressor @ model.v_template, dtype=dtype)
     t["J_shapedirs"] = torch.as_tensor(np.einsum("jv,vcs->jcs", model.J_regressor, model.shapedirs), dtype=dtype)
     return t

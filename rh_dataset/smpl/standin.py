@@ -26,6 +26,11 @@ How it is made (every step deterministic, so the same code writes the same bytes
 The pickle carries an extra key `rh_standin` (source, note, joint residuals, and `anny_vertex_ids`: which anny
 vertex each stand-in vertex is), which SMPL readers ignore. `anny_tpose_bodies` gives any anny body as the stand-in
 sees it (a shape fit's target); `standin_pose.py` poses anny as the stand-in is posed (the comparison's other side).
+SMPL-X (`kind="smplx"`): the same construction in SMPL-X's layout (`skeletons.SMPLX`): 10,475 anny vertices
+seeded with SMPL-X's anatomical ids, 55 joints (fingers from anny's finger bones; eyes at anny's eye bones; the jaw
+at the mean of the head and eye bone heads, skinning nothing), shapedirs of 10 shape + 10 expression directions
+(the expression ones zero), posedirs zero (486), and the landmark and hand-PCA arrays smplx reads
+(`standin_smplx.py`); written as SMPLX_{NEUTRAL,MALE,FEMALE}.npz. It is NOT SMPL-X.
 The built models are cached per process and shared: treat their arrays as read-only.
 """
 from __future__ import annotations
@@ -39,54 +44,23 @@ import numpy as np
 from rh_common.body_model import ANNY_TOPOLOGY, load_anny
 from rh_dataset.characters.body import PHENOTYPE_LABELS, body_topology, sample_phenotype
 from rh_dataset.poses.rig import Rig
-from rh_dataset.smpl.model import GENDERS, MODEL_FILE_NAMES, BodyModel, write_smpl_pickle
+from rh_dataset.smpl.model import GENDERS, MODEL_FILE_NAMES, BodyModel, write_smplx_npz, write_smpl_pickle
+from rh_dataset.smpl.skeletons import (JOINT_BONES, SKELETONS, SMPL, SMPL_JOINT_NAMES, SMPL_PARENTS,
+                                       SMPL_VERTEX_IDS, Skeleton)
 
 __all__ = ["build_standin", "write_test_models", "standin_report", "anny_tpose_bodies", "tpose_deltas",
            "tpose_rotations", "local_ref_deltas", "default_phenotype", "shape_phenotypes", "bone_joint_map",
            "to_smpl_axes", "SMPL_JOINT_NAMES", "SMPL_PARENTS", "JOINT_BONES", "SMPL_VERTEX_IDS", "ANNY_TO_SMPL",
            "N_VERTICES", "StandinReport"]
 
-N_VERTICES = 6890
+N_VERTICES = 6890  # SMPL's; SMPL-X's is skeletons.SMPLX.n_vertices
 N_BETAS = 10
 N_SHAPE_SAMPLES = 64
 SHAPE_SEED = 15  # issue #15
 GENDER_VALUE = {"neutral": 0.5, "male": 0.0, "female": 1.0}  # anny: gender 0 = male, 1 = female
 
-SMPL_JOINT_NAMES = ("pelvis", "L_hip", "R_hip", "spine1", "L_knee", "R_knee", "spine2", "L_ankle", "R_ankle",
-                    "spine3", "L_foot", "R_foot", "neck", "L_collar", "R_collar", "head", "L_shoulder",
-                    "R_shoulder", "L_elbow", "R_elbow", "L_wrist", "R_wrist", "L_hand", "R_hand")
-SMPL_PARENTS = np.array([-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21])
-
 # anny (Z up, facing -Y, left +X) -> SMPL (Y up, facing +Z, left +X): a proper rotation, x' = x, y' = z, z' = -y.
 ANNY_TO_SMPL = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-
-
-def _sided(j: str, bones: tuple[str, ...]) -> tuple[str, ...]:
-    side = j[0]
-    return tuple(f"{b}.{side}" for b in bones)
-
-
-# SMPL joint -> the anny bones that start its group; the joint sits at the mean of their heads.
-JOINT_BONES: dict[str, tuple[str, ...]] = {
-    "pelvis": ("root",), "spine1": ("spine04",), "spine2": ("spine02",), "spine3": ("spine01",),
-    "neck": ("neck01",), "head": ("head",),
-    **{j: _sided(j, b) for j, b in (
-        ("L_hip", ("upperleg01",)), ("R_hip", ("upperleg01",)), ("L_knee", ("lowerleg01",)),
-        ("R_knee", ("lowerleg01",)), ("L_ankle", ("foot",)), ("R_ankle", ("foot",)),
-        ("L_foot", tuple(f"toe{t}-1" for t in range(1, 6))), ("R_foot", tuple(f"toe{t}-1" for t in range(1, 6))),
-        ("L_collar", ("clavicle",)), ("R_collar", ("clavicle",)), ("L_shoulder", ("upperarm01",)),
-        ("R_shoulder", ("upperarm01",)), ("L_elbow", ("lowerarm01",)), ("R_elbow", ("lowerarm01",)),
-        ("L_wrist", ("wrist",)), ("R_wrist", ("wrist",)),
-        ("L_hand", tuple(f"finger{f}-1" for f in range(2, 6))), ("R_hand", tuple(f"finger{f}-1" for f in range(2, 6))),
-    )},
-}
-
-# smplx's VertexJointSelector reads these SMPL vertex ids (face, feet, fingertips); the stand-in puts the anny
-# vertex at the same anatomy there.
-SMPL_VERTEX_IDS = {"nose": 332, "reye": 6260, "leye": 2800, "rear": 4071, "lear": 583,
-                   "LBigToe": 3216, "LSmallToe": 3226, "LHeel": 3387, "RBigToe": 6617, "RSmallToe": 6624,
-                   "RHeel": 6787, "lthumb": 2746, "lindex": 2319, "lmiddle": 2445, "lring": 2556, "lpinky": 2673,
-                   "rthumb": 6191, "rindex": 5782, "rmiddle": 5905, "rring": 6016, "rpinky": 6133}
 
 
 @dataclass(frozen=True)
@@ -104,9 +78,9 @@ class StandinReport:
 
 # ------------------------------------------------------------------------------------------------- the anny rig
 
-def bone_joint_map(bone_labels: tuple[str, ...], bone_parents) -> np.ndarray:
-    """(B,) SMPL joint of every anny bone: the joint that lists it in JOINT_BONES, else its parent's joint."""
-    starts = {b: k for k, j in enumerate(SMPL_JOINT_NAMES) for b in JOINT_BONES[j]}
+def bone_joint_map(bone_labels: tuple[str, ...], bone_parents, skel: Skeleton = SMPL) -> np.ndarray:
+    """(B,) model joint of every anny bone: the joint that lists it in `skel.group_bones`, else its parent's."""
+    starts = {b: k for k, j in enumerate(skel.joint_names) for b in skel.group_bones[j]}
     out = np.empty(len(bone_labels), np.int64)
     for i, label in enumerate(bone_labels):
         out[i] = starts[label] if label in starts else out[bone_parents[i]]
@@ -203,13 +177,13 @@ def _rigs(phenotypes: list[dict[str, float]]) -> list[Rig]:
     return [Rig(rest_poses=rest_p[i], rest_vertices=rest_v[i], **common) for i in range(len(phenotypes))]
 
 
-def _tposed(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The body in SMPL's T-pose and axes: vertices (V,3), bone heads (B,3), SMPL joints (24,3)."""
+def _tposed(rig: Rig, skel: Skeleton = SMPL) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The body in SMPL's T-pose and axes: vertices (V,3), bone heads (B,3), the model's joints (J,3)."""
     W = rig.world_poses(tpose_deltas(rig))
     verts, _ = rig.skin(W)
     heads = W[:, :3, 3]
     idx = rig.index
-    joints = np.stack([heads[[idx[b] for b in JOINT_BONES[j]]].mean(0) for j in SMPL_JOINT_NAMES])
+    joints = np.stack([heads[[idx[b] for b in skel.joint_bones[j]]].mean(0) for j in skel.joint_names])
     return to_smpl_axes(verts), to_smpl_axes(heads), to_smpl_axes(joints)
 
 
@@ -235,25 +209,29 @@ def shape_phenotypes(gender: str) -> list[dict[str, float]]:
 
 # ------------------------------------------------------------------------------------------------- the model
 
-# The joint whose direction from joint k sets the axis of k's ring (the bone onwards); leaves use their parent's.
-_AXIS_CHILD = {0: 3, 9: 12, 13: 16, 14: 17}
+# The joint whose direction from joint k sets the axis of k's ring (the bone onwards); leaves use their parent's,
+# and so does the head (SMPL-X's jaw and eyes hang from it, but its ring circles the neck's line).
+_AXIS_CHILD = {0: 3, 9: 12, 13: 16, 14: 17, 15: None}
+_FINGER_SLAB = 0.01  # a phalanx is 2-5 cm long: the trunk's 3 cm slab would hold its neighbours too
 
 
-def _rings(template: np.ndarray, joints: np.ndarray, owner: np.ndarray, slab: float = 0.03,
+def _rings(template: np.ndarray, joints: np.ndarray, owner: np.ndarray, skel: Skeleton = SMPL, slab: float = 0.03,
            least: int = 24) -> list[np.ndarray]:
     """Per joint, the template vertices around it: those skinned mostly to the joint, its parent or a child, in a
     slab across the bone through the joint (half-width `slab`, widened until it holds `least` vertices), so the
     ring circles the limb or trunk and the joint lies inside its hull."""
-    children = {k: [c for c in range(len(SMPL_PARENTS)) if SMPL_PARENTS[c] == k] for k in range(len(SMPL_PARENTS))}
+    parents = skel.parents
+    n = len(parents)
+    children = {k: [c for c in range(n) if parents[c] == k] for k in range(n)}
     out = []
-    for k in range(len(SMPL_PARENTS)):
-        c = _AXIS_CHILD.get(k, children[k][0] if children[k] else None)
-        axis = joints[c] - joints[k] if c is not None else joints[k] - joints[SMPL_PARENTS[k]]
+    for k in range(n):
+        c = _AXIS_CHILD[k] if k in _AXIS_CHILD else (children[k][0] if children[k] else None)
+        axis = joints[c] - joints[k] if c is not None else joints[k] - joints[parents[k]]
         axis = axis / np.linalg.norm(axis)
-        family = [k, *children[k]] + ([SMPL_PARENTS[k]] if k else [])
+        family = [k, *children[k]] + ([parents[k]] if k else [])
         mine = np.flatnonzero(np.isin(owner, family))
         along = np.abs((template[mine] - joints[k]) @ axis)
-        half = slab
+        half = _FINGER_SLAB if k >= 25 else slab
         while (along < half).sum() < least:
             half *= 1.25
         out.append(mine[along < half])
@@ -298,33 +276,35 @@ def _shape_space(template: np.ndarray, bodies: np.ndarray) -> tuple[np.ndarray, 
     return np.ascontiguousarray(dirs.T.reshape(template.shape[0], 3, N_BETAS)), kept
 
 
-@functools.lru_cache(maxsize=1)
-def _resampled():
+@functools.lru_cache(maxsize=2)
+def _resampled(kind: str = "smpl"):
     """The stand-in's vertex subset and faces, chosen once on the neutral template (same for every gender)."""
     from .standin_mesh import resample
 
+    skel = SKELETONS[kind]
     rig = _rigs([default_phenotype("neutral")])[0]
-    verts, heads, _ = _tposed(rig)
+    verts, heads, _ = _tposed(rig, skel)
     dominant = rig.weight_bones[np.arange(len(verts)), np.argmax(rig.weights, axis=1)]
-    return resample(verts, rig.faces, dominant, heads, rig.index, N_VERTICES, SMPL_VERTEX_IDS)
+    return resample(verts, rig.faces, dominant, heads, rig.index, skel.n_vertices, skel.vertex_ids)
 
 
-def _build(gender: str) -> tuple[BodyModel, StandinReport]:
+def _build(gender: str, kind: str = "smpl") -> tuple[BodyModel, StandinReport]:
     import anny
 
+    skel = SKELETONS[kind]
     phenos = [default_phenotype(gender)] + shape_phenotypes(gender)
     rigs = _rigs(phenos)
-    mesh = _resampled()
+    mesh = _resampled(kind)
     ids = mesh.anny_ids
-    bodies, joints = _tposed_bodies(rigs, ids)
+    bodies, joints = _tposed_bodies(rigs, ids, skel)
     template = bodies[0]
     shapedirs, kept = _shape_space(template, bodies[1:])
     rig = rigs[0]
-    owner = bone_joint_map(rig.bone_labels, rig.parents)
+    owner = bone_joint_map(rig.bone_labels, rig.parents, skel)
     dominant = owner[rig.weight_bones[ids, np.argmax(rig.weights[ids], axis=1)]]
-    J_regressor = _fit_regressor(bodies, joints, _rings(template, joints[0], dominant))
+    J_regressor = _fit_regressor(bodies, joints, _rings(template, joints[0], dominant, skel))
     res = np.linalg.norm(np.einsum("jn,pnc->pjc", J_regressor, bodies) - joints, axis=2) * 1e3
-    weights = np.zeros((len(ids), len(SMPL_JOINT_NAMES)))
+    weights = np.zeros((len(ids), skel.n_joints))
     np.add.at(weights, (np.repeat(np.arange(len(ids)), rig.weights.shape[1]), owner[rig.weight_bones[ids]].ravel()),
               rig.weights[ids].ravel())
     weights /= weights.sum(1, keepdims=True)
@@ -334,53 +314,65 @@ def _build(gender: str) -> tuple[BodyModel, StandinReport]:
         "source": f"anny {getattr(anny, '__version__', '?')}, topology {ANNY_TOPOLOGY}",
         "note": "not SMPL: a stand-in built from anny for tests and trials; results with it are not SMPL results",
         "gender": gender, "phenotype": phenos[0], "anny_vertex_ids": ids.astype(np.int64),
-        "joint_bones": {j: list(JOINT_BONES[j]) for j in SMPL_JOINT_NAMES},
+        "joint_bones": {j: list(skel.joint_bones[j]) for j in skel.joint_names},
         "joint_residual_mm": {"template_max": report.joint_residual_template_mm,
                               "shape_samples_max": report.joint_residual_samples_mm,
                               "shape_samples_mean": report.joint_residual_samples_mean_mm},
     }}
-    model = BodyModel(kind="smpl", gender=gender, v_template=template, shapedirs=shapedirs,
-                      posedirs=np.zeros((len(ids), 3, 9 * (len(SMPL_PARENTS) - 1))), J_regressor=J_regressor,
-                      weights=weights, parents=SMPL_PARENTS.copy(), faces=mesh.faces.astype(np.int64), extra=extra)
+    n_pose = 9 * (skel.n_joints - 1)
+    if kind == "smplx":  # 10 expression directions after the 10 shape ones (zero: anny has no face rig)
+        from .standin_smplx import smplx_extras
+
+        shapedirs = np.concatenate([shapedirs, np.zeros_like(shapedirs)], axis=2)
+        extra.update(smplx_extras(template, mesh.faces, skel.vertex_ids))
+        extra["rh_standin"]["note"] = ("not SMPL-X: a stand-in built from anny for tests and trials; results with "
+                                       "it are not SMPL-X results")
+    model = BodyModel(kind=kind, gender=gender, v_template=template, shapedirs=shapedirs,
+                      posedirs=np.zeros((len(ids), 3, n_pose)), J_regressor=J_regressor,
+                      weights=weights, parents=skel.parents.copy(), faces=mesh.faces.astype(np.int64), extra=extra)
     return model, report
 
 
-def _tposed_bodies(rigs: list[Rig], ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    posed = [_tposed(r) for r in rigs]
+def _tposed_bodies(rigs: list[Rig], ids: np.ndarray, skel: Skeleton = SMPL) -> tuple[np.ndarray, np.ndarray]:
+    posed = [_tposed(r, skel) for r in rigs]
     return np.stack([p[0][ids] for p in posed]), np.stack([p[2] for p in posed])
 
 
-def anny_tpose_bodies(phenotypes: list[dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:
+def anny_tpose_bodies(phenotypes: list[dict[str, float]], kind: str = "smpl") -> tuple[np.ndarray, np.ndarray]:
     """anny bodies of `phenotypes` as the stand-in sees them: T-posed, in SMPL's axes, at the stand-in's vertices
-    (P,6890,3), with their mapped joints (P,24,3). What a shape fit of the stand-in to anny aims at."""
-    return _tposed_bodies(_rigs(list(phenotypes)), _resampled().anny_ids)
+    (P,V,3), with their mapped joints (P,J,3). What a shape fit of the stand-in to anny aims at."""
+    return _tposed_bodies(_rigs(list(phenotypes)), _resampled(kind).anny_ids, SKELETONS[kind])
 
 
-@functools.lru_cache(maxsize=3)
-def _build_cached(gender: str) -> tuple[BodyModel, StandinReport]:
-    return _build(gender)
+@functools.lru_cache(maxsize=6)
+def _build_cached(gender: str, kind: str) -> tuple[BodyModel, StandinReport]:
+    return _build(gender, kind)
 
 
-def build_standin(gender: str = "neutral") -> BodyModel:
-    """The stand-in SMPL model of `gender` (cached per process; a few seconds the first time)."""
+def build_standin(gender: str = "neutral", kind: str = "smpl") -> BodyModel:
+    """The stand-in model of `gender` in SMPL's (kind 'smpl') or SMPL-X's ('smplx') layout (cached per process;
+    seconds the first time)."""
     if gender not in GENDERS:
         raise ValueError(f"unknown gender {gender!r}; one of {', '.join(GENDERS)}")
-    return _build_cached(gender)[0]
+    if kind not in SKELETONS:
+        raise ValueError(f"unknown stand-in kind {kind!r}; one of {', '.join(SKELETONS)}")
+    return _build_cached(gender, kind)[0]
 
 
-def standin_report(gender: str = "neutral") -> StandinReport:
+def standin_report(gender: str = "neutral", kind: str = "smpl") -> StandinReport:
     """How closely the stand-in of `gender` reproduces anny (joint residuals, shape variance kept)."""
-    build_standin(gender)
-    return _build_cached(gender)[1]
+    build_standin(gender, kind)
+    return _build_cached(gender, kind)[1]
 
 
-def write_test_models(folder: str | Path) -> list[Path]:
-    """Write SMPL_NEUTRAL.pkl, SMPL_MALE.pkl and SMPL_FEMALE.pkl (the stand-in, NOT SMPL) into `folder`."""
+def write_test_models(folder: str | Path, kind: str = "smpl") -> list[Path]:
+    """Write the stand-in (NOT SMPL) into `folder`: SMPL_{NEUTRAL,MALE,FEMALE}.pkl for kind 'smpl',
+    SMPLX_{NEUTRAL,MALE,FEMALE}.npz for kind 'smplx'."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     for gender in GENDERS:
-        path = folder / MODEL_FILE_NAMES["smpl"][gender][0]
-        write_smpl_pickle(path, build_standin(gender))
+        path = folder / MODEL_FILE_NAMES[kind][gender][0]
+        (write_smpl_pickle if kind == "smpl" else write_smplx_npz)(path, build_standin(gender, kind))
         paths.append(path)
     return paths
