@@ -4,6 +4,7 @@
     rana train   --dataset D --protocol a --subject all --runs runs/          # every subject, one after another
     rana predict --dataset D --protocol a --runs runs/ --out preds/rana
     rana smpld   --dataset D --protocol a --runs runs/ --out preds/smpld       # the SMPL+D baseline
+    rana smpld   ... --split olat --out preds/smpld_olat                      # another split (default test)
     rana pretrain --dataset P --out pre/ --preset cpu                          # = rana-pretrain
     rana plot    runs/subject_000 --out losses.png
     rana synth   --out /tmp/syn --subjects 1 --resolution 64                   # a tiny synthetic dataset
@@ -88,6 +89,9 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--runs", required=True, type=Path,
                        help="folder of run folders, one per subject (what `rana train --runs` wrote)")
         q.add_argument("--out", required=True, type=Path, help="predictions folder")
+        q.add_argument("--split", default="test",
+                       help="the split to predict (default: test; e.g. olat): written to <out>/<subject>/"
+                            "protocol_<p>/<split>/, what rh-eval --split reads")
         q.add_argument("--subject", default="all", help="subject_NNN, comma-separated list, or 'all'")
         q.add_argument("--background", default="sh", choices=["sh", "black"],
                        help="outside the person: the target light's SH environment (default) or black")
@@ -168,10 +172,11 @@ def main(argv: list[str] | None = None) -> int:
         elif args.cmd == "predict":
             from .predict import predict_rana
 
-            subs = None if args.subject == "all" else _subjects(args.subject, args.dataset, args.protocol, "test")
+            subs = None if args.subject == "all" else _subjects(args.subject, args.dataset, args.protocol,
+                                                                 args.split)
             n = predict_rana(args.dataset, args.protocol, args.runs, args.out, subjects=subs,
                              background=args.background, progress=not args.no_progress, name=args.name,
-                             mask_composite=args.mask_composite)
+                             mask_composite=args.mask_composite, split=args.split)
             print(f"rana predict: {n} frames written to {args.out}")
         elif args.cmd == "smpld":
             from rh_common.threads import torch_threads
@@ -180,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
             from .train import ensure_coarse
 
             cfg = apply_config_flags(get_preset(args.preset), args)
-            subs = _subjects(args.subject, args.dataset, args.protocol, "test")
+            subs = _subjects(args.subject, args.dataset, args.protocol, args.split)
             with torch_threads(cfg.threads):  # the command's own count, restored when it returns
                 for s in subs:
                     if (args.runs / s / "coarse.pt").is_file():
@@ -188,7 +193,8 @@ def main(argv: list[str] | None = None) -> int:
                     ensure_coarse(args.dataset, s, args.protocol, args.runs / s, cfg, pretrained=args.pretrained,
                                   progress=not args.no_progress)
                 n = predict_smpld(args.dataset, args.protocol, args.runs, args.out, subjects=subs,
-                                  background=args.background, progress=not args.no_progress, name=args.name)
+                                  background=args.background, progress=not args.no_progress, name=args.name,
+                                  split=args.split)
             print(f"rana smpld: {n} frames written to {args.out}")
         elif args.cmd == "plot":
             out = plot_losses(args.run, args.out or args.run / "losses.png",

@@ -3,7 +3,8 @@
 This is what any method that models the person as Lambertian under order-2 SH light (RANA and the SMPL+D baseline
 included) would score with perfect albedo and normals. The gap between it and the path-traced ground truth is the
 lighting model's error (cast shadows, interreflection, specular, SH truncation), not a learning error. It reads
-test-split ground truth, so it is a bound, never a method: its method.json says "kind": "bound".
+the scored split's ground truth (`test`, or `--split olat`: one small light, which order-2 SH cannot represent), so
+it is a bound, never a method: its method.json says "kind": "bound".
 """
 from __future__ import annotations
 
@@ -32,11 +33,11 @@ def oracle_image(albedo: np.ndarray, normal: np.ndarray, sh_camera: np.ndarray, 
     return np.where(inside[..., None], albedo * shade, background).astype(np.float32)
 
 
-def predict_oracle(dataset: str | Path, protocol: str, out: str | Path) -> int:
+def predict_oracle(dataset: str | Path, protocol: str, out: str | Path, split: str = "test") -> int:
     writer = PredictionWriter(out, {"name": "Oracle (GT albedo x SH2 shading of GT normals)", "kind": "bound",
                                     "description": __doc__.strip().splitlines()[0]})
     n = 0
-    for fr in iter_test_frames(dataset, protocol):
+    for fr in iter_test_frames(dataset, protocol, split):
         albedo = read_exr(fr.layer_path("albedo"))
         normal = read_exr(fr.layer_path("normal"))
         # Outside the person the bound copies the ground truth: it bounds the person, not the environment.
@@ -52,12 +53,15 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="rana-oracle", description=__doc__.strip().splitlines()[0])
     p.add_argument("--dataset", required=True, type=Path, help="dataset folder made by rh-generate")
     p.add_argument("--protocol", default="a", choices=["a", "b"], help="which protocol's test split")
+    p.add_argument("--split", default="test",
+                   help="the split to predict (default: test; e.g. olat): predictions go to <out>/<subject>/"
+                        "protocol_<p>/<split>/, what rh-eval --split reads")
     p.add_argument("--out", required=True, type=Path, help="predictions folder to write")
     add_debug_flag(p)
     args = p.parse_args(argv)
     on_stop(lambda: f"the predictions already in {args.out} are whole; a rerun writes them all again")
     try:
-        n = predict_oracle(args.dataset, args.protocol, args.out)
+        n = predict_oracle(args.dataset, args.protocol, args.out, args.split)
     except (FileNotFoundError, ValueError) as exc:
         print(f"rana-oracle: error: {exc}", file=sys.stderr)
         return 2

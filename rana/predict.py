@@ -130,9 +130,10 @@ def load_trained(run: RunDir) -> tuple[RanaConfig, Coarse, RanaModel]:
     return cfg, coarse, model
 
 
-def _subject_frames(dataset: Path, protocol: str, subjects: list[str] | None) -> dict[str, list[TestFrame]]:
+def _subject_frames(dataset: Path, protocol: str, subjects: list[str] | None,
+                    split: str = "test") -> dict[str, list[TestFrame]]:
     by: dict[str, list[TestFrame]] = {}
-    for tf in iter_test_frames(dataset, protocol):
+    for tf in iter_test_frames(dataset, protocol, split):
         if subjects is None or tf.subject in subjects:
             by.setdefault(tf.subject, []).append(tf)
     return by
@@ -140,11 +141,11 @@ def _subject_frames(dataset: Path, protocol: str, subjects: list[str] | None) ->
 
 def predict_rana(dataset: str | Path, protocol: str, runs_root: str | Path, out: str | Path, *,
                  subjects: list[str] | None = None, background: str = "sh", progress: bool = True,
-                 name: str | None = None, mask_composite: str = "threshold") -> int:
+                 name: str | None = None, mask_composite: str = "threshold", split: str = "test") -> int:
     from tqdm import tqdm
 
     runs_root, dataset = Path(runs_root), Path(dataset)
-    by = _subject_frames(dataset, protocol, subjects)
+    by = _subject_frames(dataset, protocol, subjects, split)
     writer = PredictionWriter(out, {"name": name or "RANA", "kind": "method", "runs": str(runs_root.resolve()),
                                     "background": background, "mask_composite": mask_composite,
                                     "description": "RANA (Iqbal et al. 2023) on anny, rana/ in this repository"})
@@ -159,12 +160,12 @@ def predict_rana(dataset: str | Path, protocol: str, runs_root: str | Path, out:
 
 def predict_smpld(dataset: str | Path, protocol: str, runs_root: str | Path, out: str | Path, *,
                   subjects: list[str] | None = None, background: str = "sh", progress: bool = True,
-                  name: str | None = None, mask_composite: str = "coverage") -> int:
+                  name: str | None = None, mask_composite: str = "coverage", split: str = "test") -> int:
     """SMPL+D for every subject that has a coarse stage (`<runs>/<subject>/coarse.pt`)."""
     from tqdm import tqdm
 
     runs_root, dataset = Path(runs_root), Path(dataset)
-    by = _subject_frames(dataset, protocol, subjects)
+    by = _subject_frames(dataset, protocol, subjects, split)
     writer = PredictionWriter(out, {"name": name or "SMPL+D", "kind": "method", "runs": str(runs_root.resolve()),
                                     "background": background,
                                     "description": "coarse albedo texture x SH2 shading of coarse SMPL+D normals"})

@@ -1,7 +1,8 @@
 """The one writer of method outputs, in the predictions layout `rh-eval` reads (docs/ARCHITECTURE.md).
 
-In: a dataset's test frames (read through `rh_common.layout`) and a method's float arrays per frame.
-Out: `<out>/method.json` and `<out>/<subject>/protocol_<p>/test/frame_%06d_{image,albedo,normal}.exr`.
+In: the frames of a dataset's scored split (`test`, or another such as `olat`; read through `rh_common.layout`)
+    and a method's float arrays per frame.
+Out: `<out>/method.json` and `<out>/<subject>/protocol_<p>/<split>/frame_%06d_{image,albedo,normal}.exr`.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ class TestFrame:
     index: int
     split_dir: Path
     meta: dict
+    split: str = layout.TEST_SPLIT  # which split it belongs to: its predictions go to the folder of that name
 
     def layer_path(self, layer: str, ext: str = "exr") -> Path:
         return self.split_dir / layout.layer_file_name(self.index, layer, ext)
@@ -33,17 +35,22 @@ class TestFrame:
         return layout.frame_json_path(self.split_dir, self.index)
 
 
-def iter_test_frames(dataset: str | Path, protocol: str) -> Iterator[TestFrame]:
-    """Every test frame of one protocol, in subject then frame order."""
+def iter_test_frames(dataset: str | Path, protocol: str, split: str = layout.TEST_SPLIT) -> Iterator[TestFrame]:
+    """Every frame of one protocol's scored split (default test), in subject then frame order. A split the dataset
+    lacks is refused in one line listing the splits it has."""
     root = Path(dataset)
-    paths = list(layout.iter_frame_jsons(root, protocol, layout.TEST_SPLIT))
+    paths = list(layout.iter_frame_jsons(root, protocol, split))
     if not paths:
-        pattern = f"subject_*/{layout.protocol_dir(protocol)}/{layout.TEST_SPLIT}/frame_*.json"
-        raise FileNotFoundError(f"{root}: no test frames of protocol {protocol} ({pattern}); generate them with "
+        has = layout.splits_of(root, protocol)
+        if has:
+            raise FileNotFoundError(f"{root}: no {split!r} split for {layout.protocol_dir(protocol)}; it has: "
+                                    f"{', '.join(has)} (choose one with --split)")
+        pattern = f"subject_*/{layout.protocol_dir(protocol)}/{split}/frame_*.json"
+        raise FileNotFoundError(f"{root}: no {split} frames of protocol {protocol} ({pattern}); generate them with "
                                 f"`rh-generate --protocol {protocol} --out {root}`")
     for p in paths:
         record = layout.read_frame_record(p)
-        yield TestFrame(record.subject, record.protocol, record.index, p.parent, record.to_json())
+        yield TestFrame(record.subject, record.protocol, record.index, p.parent, record.to_json(), split)
 
 
 class PredictionWriter:
@@ -60,7 +67,8 @@ class PredictionWriter:
         for layer, arr in (("image", image), ("albedo", albedo), ("normal", normal)):
             if arr is None:
                 continue
-            path = layout.prediction_file(self.out, frame.subject, frame.protocol, frame.index, layer, "exr")
+            path = layout.prediction_file(self.out, frame.subject, frame.protocol, frame.index, layer, "exr",
+                                          split=frame.split)
             arr = np.asarray(arr, dtype=np.float32)
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"{path}: prediction has NaN/Inf")

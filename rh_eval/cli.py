@@ -1,4 +1,5 @@
-"""`rh-eval`: score one predictions folder against the dataset's test split. See docs/EVALUATION.md."""
+"""`rh-eval`: score one predictions folder against one split of the dataset (`test`, or `--split`, e.g. `olat`).
+See docs/EVALUATION.md."""
 from __future__ import annotations
 
 import argparse
@@ -39,10 +40,13 @@ def build_parser() -> argparse.ArgumentParser:
                     "published: LPIPS (v0.1), DISTS, SSIM (Wang 2004), PSNR, FLIP (LDR) on images and albedo, "
                     "mean angular error on normals.")
     p.add_argument("predictions", type=Path,
-                   help="predictions folder: <subject>/protocol_<p>/test/frame_NNNNNN_{image,albedo,normal}"
+                   help="predictions folder: <subject>/protocol_<p>/<split>/frame_NNNNNN_{image,albedo,normal}"
                         ".{exr,png} (+ optional method.json with a 'name' and optional 'kind': method|bound)")
     p.add_argument("--dataset", type=Path, required=True, help="dataset folder (holds manifest.json and subjects)")
     p.add_argument("--protocol", default="a", help="protocol to evaluate: 'a' or 'protocol_a' (default: a)")
+    p.add_argument("--split", default="test",
+                   help="the dataset split to score, and the predictions' folder name (default: test; e.g. olat "
+                        "for the one-light-at-a-time split of the olat_a/olat_b scenes); recorded in the result")
     p.add_argument("--out", type=Path, required=True, help="result JSON to write (folders are created)")
     p.add_argument("--csv", type=Path, default=None, help="per-frame CSV path (default: <out stem>.frames.csv)")
     p.add_argument("--convention", choices=tuple(CONVENTIONS), default="rana",
@@ -125,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
                            workers=args.workers, preload_mb=args.preload_mb, thumbnails=not args.no_thumbnails)
         with torch_threads(opts.threads):  # the command's own count; the Evaluator never changes it
             ev = Evaluator(opts)
-            result, rows, cols = ev.evaluate(args.predictions, args.dataset, args.protocol)
+            result, rows, cols = ev.evaluate(args.predictions, args.dataset, args.protocol, split=args.split)
     except (PredictionError, ImageFileError, WeightError, FileNotFoundError, ValueError) as exc:
         print(f"rh-eval: error: {exc}", file=sys.stderr)
         return 2

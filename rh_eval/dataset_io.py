@@ -1,12 +1,12 @@
-"""Reading the dataset's test split and a predictions folder, per docs/ARCHITECTURE.md (names and frame records
-through `rh_common.layout`), with every check that keeps a bad prediction set from producing a silently different
-score.
+"""Reading one scored split of the dataset (`test` unless told another, e.g. `olat`) and a predictions folder, per
+docs/ARCHITECTURE.md (names and frame records through `rh_common.layout`), with every check that keeps a bad
+prediction set from producing a silently different score.
 
-Ground truth, per frame (`<dataset>/<subject>/protocol_<p>/test/`): `frame_%06d.json` (complete frames only:
+Ground truth, per frame (`<dataset>/<subject>/protocol_<p>/<split>/`): `frame_%06d.json` (complete frames only:
 the JSON is written last) with `exposure`, `width`, `height`; layers `frame_%06d_{image.exr, mask.png,
 albedo.exr, normal.exr}`.
 
-Predictions (`<pred>/<subject>/protocol_<p>/test/frame_%06d_{image,albedo,normal}.{exr,png}`): the image is
+Predictions (`<pred>/<subject>/protocol_<p>/<split>/frame_%06d_{image,albedo,normal}.{exr,png}`): the image is
 required, albedo and normal optional but all-or-none across the frames. Refused, with the file named: a missing
 frame (unless `allow_incomplete`), an extra or unrecognised file, a layer given both as EXR and PNG, a wrong
 resolution, a wrong channel count, NaN/Inf, a PNG that is not 8-bit RGB/RGBA (16-bit, grey, palette), an
@@ -94,6 +94,7 @@ class DatasetIndex:
     frames: list[GTFrame]
     manifest_sha256: str
     subjects: list[str]
+    split: str = layout.TEST_SPLIT  # the scored split: "test", or another such as "olat"
 
 
 @dataclass
@@ -114,18 +115,23 @@ class PredictionIndex:
     has_normal: bool = False
 
 
-def load_dataset(root: str | Path, protocol: str) -> DatasetIndex:
-    """Index the test split of `protocol` in the dataset at `root` (complete frames = those with a JSON)."""
+def load_dataset(root: str | Path, protocol: str, split: str = layout.TEST_SPLIT) -> DatasetIndex:
+    """Index one split (default test) of `protocol` in the dataset at `root` (complete frames = those with a JSON).
+    A split the dataset lacks is refused in one line listing the splits it has."""
     root = Path(root)
     pdir = protocol_dir(protocol)
     manifest = root / layout.MANIFEST_JSON
     if not manifest.is_file():
         raise FileNotFoundError(f"{manifest}: dataset manifest not found (is {root} a dataset folder?)")
+    has = layout.splits_of(root, pdir)
+    if has and split not in has:
+        raise FileNotFoundError(f"{root}: no {split!r} split for {pdir}; it has: {', '.join(has)} "
+                                f"(choose one with --split)")
     frames: list[GTFrame] = []
     subjects = sorted(d.name for d in root.iterdir()
-                      if d.is_dir() and layout.split_dir(root, d.name, pdir, layout.TEST_SPLIT).is_dir())
+                      if d.is_dir() and layout.split_dir(root, d.name, pdir, split).is_dir())
     for subject in subjects:
-        folder = layout.split_dir(root, subject, pdir, layout.TEST_SPLIT)
+        folder = layout.split_dir(root, subject, pdir, split)
         for jp in sorted(folder.iterdir()):
             index = layout.frame_index_of(jp.name)
             if index is None:
@@ -136,14 +142,15 @@ def load_dataset(root: str | Path, protocol: str) -> DatasetIndex:
                 raise ValueError(f"{jp}: not a valid frame record (width, height, exposure, ...): {exc}") from exc
             frames.append(GTFrame(subject, index, folder, rec.width, rec.height, float(rec.exposure)))
     if not frames:
-        raise FileNotFoundError(f"{root}: no test frames for {pdir} "
-                                f"(expected <subject>/{pdir}/{layout.TEST_SPLIT}/frame_*.json)")
-    return DatasetIndex(root, layout.protocol_of(pdir), frames, sha256_file(manifest), subjects)
+        raise FileNotFoundError(f"{root}: no {split} frames for {pdir} "
+                                f"(expected <subject>/{pdir}/{split}/frame_*.json)")
+    return DatasetIndex(root, layout.protocol_of(pdir), frames, sha256_file(manifest), subjects, split)
 
 
 def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplete: bool = False) -> PredictionIndex:
-    """Match the files of a predictions folder to the dataset's test frames; raise `PredictionError` listing every
-    problem found (missing frames are tolerated with `allow_incomplete`, reported in `missing`)."""
+    """Match the files of a predictions folder to the frames of the dataset's scored split (`ds.split`); raise
+    `PredictionError` listing every problem found (missing frames are tolerated with `allow_incomplete`, reported in
+    `missing`)."""
     root = Path(pred_root)
     if not root.is_dir():
         raise PredictionError(root, [f"{root}: not a folder"])
@@ -167,9 +174,9 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
         if entry.name.startswith(".") or entry.is_file():
             continue  # method.json, READMEs, dotfiles
         if entry.name not in ds.subjects:
-            problems.append(f"{entry}: unexpected folder (not a subject of the dataset's {pdir} test split)")
+            problems.append(f"{entry}: unexpected folder (not a subject of the dataset's {pdir} {ds.split} split)")
             continue
-        test = layout.prediction_dir(root, entry.name, pdir)
+        test = layout.prediction_dir(root, entry.name, pdir, ds.split)
         if not test.is_dir():
             continue  # counted as missing below
         for f in sorted(test.iterdir()):
@@ -181,7 +188,7 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
                 continue
             key = f"{entry.name}/{layout.frame_stem(int(m.group(1)))}"
             if key not in by_key:
-                problems.append(f"{f}: extra frame (no ground-truth frame {key} in the test split)")
+                problems.append(f"{f}: extra frame (no ground-truth frame {key} in the {ds.split} split)")
                 continue
             layers = found.setdefault(key, {})
             if m.group(2) in layers:
@@ -195,12 +202,12 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
     for gt in ds.frames:
         layers = found.get(gt.key, {})
         if "image" not in layers:
-            missing.append(f"{layout.prediction_file(root, gt.subject, pdir, gt.index, 'image')} (or .png): "
+            missing.append(f"{layout.prediction_file(root, gt.subject, pdir, gt.index, 'image', split=ds.split)} (or .png): "
                            f"missing frame")
             continue
         for name, present in (("albedo", any_albedo), ("normal", any_normal)):
             if present and name not in layers:
-                missing.append(f"{layout.prediction_file(root, gt.subject, pdir, gt.index, name)} (or .png): "
+                missing.append(f"{layout.prediction_file(root, gt.subject, pdir, gt.index, name, split=ds.split)} (or .png): "
                                f"missing {name} (other frames have one)")
         frames.append(PredFrame(gt, layers.get("image"), layers.get("albedo"), layers.get("normal")))
     if missing and not allow_incomplete:

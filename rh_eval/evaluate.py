@@ -1,6 +1,7 @@
 """The evaluation engine behind `rh-eval`: a predictions folder and a dataset -> per-frame rows -> the result JSON.
 
-In: `EvalOptions` (convention, metrics, batching, cache, threads), a predictions folder, a dataset and a protocol.
+In: `EvalOptions` (convention, metrics, batching, cache, threads), a predictions folder, a dataset, a protocol and
+    the scored split (`test` unless told another, e.g. `olat`).
 Out: `Evaluator.evaluate` -> (result JSON dict, per-frame rows, CSV columns), and `Evaluator.thumbnails` (the
      tiles of the seeded frame selection, `rh_eval.thumbnails`); `rh_eval.report` writes them.
 
@@ -297,12 +298,14 @@ class Evaluator:
 
     # ---------------------------------------------------------------- public
     def evaluate(self, pred_root: str | Path, dataset: DatasetIndex | str | Path, protocol: str = "a",
-                 on_frame: Callable[[int, int], None] | None = None) -> tuple[dict, list[dict], list[str]]:
-        """Evaluate one predictions folder. Returns (result JSON dict, per-frame rows, CSV columns).
+                 on_frame: Callable[[int, int], None] | None = None, *,
+                 split: str = layout.TEST_SPLIT) -> tuple[dict, list[dict], list[str]]:
+        """Evaluate one predictions folder on one split of the dataset (`split`, when `dataset` is a path; a
+        `DatasetIndex` carries its own). Returns (result JSON dict, per-frame rows, CSV columns).
 
         Every prediction file is checked (`check_predictions`) before any metric is computed; nothing is
         returned (or written by the CLI) unless every frame was evaluated."""
-        ds = dataset if isinstance(dataset, DatasetIndex) else load_dataset(dataset, protocol)
+        ds = dataset if isinstance(dataset, DatasetIndex) else load_dataset(dataset, protocol, split)
         pred = scan_predictions(pred_root, ds, allow_incomplete=self.options.allow_incomplete)
         conv = self.options.convention
         if conv.relit_with_aligned_albedo and not pred.has_albedo and \
@@ -401,9 +404,9 @@ class Evaluator:
             "complete": complete,
             "missing": pred.missing,
             "predictions": str(pred.root),
-            "dataset": {"root": str(ds.root), "protocol": ds.protocol, "split": "test",
+            "dataset": {"root": str(ds.root), "protocol": ds.protocol, "split": ds.split,
                         "manifest_sha256": ds.manifest_sha256, "n_frames": len(ds.frames),
-                        "content_identity": layout.split_identity(ds.root, ds.protocol, layout.TEST_SPLIT),
+                        "content_identity": layout.split_identity(ds.root, ds.protocol, ds.split),
                         "subjects": ds.subjects},
             "n_frames_evaluated": len(rows),
             "n_frames_empty_mask": sum(1 for r in rows if r.get("empty_mask")),

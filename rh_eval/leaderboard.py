@@ -8,8 +8,9 @@ overrides, with a warning in both outputs). The same split = the same content id
 "Content identity"), or two identities that an `rh-verify A --against B --record FILE` comparison, given with
 `--comparison FILE`, found within tolerance: those rows are marked ≈ and the tables say so. Results of rh-eval
 versions that recorded no identity are matched on the manifest sha256 as before. Results under different named
-conventions (`rh-eval --convention`) get one set of tables each, and a side-by-side table shows each method under
-every convention it was scored with. Rows with `"kind": "bound"` (oracles) are listed in their own table, never
+conventions (`rh-eval --convention`), and results of different dataset splits (`rh-eval --split`: test, olat),
+get one set of tables each, and a side-by-side table shows each method under every convention and split it was
+scored with. Rows with `"kind": "bound"` (oracles) are listed in their own table, never
 ranked; incomplete submissions in another, never ranked as complete. Bold marks the best complete method per
 column.
 """
@@ -28,7 +29,7 @@ from rh_common.interrupt import add_debug_flag, command, on_stop
 
 from .leaderboard_results import (ALIGNED_COLUMNS, COLUMNS, IMAGE_ALIGNED_COLUMNS, Entry, _align_text, _best,
                                   _by_convention, _cell, _columns, _conv_name, _convention_line, _groups,
-                                  _side_by_side, load_results)
+                                  _several_splits, _side_by_side, _title, load_results)
 
 __all__ = ["main", "load_results", "build_markdown", "build_html", "COLUMNS", "Entry"]
 
@@ -56,16 +57,17 @@ def build_markdown(entries: list[Entry], warnings: list[str] | None = None) -> s
     convs = _by_convention(entries)
     if len(convs) == 1:
         return _markdown_one(entries, warnings)
+    what = "evaluation convention and dataset split" if _several_splits(entries) else "evaluation convention"
     lines = ["# Relighting Humans leaderboard", "",
-             f"One set of tables per evaluation convention ({', '.join(f'`{n}`' for n, _ in convs)}): numbers of "
-             f"different conventions are not comparable with each other.", ""]
+             f"One set of tables per {what} ({', '.join(f'`{n}`' for n, _ in convs)}): numbers of "
+             f"different {_differ(entries)} are not comparable with each other.", ""]
     for w in warnings or []:
         lines.append(f"> **Warning:** {w}")
     if warnings:
         lines.append("")
     for name, es in convs:
         body = _markdown_one(es).split("\n")[2:]  # without the page title
-        lines += [f"## Convention `{name}`", ""] + ["#" + x if x.startswith("## ") else x for x in body]
+        lines += [f"## {_title(es)}", ""] + ["#" + x if x.startswith("## ") else x for x in body]
     head, rows = _side_by_side(convs)
     lines += ["## Side by side", "", "| Method | " + " | ".join(head) + " |", "|---|" + "---:|" * len(head)]
     lines += [f"| {m} | " + " | ".join(cells) + " |" for m, cells in rows] + [""]
@@ -246,15 +248,16 @@ def build_html(entries: list[Entry], warnings: list[str] | None = None, pictures
              "<title>Relighting Humans leaderboard</title>", f"<style>{_CSS}{PICTURES_CSS}</style></head><body>",
              "<h1>Relighting Humans leaderboard</h1>"]
     if len(convs) > 1:
-        parts.append(f'<p class="note">One set of tables per evaluation convention '
-                     f'({e(", ".join(n for n, _ in convs))}): numbers of different conventions are not comparable '
-                     f'with each other.</p>')
+        what = "evaluation convention and dataset split" if _several_splits(entries) else "evaluation convention"
+        parts.append(f'<p class="note">One set of tables per {what} '
+                     f'({e(", ".join(n for n, _ in convs))}): numbers of different {_differ(entries)} are not '
+                     f'comparable with each other.</p>')
     if len(convs) == 1:
         parts += _html_one(entries, warnings)
     else:
         parts += [f'<p class="warn">Warning: {e(w)}</p>' for w in warnings or []]
         for name, es in convs:
-            parts.append(f'<h2 id="convention-{e(name)}">Convention {e(name)}</h2>')
+            parts.append(f'<h2 id="convention-{e(name)}">{e(_title(es).replace("`", ""))}</h2>')
             parts += _html_one(es, prefix=f"{name}-", h="h3")
     if len(convs) > 1:
         head, rows = _side_by_side(convs)
@@ -277,6 +280,10 @@ def build_html(entries: list[Entry], warnings: list[str] | None = None, pictures
     parts.append("</ul>")
     parts.append(f"<script>{_JS}{PICTURES_JS}</script></body></html>")
     return "\n".join(parts) + "\n"
+
+
+def _differ(entries: list[Entry]) -> str:
+    return "conventions or splits" if _several_splits(entries) else "conventions"
 
 
 def _html_one(entries: list[Entry], warnings: list[str] | None = None, prefix: str = "", h: str = "h2") -> list[str]:
@@ -321,8 +328,8 @@ def main(argv: list[str] | None = None) -> int:
                     "| Normal degrees | Albedo LPIPS/DISTS/SSIM/PSNR, best in bold) and a self-contained "
                     "index.html (sortable tables, per-subject plots). Bounds (kind=bound) and incomplete "
                     "submissions are listed separately, never ranked. Results under different named conventions "
-                    "(rh-eval --convention) get their own tables, and a side-by-side table shows each method under "
-                    "every convention.")
+                    "(rh-eval --convention) or of different dataset splits (rh-eval --split) get their own tables, "
+                    "and a side-by-side table shows each method under every convention and split.")
     p.add_argument("results", nargs="+", type=Path, help="rh-eval result JSON files")
     p.add_argument("--out", type=Path, required=True, help="output folder (index.html, leaderboard.md)")
     p.add_argument("--pictures", type=int, default=6, metavar="N",

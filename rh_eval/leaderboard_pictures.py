@@ -3,7 +3,7 @@ wrote beside each result (`<result stem>.thumbs/`, `rh_eval.thumbnails`); neithe
 are read.
 
 In:  the leaderboard's entries in their display order (ranked methods, bounds, incomplete).
-Out: `Pictures`: an HTML section per protocol (strips + a click-to-enlarge viewer with the frame's name, light
+Out: `Pictures`: an HTML section per protocol and scored split (strips + a click-to-enlarge viewer with the frame's name, light
      and per-frame scores) and the tile files to copy into `<out>/pictures/`, so the page stays one folder.
 
 Which frames (docs/EVALUATION.md, "Pictures"): only frames every shown result has tiles for (the seeded fixed
@@ -149,7 +149,8 @@ def _protocol_section(pi: int, protocol, shown: list, max_fixed: int, out: Pictu
 
 
 def build_pictures(entries: list, max_fixed: int = 6) -> Pictures:
-    """The pictures section for `entries` (display order), one per protocol; empty when no result has tiles."""
+    """The pictures section for `entries` (display order), one per protocol and split (frames of the test and the
+    olat split share names, never pictures); empty when no result has tiles."""
     out = Pictures()
     if max_fixed < 0:
         raise ValueError(f"max_fixed must be >= 0, got {max_fixed}")
@@ -162,7 +163,10 @@ def build_pictures(entries: list, max_fixed: int = 6) -> Pictures:
         if pics is None:
             missing.append(ent.label)
             continue
-        by_protocol.setdefault(ent.result.get("dataset", {}).get("protocol"), []).append((ent, pics))
+        d = ent.result.get("dataset", {})
+        split = d.get("split") or "test"
+        key = d.get("protocol") if split == "test" else f"{d.get('protocol')}, split {split}"
+        by_protocol.setdefault(key, []).append((ent, pics))
     data: list = []
     for pi, (protocol, shown) in enumerate(by_protocol.items()):
         _protocol_section(pi, protocol, shown, max_fixed, out, data)

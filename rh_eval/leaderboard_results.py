@@ -1,5 +1,6 @@
 """The results side of `rh-leaderboard`: rh-eval result files in; `Entry`s out, checked to be combinable (the
-same benchmark split by content identity, protocol and convention), grouped by named convention and ranked, with
+same benchmark split by content identity, protocol and convention), grouped by named convention and by the dataset
+split scored (`test`, `olat`, ...: one set of tables each, like conventions) and ranked, with
 the columns, best values and formatted cells that both outputs (leaderboard.md and index.html,
 `rh_eval.leaderboard`) show.
 """
@@ -85,6 +86,11 @@ class Entry:
         return math.inf if m == "inf" else (float(m) if isinstance(m, (int, float)) else None)
 
 
+def _split(e: Entry) -> str:
+    """The dataset split a result scored (results from before `rh-eval --split` scored the test split)."""
+    return str(e.result.get("dataset", {}).get("split") or layout.TEST_SPLIT)
+
+
 def _identity(e: Entry) -> str | None:
     return e.result.get("dataset", {}).get("content_identity")
 
@@ -98,7 +104,7 @@ def _same_split(ref: Entry, e: Entry, comparisons: list[dict]) -> str | None:
         return None if ma == mb else f"dataset manifest sha256 {mb!r} differs from {ref.path}'s {ma!r}"
     if a == b:
         return None
-    key = layout.split_key(str(ref.result["dataset"].get("protocol")), layout.TEST_SPLIT)
+    key = layout.split_key(str(ref.result["dataset"].get("protocol")), _split(ref))
     for c in comparisons:
         pair = {((c.get(side) or {}).get("identity") or {}).get("splits", {}).get(key, {}).get("digest")
                 for side in ("a", "b")}
@@ -135,20 +141,23 @@ def load_results(paths: list[Path], *, allow_mixed: bool = False,
         entries.append(Entry(Path(p), r))
     if not entries:
         raise ValueError("no result files given")
-    names = [(e.name, _conv_name(e)) for e in entries]
-    for e in entries:  # two results of the same name under one convention: tell them apart by file name
-        if names.count((e.name, _conv_name(e))) > 1:
+    names = [(e.name, _conv_name(e), _split(e)) for e in entries]
+    for e in entries:  # two results of the same name in one table: tell them apart by file name
+        if names.count((e.name, _conv_name(e), _split(e))) > 1:
             e.display = f"{e.name} ({e.path.name})"
     problems = []
     ref = entries[0]
     first: dict[str, Entry] = {}  # conventions are compared with the first result of the same named convention
+    first_of_split: dict[str, Entry] = {}  # a split's identity with the first result that scored that split
     for e in entries:
         first.setdefault(_conv_name(e), e)
+        first_of_split.setdefault(_split(e), e)
     for e in entries[1:]:
         a, b = ref.result["dataset"].get("protocol"), e.result["dataset"].get("protocol")
+        sref = first_of_split[_split(e)]
         if a != b:
             problems.append(f"{e.path}: protocol {b!r} differs from {ref.path}'s {a!r}")
-        elif (why := _same_split(ref, e, comparisons or [])) is not None:
+        elif sref is not e and (why := _same_split(sref, e, comparisons or [])) is not None:
             problems.append(f"{e.path}: {why}")
         cref = first[_conv_name(e)]
         if cref is e:
@@ -192,10 +201,23 @@ def _align_text(entries: list[Entry]) -> str:
 
 
 def _by_convention(entries: list[Entry]) -> list[tuple[str, list[Entry]]]:
+    """(label, entries) per named convention and scored split, in order of appearance: each gets its own tables.
+    The label is the convention's name for the test split, '<convention>-<split>' for another (an HTML id)."""
     out: dict[str, list[Entry]] = {}
     for e in entries:
-        out.setdefault(_conv_name(e), []).append(e)
+        split = _split(e)
+        out.setdefault(_conv_name(e) if split == layout.TEST_SPLIT else f"{_conv_name(e)}-{split}", []).append(e)
     return list(out.items())
+
+
+def _several_splits(entries: list[Entry]) -> bool:
+    return len({_split(e) for e in entries}) > 1
+
+
+def _title(entries: list[Entry]) -> str:
+    """The heading of one (convention, split) set of tables: Convention `rana` (, split `olat`)."""
+    split = _split(entries[0])
+    return f"Convention `{_conv_name(entries[0])}`" + ("" if split == layout.TEST_SPLIT else f", split `{split}`")
 
 
 SIDE_BY_SIDE = ("image_lpips", "image_ssim", "image_psnr", "normal_deg", "albedo_aligned_psnr")
@@ -285,7 +307,7 @@ def _ppd_text(entries: list[Entry]) -> str:
 def _convention_line(entries: list[Entry]) -> str:
     c = entries[0].result.get("convention", {})
     d = entries[0].result.get("dataset", {})
-    ident = (f"test split content identity `{d['content_identity'][:16]}…`" if d.get("content_identity")
+    ident = (f"{_split(entries[0])} split content identity `{d['content_identity'][:16]}…`" if d.get("content_identity")
              else f"dataset manifest sha256 `{str(d.get('manifest_sha256'))[:16]}…`")
     return (f"Protocol {d.get('protocol')}, {ident}; "
             f"region `{c.get('region')}` over {c.get('background')}, LPIPS backbone `{c.get('backbone')}` (v0.1), "

@@ -28,54 +28,70 @@ def _sphere(size: int, cx: float, cy: float, r: float):
     return n.astype(np.float32), cov
 
 
+def fake_sh_camera() -> np.ndarray:
+    """Order-2 SH (9, 3) whose shading `rh_common.sh.shading` is the fake's 2 (0.3 + 0.7 n_z + 0.2 n_y) exactly (a
+    linear function of n is bands 0 and 1), fitted by least squares through the SH module itself."""
+    from rh_common import sh
+
+    n = sh.fibonacci_sphere(64)
+    basis = np.stack([sh.shading(np.eye(9)[:, k:k + 1], n)[:, 0] for k in range(9)], axis=1)
+    c, *_ = np.linalg.lstsq(basis, 2.0 * (0.3 + 0.7 * n[:, 2] + 0.2 * n[:, 1]), rcond=None)
+    return np.repeat(c[:, None], 3, axis=1)
+
+
 def make_dataset(root: Path, *, size: int = SIZE, subjects=SUBJECTS, frames=FRAMES, seed: int = 0,
-                 empty_mask: tuple[str, int] | None = None) -> Path:
+                 empty_mask: tuple[str, int] | None = None, splits: tuple[str, ...] = ("test",),
+                 with_light: bool = False) -> Path:
+    """`splits`: the scored splits to write (each its own draws of albedo and noise, the test split's first and as
+    before); `with_light`: frames record `light.sh_camera` = `fake_sh_camera()`, which is what rana-oracle reads."""
     rng = np.random.default_rng(seed)
     root = Path(root)
-    for si, subject in enumerate(subjects):
-        for f in frames:
-            cx, cy, r = size * (0.45 + 0.1 * f), size * (0.5 + 0.05 * si), size * 0.3
-            normal, cov = _sphere(size, cx, cy, r)
-            if empty_mask == (subject, f):
-                normal[:] = 0
-                cov[:] = 0
-            base = rng.uniform(0.2, 0.8, size=3)
-            yy, xx = np.mgrid[0:size, 0:size] / size
-            albedo = np.clip(base[None, None, :] * (0.7 + 0.3 * np.sin(6 * xx + 3 * yy + si))[..., None], 0, 1)
-            albedo = (albedo * (cov > 0)[..., None]).astype(np.float32)
-            shade = np.clip(0.3 + 0.7 * normal[..., 2:3] + 0.2 * normal[..., 1:2], 0, None)
-            env = np.stack([0.3 + 0.2 * xx, 0.35 + 0.1 * yy, 0.5 - 0.2 * yy], axis=-1)
-            image = (albedo * shade * cov[..., None] + env * (1 - cov[..., None])).astype(np.float32) * 2.0
-            image += rng.normal(0, 0.01, image.shape).astype(np.float32).clip(-0.01, 0.01)
-            image = np.clip(image, 0, None)
-            exposure = 0.5
-            # The real writer (rh_common.layout): the same frame record, layer files and manifest as rh-generate's.
-            layout.write_frame(layout.split_dir(root, subject, "a", "test"), f,
-                               {"image": image, "mask": cov, "albedo": albedo, "normal": normal},
-                               {"subject": subject, "protocol": "a", "split": "test", "width": size, "height": size,
-                                "exposure": exposure})
+    for split, si, subject, f in ((sp, si, sub, f) for sp in splits for si, sub in enumerate(subjects)
+                                  for f in frames):
+        cx, cy, r = size * (0.45 + 0.1 * f), size * (0.5 + 0.05 * si), size * 0.3
+        normal, cov = _sphere(size, cx, cy, r)
+        if empty_mask == (subject, f):
+            normal[:] = 0
+            cov[:] = 0
+        base = rng.uniform(0.2, 0.8, size=3)
+        yy, xx = np.mgrid[0:size, 0:size] / size
+        albedo = np.clip(base[None, None, :] * (0.7 + 0.3 * np.sin(6 * xx + 3 * yy + si))[..., None], 0, 1)
+        albedo = (albedo * (cov > 0)[..., None]).astype(np.float32)
+        shade = np.clip(0.3 + 0.7 * normal[..., 2:3] + 0.2 * normal[..., 1:2], 0, None)
+        env = np.stack([0.3 + 0.2 * xx, 0.35 + 0.1 * yy, 0.5 - 0.2 * yy], axis=-1)
+        image = (albedo * shade * cov[..., None] + env * (1 - cov[..., None])).astype(np.float32) * 2.0
+        image += rng.normal(0, 0.01, image.shape).astype(np.float32).clip(-0.01, 0.01)
+        image = np.clip(image, 0, None)
+        exposure = 0.5
+        # The real writer (rh_common.layout): the same frame record, layer files and manifest as rh-generate's.
+        meta = {"subject": subject, "protocol": "a", "split": split, "width": size, "height": size,
+                "exposure": exposure}
+        if with_light:
+            meta["light"] = {"kind": "sh", "sh_camera": fake_sh_camera().tolist()}
+        layout.write_frame(layout.split_dir(root, subject, "a", split), f,
+                           {"image": image, "mask": cov, "albedo": albedo, "normal": normal}, meta)
     write_json(root / layout.DATASET_JSON, {"protocol": "a", "subjects": list(subjects)})
     layout.write_manifest(root)
     return root
 
 
-def gt_frames(ds: Path):
-    for jp in layout.iter_frame_jsons(ds, "a", "test"):
+def gt_frames(ds: Path, split: str = "test"):
+    for jp in layout.iter_frame_jsons(ds, "a", split):
         yield jp.parent, jp.stem, read_json(jp)
 
 
 def make_predictions(ds: Path, out: Path, *, name: str = "oracle", kind: str | None = None, fmt: str = "exr",
                      layers=("image", "albedo", "normal"), noise: float = 0.0, seed: int = 1,
-                     albedo_scale: float = 1.0) -> Path:
-    """A prediction set: the ground truth itself (noise=0, fmt exr), or perturbed/quantised versions."""
+                     albedo_scale: float = 1.0, split: str = "test") -> Path:
+    """A prediction set of one split: the ground truth itself (noise=0, fmt exr), or perturbed/quantised versions."""
     rng = np.random.default_rng(seed)
     out = Path(out)
     from rh_common.imageio import read_exr
-    for folder, stem, meta in gt_frames(ds):
+    for folder, stem, meta in gt_frames(ds, split):
         rec = layout.FrameRecord.from_json(meta)
 
         def out_file(layer: str, ext: str) -> Path:
-            return layout.prediction_file(out, rec.subject, rec.protocol, rec.index, layer, ext)
+            return layout.prediction_file(out, rec.subject, rec.protocol, rec.index, layer, ext, split=split)
 
         out_file("image", "exr").parent.mkdir(parents=True, exist_ok=True)
         for layer in layers:

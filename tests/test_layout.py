@@ -174,7 +174,9 @@ def test_paths_agree_with_the_documented_layout(tmp_path):
         with pytest.raises(ValueError):
             layout.protocol_dir(bad)
     pred = doc[doc.index("## Predictions layout"):]
-    assert layout.METHOD_JSON in pred and "<subject>/<protocol>/test/" in pred
+    assert layout.METHOD_JSON in pred and "<subject>/<protocol>/<split>/" in pred and "rh-eval --split" in pred
+    assert layout.prediction_dir(tmp_path, "subject_000", "a") == layout.split_dir(tmp_path, 0, "a", "test")
+    assert layout.prediction_dir(tmp_path, "subject_000", "a", "olat") == layout.split_dir(tmp_path, 0, "a", "olat")
     for layer in layout.PREDICTION_LAYERS:
         assert f"frame_000000_{layer}.exr | .png" in pred
         assert layout.PREDICTION_FILE_RE.match(layout.prediction_file(tmp_path, "subject_000", "a", 0, layer).name)

@@ -13,7 +13,7 @@ from typing import Iterator
 __all__ = [
     "DATASET_JSON", "MANIFEST_JSON", "CHARACTER_JSON", "CONTACT_SHEET", "LOG_DIR", "METHOD_JSON", "TEST_SPLIT",
     "subject_name", "subject_index", "protocol_dir", "protocol_of", "split_dir", "frame_stem", "frame_json_name",
-    "frame_json_path", "layer_file_name", "frame_index_of", "iter_frame_jsons",
+    "frame_json_path", "layer_file_name", "frame_index_of", "iter_frame_jsons", "splits_of",
     "PREDICTION_LAYERS", "PREDICTION_FILE_RE", "prediction_dir", "prediction_file",
 ]
 
@@ -23,7 +23,7 @@ CHARACTER_JSON = "character.json"
 CONTACT_SHEET = "contact_sheet.png"
 LOG_DIR = "logs"  # run logs beside a dataset (rh_common.runlog): a record of runs, not listed in the manifest
 METHOD_JSON = "method.json"
-TEST_SPLIT = "test"  # the split rh-eval scores and a method predicts
+TEST_SPLIT = "test"  # the split rh-eval scores and a method predicts unless told another (`--split`)
 
 _SUBJECT_RE = re.compile(r"^subject_(\d{3,})$")
 _FRAME_JSON_RE = re.compile(r"^frame_(\d{6})\.json$")
@@ -95,17 +95,25 @@ def iter_frame_jsons(root: str | Path, protocol: str = "*", split: str = "*") ->
             yield p
 
 
+def splits_of(root: str | Path, protocol: str) -> list[str]:
+    """The splits of `protocol` that hold at least one frame JSON in some subject, sorted ('olat', 'test', ...)."""
+    pdir = protocol_dir(protocol)
+    return sorted({p.parent.name for p in Path(root).glob(f"subject_*/{pdir}/*/frame_*.json")
+                   if frame_index_of(p.name) is not None})
+
+
 # ------------------------------------------------------------------------------------------- predictions
 PREDICTION_LAYERS = ("image", "albedo", "normal")
 PREDICTION_FILE_RE = re.compile(r"^frame_(\d{6})_(image|albedo|normal)\.(exr|png)$")
 
 
-def prediction_dir(root: str | Path, subject: str, protocol: str) -> Path:
-    """`<predictions>/<subject>/protocol_<p>/test`: the mirror of the dataset's test split."""
-    return split_dir(root, subject, protocol, TEST_SPLIT)
+def prediction_dir(root: str | Path, subject: str, protocol: str, split: str = TEST_SPLIT) -> Path:
+    """`<predictions>/<subject>/protocol_<p>/<split>` (`test` unless told): the mirror of that dataset split."""
+    return split_dir(root, subject, protocol, split)
 
 
-def prediction_file(root: str | Path, subject: str, protocol: str, index: int, layer: str, ext: str = "exr") -> Path:
+def prediction_file(root: str | Path, subject: str, protocol: str, index: int, layer: str, ext: str = "exr",
+                    split: str = TEST_SPLIT) -> Path:
     if layer not in PREDICTION_LAYERS or ext not in ("exr", "png"):
         raise ValueError(f"a prediction is one of {PREDICTION_LAYERS} as .exr or .png, got {layer!r}.{ext}")
-    return prediction_dir(root, subject, protocol) / layer_file_name(index, layer, ext)
+    return prediction_dir(root, subject, protocol, split) / layer_file_name(index, layer, ext)
