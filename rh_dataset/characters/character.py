@@ -22,7 +22,7 @@ from rh_common.body_model import ANNY_TOPOLOGY
 from .body import body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, shoe_height_map
 from .body_features import body_features
-from .drape import SkinBinding, skin_points
+from .drape import SkinBinding, push_out, skin_points
 from .geometry import split_faces
 from .hair import build_hair
 from .recipe import CharacterRecipe
@@ -304,6 +304,7 @@ def pose_character(
             v = skin_points(part.skinning, out["bone_poses"], out["rest_bone_poses"])
             if root_transform is not None:
                 v = v @ m[:3, :3].T + m[:3, 3]
+            v = push_out(v, verts, normals, topo.faces)
             n = _welded_normals(v, part.faces)
         elif part.blend_vertices is None:
             p = verts[part.body_vertex]

@@ -29,11 +29,12 @@ from .geometry import hull_anchors
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "skirt_pattern",
            "bind_to_skeleton", "skin_points", "drape_cache_dir", "DRAPE_VERSION", "draped_part",
-           "penetration"]
+           "penetration", "push_out", "collider_faces"]
 
 DRAPED_KINDS = ("draped_skirt",)
-DRAPE_VERSION = 1  # bump when the pattern or the simulation changes: it is part of the cache key
+DRAPE_VERSION = 2  # bump when the pattern or the simulation changes: it is part of the cache key
 CACHE_ENV = "RH_DRAPE_CACHE"
+PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -175,6 +176,34 @@ def _simulate(verts, faces, pinned, body_v, body_f, st: DrapeSettings) -> np.nda
     return q
 
 
+def collider_faces(phenotype: dict[str, float]) -> np.ndarray:
+    """Body faces the cloth collides with and takes its skinning from: all but the arms and hands, which hang beside
+    the hips in the A-pose; cloth bound to a hand would fly up with every reach."""
+    feats = body_features(phenotype)
+    arm = feats.in_groups("upperarm", "lowerarm", "hand")
+    faces = body_topology().faces
+    return faces[~arm[faces].any(axis=1)]
+
+
+def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.ndarray, body_faces: np.ndarray,
+             clearance: float = PUSH_CLEARANCE) -> np.ndarray:
+    """The skinned path's collision fix: points closer than `clearance` to the posed skin, or under it, moved to
+    their closest skin point plus `clearance` along the interpolated normal there. Linear-blend skinning cannot
+    make a hanging skirt give way to a thigh that swings into it; this puts the cloth back on the skin instead,
+    which removes the penetration but not the stretch. A cheap tangent-plane test (`surface_clearance`) picks the
+    points worth the exact closest-point query."""
+    from .geometry import surface_clearance
+
+    p = np.array(points, dtype=np.float64)
+    h = surface_clearance(p, body_vertices, body_normals, np.arange(len(body_vertices)))
+    near = np.flatnonzero(h < clearance + 0.01)
+    if len(near):
+        depth, closest, n = _closest(body_vertices, body_faces, p[near], body_normals)
+        bad = depth > -clearance
+        p[near[bad]] = closest[bad] + clearance * n[bad]
+    return p
+
+
 def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings) -> str:
     import newton
     import warp as wp
@@ -202,9 +231,8 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
         if q.shape != verts.shape:
             raise ValueError(f"{path}: drape cache holds {q.shape} vertices, expected {verts.shape}; delete it")
     if q is None:
-        topo = body_topology()
         body_v = run_anny(phenotype)["vertices"]
-        q = _simulate(verts, faces, pinned, body_v, topo.faces, settings)
+        q = _simulate(verts, faces, pinned, body_v, collider_faces(phenotype), settings)
         if use_cache:
             with atomic_path(path) as tmp:
                 with open(tmp, "wb") as fh:
@@ -220,10 +248,10 @@ def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones:
 
     topo = body_topology()
     run = run_anny(phenotype)
-    mesh = trimesh.Trimesh(run["vertices"], topo.faces, process=False)
+    mesh = trimesh.Trimesh(run["vertices"], collider_faces(phenotype), process=False)
     pts = np.asarray(points, dtype=np.float64)
     closest, _, tri = trimesh.proximity.closest_point(mesh, pts)
-    corners = topo.faces[tri]  # (P, 3)
+    corners = np.asarray(mesh.faces)[tri]  # (P, 3)
     bary = trimesh.triangles.points_to_barycentric(mesh.vertices[corners], closest)
     bary = np.clip(bary, 0.0, None)
     bary /= bary.sum(1, keepdims=True)
@@ -292,10 +320,26 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
     )
 
 
-def penetration(body_vertices: np.ndarray, body_faces: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Depth (metres, > 0 inside the body, <= 0 outside) of each point under the posed body surface: trimesh's
-    signed distance to the body mesh, whose sign convention (positive inside) is already a penetration depth."""
+def _closest(body_vertices, body_faces, points, body_normals=None):
+    """(depth (P,) > 0 inside, closest surface points (P, 3), unit interpolated normals there (P, 3))."""
     import trimesh
 
-    mesh = trimesh.Trimesh(np.asarray(body_vertices, np.float64), np.asarray(body_faces), process=False)
-    return trimesh.proximity.signed_distance(mesh, np.asarray(points, np.float64))
+    from .body import vertex_normals
+
+    v = np.asarray(body_vertices, np.float64)
+    f = np.asarray(body_faces)
+    vn = vertex_normals(v, f) if body_normals is None else np.asarray(body_normals, np.float64)
+    p = np.asarray(points, np.float64)
+    closest, dist, tri = trimesh.proximity.closest_point(trimesh.Trimesh(v, f, process=False), p)
+    bary = trimesh.triangles.points_to_barycentric(v[f[tri]], closest)
+    n = (vn[f[tri]] * bary[..., None]).sum(1)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    return np.where(((p - closest) * n).sum(1) < 0.0, dist, -dist), closest, n
+
+
+def penetration(body_vertices: np.ndarray, body_faces: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Depth (metres, > 0 inside the body, <= 0 outside) of each point under the posed body surface: the distance to
+    the closest surface point (trimesh), signed by the body's vertex normals interpolated there. trimesh's own
+    `signed_distance` decides the sign by casting rays, ~30x slower here; for points near the skin, which is where
+    cloth is, the interpolated normal gives the same answer (tests/test_drape.py compares them)."""
+    return _closest(body_vertices, body_faces, points)[0]
