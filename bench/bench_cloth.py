@@ -2,7 +2,7 @@
 skinned path, and how far the cloth sinks into the body over sampled poses; optionally a draft render.
 
     python bench/bench_cloth.py                                   # drape + 8 poses (~2-3 min on a busy 2-core box)
-    python bench/bench_cloth.py --image docs/draped_skirt.png   # also 256 px draft renders: rest pose | a walk
+    python bench/bench_cloth.py --image docs/draped_skirt.png   # also 256 px drafts: rest front | side | a walk
 
 Figures: drape wall seconds (uncached, Warp kernels already compiled; the first run ever adds their compilation,
 printed separately as `first drape`), the cached load, the skinning per frame against the shell skirt's posing
@@ -125,15 +125,18 @@ def main(argv: list[str] | None = None) -> int:
         character = build_character(recipe, 512)
         shown = next((p for p in poses if p.label == "walk"), poses[0]) if poses else None
         tiles = []
-        for bones in ({}, dict(shown.bones) if shown is not None else None):
-            if bones is None:
-                continue
-            posed = pose_character(character, bones)
+        from rh_dataset.poses.pose import rotation_about_z
+
+        views = [({}, None), ({}, rotation_about_z(90.0))]  # rest pose from the front and from its left
+        if shown is not None:
+            views.append((dict(shown.bones), None))
+        for bones, turn in views:
+            posed = pose_character(character, bones, turn)
             img = render_preview(posed, width=256, height=256, spp=32)
             guide = render_preview(posed, width=256, height=256, spp=4, albedo=True)
             img = pyoidn.denoise(np.ascontiguousarray(img), albedo=np.ascontiguousarray(guide), hdr=True)
             tiles.append(quantize8(srgb_encode(np.clip(img, 0, None) * 1.3)))
-        write_png(args.image, np.concatenate(tiles, axis=1))  # rest pose | a sampled walk, skinned
+        write_png(args.image, np.concatenate(tiles, axis=1))  # rest front | rest side | a sampled walk
         print(f"wrote {args.image}")
     return 0
 
