@@ -6,7 +6,9 @@ Mitsuba mesh must be given texcoords (u, 1 - v) — or the albedo flipped vertic
 
 Posing: the body is run through anny with the phenotype and the pose; vertex normals are recomputed on the posed
 body; each part vertex sits at its anchor (a posed body vertex, or a blend of them) plus `offset` metres along the
-anchor's normal. Nothing is simulated, so garments fold only where the skin folds, but they follow every pose.
+anchor's normal. Nothing is simulated per frame, so shell garments fold only where the skin folds, but they follow
+every pose. Draped garments (drape.py) are simulated once in the rest pose and then skinned with the body's
+linear-blend weights transferred to them.
 """
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ from rh_common.body_model import ANNY_TOPOLOGY
 from .body import body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, shoe_height_map
 from .body_features import body_features
+from .drape import SkinBinding, push_out, skin_points
 from .geometry import split_faces
 from .hair import build_hair
 from .recipe import CharacterRecipe
@@ -89,6 +92,7 @@ class CharacterPart:
     material: Material
     blend_vertices: np.ndarray | None = None
     blend_weights: np.ndarray | None = None
+    skinning: SkinBinding | None = None  # draped garments: skinned by anny's bone transforms (drape.py)
 
     def __post_init__(self) -> None:
         faces = _ro(self.faces, np.int32)
@@ -117,6 +121,12 @@ class CharacterPart:
                 raise ValueError(f"CharacterPart {self.name}: blend_weights must be convex (>= 0, rows sum to 1)")
             object.__setattr__(self, "blend_vertices", bvx)
             object.__setattr__(self, "blend_weights", bw)
+        if self.skinning is not None:
+            sk = self.skinning
+            if sk.bind.shape != (n, 3) or sk.bones.shape != sk.weights.shape or sk.bones.shape[0] != n:
+                raise ValueError(f"CharacterPart {self.name}: skinning arrays must be ({n}, 3) and ({n}, K)")
+            if self.blend_vertices is not None:
+                raise ValueError(f"CharacterPart {self.name}: skinning and blend anchors exclude each other")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -188,6 +198,7 @@ def _to_part(geo: PartGeometry, material: Material) -> CharacterPart:
         material=material,
         blend_vertices=geo.blend_vertices,
         blend_weights=geo.blend_weights,
+        skinning=geo.skinning,
     )
 
 
@@ -220,7 +231,7 @@ def _build_cached(recipe_json: str, res: int) -> Character:
     ]
 
     under = np.zeros(len(feats.rest_vertices))
-    geos = build_garments(recipe.garments, feats, topology, under=under)
+    geos = build_garments(recipe.garments, feats, topology, under=under, phenotype=recipe.phenotype)
     body_coords = None
     for i, (g, geo) in enumerate(zip(recipe.garments, geos)):
         rng = np.random.default_rng([seed, _STREAM_GARMENT0 + i])
@@ -289,7 +300,13 @@ def pose_character(
         normals = normals @ m[:3, :3].T
     posed = []
     for part in character.parts:
-        if part.blend_vertices is None:
+        if part.skinning is not None:
+            v = skin_points(part.skinning, out["bone_poses"], out["rest_bone_poses"])
+            if root_transform is not None:
+                v = v @ m[:3, :3].T + m[:3, 3]
+            v = push_out(v, verts, normals, topo.faces)
+            n = _welded_normals(v, part.faces)
+        elif part.blend_vertices is None:
             p = verts[part.body_vertex]
             n = normals[part.body_vertex]
             v = p + part.offset[:, None].astype(np.float64) * n

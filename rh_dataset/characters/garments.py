@@ -22,6 +22,7 @@ from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body import body_topology
 from .body_features import BodyFeatures
+from .drape import DRAPED_KINDS, SkinBinding, draped_part
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
@@ -60,6 +61,7 @@ class PartGeometry:
     metres_per_uv: float  # approximate surface metres per UV unit (pattern scale)
     blend_vertices: np.ndarray | None = None  # (V, K) int64
     blend_weights: np.ndarray | None = None  # (V, K) float32, rows sum to 1
+    skinning: "SkinBinding | None" = None  # draped garments: linear-blend skinning instead of anchors (drape.py)
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
@@ -485,11 +487,13 @@ def build_garments(
     feats: BodyFeatures,
     topology: str = ANNY_TOPOLOGY,
     under: np.ndarray | None = None,
+    phenotype: dict[str, float] | None = None,
 ) -> list[PartGeometry]:
     """Geometry of every garment, innermost first, with layer offsets resolved.
 
     `under` (V,) float64, if given, holds per body vertex the outermost offset already used (zeros = bare skin);
-    it is updated in place so that hair laid afterwards can stay outside the clothes.
+    it is updated in place so that hair laid afterwards can stay outside the clothes. `phenotype` is needed by
+    draped garments (the cloth simulation runs on the posed body).
     """
     if under is None:
         under = np.zeros(len(feats.rest_vertices))
@@ -499,6 +503,10 @@ def build_garments(
             out.append(_skirt(feats, under))
         elif g.kind == "shoes":
             out.append(_shoes(feats, under))
+        elif g.kind in DRAPED_KINDS:
+            if phenotype is None:
+                raise ValueError(f"build_garments: {g.kind} needs the phenotype (it is draped on the body)")
+            out.append(draped_part(g.kind, phenotype, feats, under))
         else:
             out.append(_shell(g.kind, feats, under, topology))
     return out

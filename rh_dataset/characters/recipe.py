@@ -36,9 +36,12 @@ __all__ = [
 
 RECIPE_FORMAT = "rh-character/1"
 POOLS = ("benchmark", "pretrain")
-GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "shoes")
+# draped_skirt: a loose skirt draped by newton's cloth solver (drape.py); never drawn by `recipe_from_seed` (off by
+# default, so generated datasets keep their bytes), chosen by editing a recipe.
+GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "shoes")
 TOPS = ("tshirt", "longsleeve")
-BOTTOMS = ("trousers", "shorts", "skirt")
+BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt")
+_SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 PATTERNS = ("solid", "stripes", "checks", "noise")
 HAIR_STYLES = ("buzz", "short", "bob", "long", "bun", "ponytail")
 
@@ -282,7 +285,7 @@ class CharacterRecipe:
 
 
 # Innermost first: shoes under trouser hems, bottoms under tops (a shirt hangs over the waistband), jacket outside.
-_LAYER = ("shoes", "trousers", "shorts", "skirt", "tshirt", "longsleeve", "jacket")
+_LAYER = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "tshirt", "longsleeve", "jacket")
 
 
 def derive_seed(pool: str, index: int, base: int) -> int:
@@ -382,7 +385,7 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     hair = HairSpec(style=str(style), colour=_jitter(rng, hair_rgb, 0.08))
 
     top = "tshirt" if rng.random() < 0.5 else "longsleeve"
-    bottom = rng.choice(BOTTOMS, p=[0.45, 0.2, 0.35] if female else [0.72, 0.28, 0.0])
+    bottom = rng.choice(_SAMPLED_BOTTOMS, p=[0.45, 0.2, 0.35] if female else [0.72, 0.28, 0.0])
     kinds = {"shoes", top, str(bottom)}
     if rng.random() < 0.3:
         kinds.add("jacket")

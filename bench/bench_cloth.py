@@ -1,0 +1,145 @@
+"""Draped skirt (newton's VBD cloth solver, rh_dataset/characters/drape.py): drape time, per-frame cost of the
+skinned path, and how far the cloth sinks into the body over sampled poses; optionally a draft render.
+
+    python bench/bench_cloth.py                                   # drape + 8 poses (~2-3 min on a busy 2-core box)
+    python bench/bench_cloth.py --image docs/draped_skirt.png   # also 256 px drafts: rest front | side | a walk
+
+Figures: drape wall seconds (uncached, Warp kernels already compiled; the first run ever adds their compilation,
+printed separately as `first drape`), the cached load, the skinning per frame against the shell skirt's posing
+(both after one anny run, which every frame pays anyway), and penetration = trimesh signed distance of the skinned
+cloth vertices into the posed body (metres, > 0 inside): the worst over all vertices, its 99th percentile, and the
+share of vertices inside, per pose label. The load average is printed with the times.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def _recipe(index: int):
+    """A benchmark recipe that draws a skirt, with the skirt swapped for the draped one (same colour and pattern)."""
+    from rh_dataset.characters.recipe import CharacterRecipe, derive_seed, recipe_from_seed
+
+    i = index
+    while True:
+        r = recipe_from_seed(derive_seed("benchmark", i, 0), "benchmark", i)
+        if r.garment("skirt") is not None:
+            g = tuple(dataclasses.replace(x, kind="draped_skirt") if x.kind == "skirt" else x for x in r.garments)
+            return CharacterRecipe.from_json(dataclasses.replace(r, garments=g).to_json_text())
+        i += 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--index", type=int, default=0, help="first benchmark index searched for a skirt wearer")
+    ap.add_argument("--poses", type=int, default=8, help="sampled poses the penetration is measured over")
+    ap.add_argument("--image", type=Path, default=None, help="write a 256 px draft render of the character here")
+    args = ap.parse_args(argv)
+
+    from rh_common.body_model import load_anny
+    from rh_dataset.characters import build_character, pose_character
+    from rh_dataset.characters.body import body_topology, run_anny
+    from rh_dataset.characters.drape import (DrapeSettings, bind_to_skeleton, drape_garment, penetration,
+                                             push_out, skin_points)
+    from rh_dataset.poses import sample_poses
+
+    recipe = _recipe(args.index)
+    ph = recipe.phenotype
+    st = DrapeSettings()
+    load = lambda: " ".join(open("/proc/loadavg").read().split()[:3])  # noqa: E731
+    print(f"character: benchmark index {recipe.index}, garments {[g.kind for g in recipe.garments]}")
+    t = time.perf_counter()
+    drape_garment("draped_skirt", ph, dataclasses.replace(st, steps=1), use_cache=False)
+    print(f"first drape (1 step; Warp kernel compile on a cold cache): {time.perf_counter() - t:.1f} s")
+    import tempfile
+
+    os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_cloth_")  # a cold cache: the drape is timed
+    t = time.perf_counter()
+    g = drape_garment("draped_skirt", ph, st)
+    t_drape = time.perf_counter() - t
+    n = len(g.vertices)
+    print(f"drape: {n} particles, {len(g.faces)} triangles, {st.steps} steps of {st.dt} s, {st.iterations} VBD "
+          f"iterations: {t_drape:.1f} s  (load {load()})")
+    t = time.perf_counter()
+    drape_garment("draped_skirt", ph, st)
+    print(f"cached drape load: {1e3 * (time.perf_counter() - t):.1f} ms")
+    t = time.perf_counter()
+    b = bind_to_skeleton(g.vertices, ph)
+    print(f"skinning transfer (once per character): {time.perf_counter() - t:.2f} s")
+
+    faces = body_topology().faces
+    rest = run_anny(ph)
+    pen0 = penetration(rest["vertices"], faces, g.vertices)
+    print(f"rest pose: worst penetration {1e3 * pen0.max():.2f} mm, inside {100 * (pen0 > 0).mean():.2f} %")
+    worst = -np.inf
+    skin_t, shell_t = [], []
+    from rh_dataset.characters.garments import build_garments
+    from rh_dataset.characters.body_features import body_features
+    from rh_dataset.characters.recipe import Garment
+
+    shell = build_garments((Garment("skirt", (0.5, 0.5, 0.5)),), body_features(ph))[0]
+    from rh_dataset.characters.body import vertex_normals
+
+    raw_worst = -np.inf
+    poses = sample_poses(np.random.default_rng(7), load_anny(), args.poses)
+    for pose in poses:
+        run = run_anny(ph, dict(pose.bones))
+        nrm = vertex_normals(run["vertices"], faces)  # every frame computes these for the body anyway
+        t = time.perf_counter()
+        raw = skin_points(b, run["bone_poses"], run["rest_bone_poses"])
+        pts = push_out(raw, run["vertices"], nrm, faces)
+        skin_t.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        w = shell.blend_weights.astype(np.float64)[..., None]
+        p = (run["vertices"][shell.blend_vertices] * w).sum(1)
+        nb = (nrm[shell.blend_vertices] * w).sum(1)
+        _ = p + shell.offset[:, None] * nb / np.linalg.norm(nb, axis=1, keepdims=True)
+        shell_t.append(time.perf_counter() - t)
+        pen_raw = penetration(run["vertices"], faces, raw)
+        pen = penetration(run["vertices"], faces, pts)
+        raw_worst = max(raw_worst, float(pen_raw.max()))
+        worst = max(worst, float(pen.max()))
+        print(f"  pose {pose.label:12s} skinned only: worst {1e3 * pen_raw.max():6.2f} mm inside "
+              f"{100 * (pen_raw > 0).mean():5.2f} %;  + push_out: worst {1e3 * pen.max():6.2f} mm  p99 "
+              f"{1e3 * np.percentile(pen, 99):6.2f} mm  inside {100 * (pen > 0).mean():5.2f} %")
+    print(f"worst vertex penetration over {args.poses} poses: skinned only {1e3 * raw_worst:.2f} mm, "
+          f"with push_out {1e3 * worst:.2f} mm")
+    print(f"per frame: skinned drape + push_out {1e3 * np.median(skin_t):.2f} ms, shell skirt anchors "
+          f"{1e3 * np.median(shell_t):.2f} ms (medians, body normals excluded from both; load {load()})")
+
+    if args.image is not None:
+        import pyoidn
+
+        from rh_common.colourspace import quantize8, srgb_encode
+        from rh_common.imageio import write_png
+        from rh_dataset.characters.preview import render_preview
+
+        character = build_character(recipe, 512)
+        shown = next((p for p in poses if p.label == "walk"), poses[0]) if poses else None
+        tiles = []
+        from rh_dataset.poses.pose import rotation_about_z
+
+        views = [({}, None), ({}, rotation_about_z(90.0))]  # rest pose from the front and from its left
+        if shown is not None:
+            views.append((dict(shown.bones), None))
+        for bones, turn in views:
+            posed = pose_character(character, bones, turn)
+            img = render_preview(posed, width=256, height=256, spp=32)
+            guide = render_preview(posed, width=256, height=256, spp=4, albedo=True)
+            img = pyoidn.denoise(np.ascontiguousarray(img), albedo=np.ascontiguousarray(guide), hdr=True)
+            tiles.append(quantize8(srgb_encode(np.clip(img, 0, None) * 1.3)))
+        write_png(args.image, np.concatenate(tiles, axis=1))  # rest front | rest side | a sampled walk
+        print(f"wrote {args.image}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,154 @@
+"""Draped garments (rh_dataset/characters/drape.py): the skirt pattern, the skinning transfer, and (slow) newton's
+drape: bit-identical reruns and cloth that stays outside the body in the rest pose and in sampled poses."""
+from __future__ import annotations
+
+
+import numpy as np
+import pytest
+
+from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+from rh_dataset.characters.drape import (PUSH_CLEARANCE, DrapeSettings, bind_to_skeleton, collider_faces,
+                                         drape_garment, penetration, push_out, skin_points, skirt_pattern)
+
+PHENO = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5, "proportions": 0.5}
+# Worst cloth-vertex depth under the skin (metres) allowed. newton keeps the particles `clearance` (4 mm) off the
+# body in the rest pose, to within its contact stiffness; in a pose, linear-blend skinning alone lets a thigh swing
+# into a hanging skirt (bench/bench_cloth.py: up to ~10 cm when sitting), and `push_out` moves those vertices back
+# out to PUSH_CLEARANCE above the skin at their closest skin point (measured: every vertex outside, worst -0.1 mm
+# over 8 poses); the bound leaves half a millimetre for a vertex pushed from one thigh against the other.
+REST_BOUND_M = 0.002
+POSED_BOUND_M = 0.0005
+
+
+def test_skirt_pattern_is_an_outward_tube_outside_the_body():
+    verts, faces, uvs, pinned, circ = skirt_pattern(PHENO)
+    st = DrapeSettings()
+    assert verts.shape == (st.n_around * st.n_rings, 3) and pinned.sum() == st.n_around
+    # Every interior edge is shared by two faces, the two boundary rings' edges by one: an open tube.
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    assert set(counts.tolist()) == {1, 2} and (counts == 1).sum() == 2 * st.n_around
+    # Faces point away from the body's vertical axis.
+    tri = verts[faces]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    radial = tri.mean(1) - verts[:st.n_around].mean(0)
+    radial[:, 2] = 0.0
+    assert ((n * radial).sum(1) > 0).all()
+    run = run_anny(PHENO)
+    assert penetration(run["vertices"], body_topology().faces, verts).max() < 0.0
+    assert uvs.min() >= 0.0 and uvs.max() <= 1.0 and circ > 0.5
+
+
+def test_skinning_transfer_round_trips_and_matches_the_body():
+    rng = np.random.default_rng(0)
+    run = run_anny(PHENO)
+    topo = body_topology()
+    # Points just off the skin: the binding reproduces them in the rest pose (to float64 rounding).
+    # Vertices of the collider (the body without arms and hands, whose weights the cloth takes).
+    idx = rng.choice(np.unique(collider_faces(PHENO)), 400, replace=False)
+    pts = run["vertices"][idx] + 0.01 * rng.normal(size=(400, 3))
+    b = bind_to_skeleton(pts, PHENO)
+    np.testing.assert_allclose(skin_points(b, run["bone_poses"], run["rest_bone_poses"]), pts, atol=1e-9)
+    # Body vertices themselves, posed: their transferred weights are the body's own, so they land on anny's output.
+    R = np.eye(4)
+    c, s = np.cos(0.7), np.sin(0.7)
+    R[1:3, 1:3] = [[c, -s], [s, c]]
+    posed = run_anny(PHENO, {"upperleg01.L": R, "spine03": R})
+    b = bind_to_skeleton(run["vertices"][idx], PHENO)
+    got = skin_points(b, posed["bone_poses"], posed["rest_bone_poses"])
+    np.testing.assert_allclose(got, posed["vertices"][idx], atol=1e-6)
+    assert b.weights.shape[1] == 8 and np.allclose(b.weights.sum(1), 1.0, atol=1e-6) and topo.n_vertices > 0
+
+
+def test_push_out_clears_points_sunk_into_the_skin():
+    rng = np.random.default_rng(1)
+    run = run_anny(PHENO)
+    faces = body_topology().faces
+    v = run["vertices"]
+    n = vertex_normals(v, faces)
+    from rh_dataset.characters.body_features import body_features
+
+    # Where skirts and dresses are (fingers and toes are thinner than the 1 cm the points sink by).
+    idx = rng.choice(np.flatnonzero(body_features(PHENO).in_groups("torso", "upperleg", "lowerleg")), 300,
+                     replace=False)
+    sunk = v[idx] - 0.01 * n[idx]  # 1 cm under the skin
+    depth = penetration(v, faces, sunk)
+    assert (depth > 0).mean() > 0.9
+    import trimesh  # the fast signed distance agrees with trimesh's ray-cast one on a sample
+
+    ref = trimesh.proximity.signed_distance(trimesh.Trimesh(v, faces, process=False), sunk[:40])
+    np.testing.assert_allclose(depth[:40], ref, atol=1e-9)
+    out = push_out(sunk, v, n, faces)
+    assert penetration(v, faces, out).max() < 0.0
+    far = v[idx] + 0.05 * n[idx]
+    far = far[penetration(v, faces, far) < -0.02]  # already clear (not between the thighs): untouched
+    assert len(far) > 200
+    assert np.array_equal(push_out(far, v, n, faces), far)
+    assert PUSH_CLEARANCE > 0
+
+
+@pytest.mark.slow
+def test_drape_is_bit_identical_and_stays_outside_the_body(tmp_path, monkeypatch):
+    from rh_common.body_model import load_anny
+    from rh_dataset.poses import sample_poses
+
+    monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
+    st = DrapeSettings()
+    g1 = drape_garment("draped_skirt", PHENO, st, use_cache=False)
+    g2 = drape_garment("draped_skirt", PHENO, st)  # simulated again, then cached
+    assert g1.vertices.tobytes() == g2.vertices.tobytes()
+    g3 = drape_garment("draped_skirt", PHENO, st)  # read back from the cache
+    assert g3.vertices.tobytes() == g1.vertices.tobytes()
+    assert len(list(tmp_path.glob("draped_skirt-*.npz"))) == 1
+    rest = run_anny(PHENO)
+    faces = body_topology().faces
+    assert penetration(rest["vertices"], faces, g1.vertices).max() < REST_BOUND_M
+    # It hangs: the hem dropped below where the pattern put it, and the waistband stayed pinned.
+    pattern = skirt_pattern(PHENO, st)[0]
+    assert g1.vertices[-st.n_around:, 2].mean() < pattern[-st.n_around:, 2].mean() - 0.02
+    np.testing.assert_allclose(g1.vertices[:st.n_around], pattern[:st.n_around], atol=1e-6)  # float32 particles
+    b = bind_to_skeleton(g1.vertices, PHENO)
+    for pose in sample_poses(np.random.default_rng(7), load_anny(), 6):
+        run = run_anny(PHENO, dict(pose.bones))
+        pts = skin_points(b, run["bone_poses"], run["rest_bone_poses"])
+        pts = push_out(pts, run["vertices"], vertex_normals(run["vertices"], faces), faces)
+        assert penetration(run["vertices"], faces, pts).max() < POSED_BOUND_M, pose.label
+
+
+def test_draped_skirt_is_opt_in():
+    from rh_dataset.characters.recipe import BOTTOMS, CharacterRecipe, Garment, recipe_from_seed
+
+    assert "draped_skirt" in BOTTOMS
+    kinds = {g.kind for i in range(40) for g in recipe_from_seed(2 * i, "benchmark", i).garments}
+    assert "draped_skirt" not in kinds and "skirt" in kinds
+    r = recipe_from_seed(0, "benchmark", 0)
+    gs = (Garment("shoes", (0.1, 0.1, 0.1)), Garment("draped_skirt", (0.2, 0.5, 0.3)), Garment("tshirt", (1, 1, 1)))
+    r = CharacterRecipe(seed=r.seed, pool=r.pool, index=r.index, phenotype=r.phenotype, skin=r.skin, hair=r.hair,
+                        garments=gs)
+    assert CharacterRecipe.from_json(r.to_json_text()) == r
+
+
+@pytest.mark.slow
+def test_character_wears_the_draped_skirt_in_every_pose(tmp_path, monkeypatch):
+    from rh_common.body_model import load_anny
+    from rh_dataset.characters import build_character, pose_character
+    from rh_dataset.characters.recipe import CharacterRecipe, Garment, recipe_from_seed
+    from rh_dataset.poses import sample_poses
+
+    monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
+    base = recipe_from_seed(0, "benchmark", 0)
+    gs = (Garment("shoes", (0.1, 0.1, 0.1)), Garment("draped_skirt", (0.2, 0.5, 0.3)), Garment("tshirt", (1, 1, 1)))
+    recipe = CharacterRecipe(seed=base.seed, pool=base.pool, index=base.index, phenotype=PHENO, skin=base.skin,
+                             hair=base.hair, garments=gs)
+    ch = build_character(recipe, 64)
+    part = ch.part("draped_skirt")
+    assert part.skinning is not None and part.blend_vertices is None
+    faces = body_topology().faces
+    for pose in sample_poses(np.random.default_rng(3), load_anny(), 3):
+        posed = {m.name: m for m in pose_character(ch, dict(pose.bones), pose.root_transform)}
+        skirt = posed["draped_skirt"]
+        assert np.isfinite(skirt.vertices).all()
+        np.testing.assert_allclose(np.linalg.norm(skirt.normals, axis=1), 1.0, atol=1e-5)
+        run = run_anny(PHENO, dict(pose.bones))
+        v = run["vertices"] @ pose.root_transform[:3, :3].T + pose.root_transform[:3, 3]
+        assert penetration(v, faces, skirt.vertices).max() < POSED_BOUND_M, pose.label
