@@ -34,7 +34,8 @@ from .scalp import Scalp, directions, hang_envelope, sample_envelope, scalp
 __all__ = ["StrandStyle", "STRAND_STYLES", "StrandGeometry", "build_hair", "STEP"]
 
 STEP = 0.0025  # metres per growth step
-_BLEND_KEEP = 16  # blend weights kept per control point (the largest; renormalised)
+_BLEND_KEEP = 16
+_ARM_SECTOR = (55.0, 125.0)  # degrees of azimuth from the front that hanging hair leaves to the arms  # blend weights kept per control point (the largest; renormalised)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,8 +62,9 @@ STRAND_STYLES = {
     "buzz": StrandStyle(9000, 4, (0.004, 0.007), 0.001, 0.0004, 0.0, 0.0005),
     "short": StrandStyle(5000, 7, (0.045, 0.08), 0.012, 0.0006, 0.3, 0.002),
     "bob": StrandStyle(4500, 10, (0.3, 0.3), 0.012, 0.0006, 0.35, 0.003, hangs=True),
-    "long": StrandStyle(4500, 14, (0.6, 0.6), 0.01, 0.0006, 0.4, 0.004, hangs=True),
-    "long_wavy": StrandStyle(4500, 18, (0.6, 0.6), 0.012, 0.0006, 0.5, 0.005, wave=0.012, hangs=True),
+    "long": StrandStyle(4500, 20, (0.6, 0.6), 0.01, 0.0006, 0.4, 0.004, hangs=True),
+    "long_wavy": StrandStyle(4500, 26, (0.6, 0.6), 0.012, 0.0006, 0.5, 0.005, wave=0.012, wave_period=0.1,
+                             hangs=True),
     "ponytail": StrandStyle(4000, 14, (0.5, 0.5), 0.004, 0.0006, 0.3, 0.003),
     "bun": StrandStyle(4000, 12, (0.5, 0.5), 0.004, 0.0006, 0.2, 0.001),
 }
@@ -192,6 +194,7 @@ def _grow(style: str, st: StrandStyle, sc: Scalp, feats: BodyFeatures, under: np
     if st.hangs:
         z_hem = sc.z_eye - 0.1 if style == "bob" else float(feats.bone_heads["spine02"][2]) + 0.03
         env, zs = hang_envelope(feats, under, z_hem - 0.12, c[2] + 0.12)
+        z_sh = 0.5 * float(feats.bone_heads["shoulder01.L"][2] + feats.bone_heads["shoulder01.R"][2])
         th_deg = np.degrees(theta)
         hem = z_hem + rng.normal(0.0, 0.006, n) + (0.012 if style == "bob" else -0.05) * np.cos(np.radians(th_deg)
                                                                                                ) ** 2
@@ -233,7 +236,14 @@ def _grow(style: str, st: StrandStyle, sc: Scalp, feats: BodyFeatures, under: np
         hang = mode == 1
         if hang.any():
             z = rel[hang, 2] - STEP
-            az = az_base[hang]
+            # Hair at the sides goes in front of or behind the shoulder before it gets there: the arms (outside
+            # the envelope, which would otherwise tent over them) take the sector ~55-125 degrees from the front.
+            ab = az_base[hang]
+            aa = np.abs(ab)
+            blocked = (aa > _ARM_SECTOR[0]) & (aa < _ARM_SECTOR[1])
+            to = np.sign(ab) * np.where(aa < 90.0, _ARM_SECTOR[0], _ARM_SECTOR[1])
+            pull = blocked * _smoothstep((z_sh + 0.1 - (z + c[2])) / 0.1)
+            az = ab + (to - ab) * pull
             rho = np.maximum(rho_base[hang], sample_envelope(env, zs, az % 360.0, z + c[2]) + 0.6 * lift_top[hang])
             rho_base[hang] = rho
             if st.wave > 0:  # waves: outward only, growing in over 5 cm
