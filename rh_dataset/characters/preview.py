@@ -80,10 +80,11 @@ def render_preview(posed: list, width: int = 256, height: int = 512, spp: int = 
         "light": {"type": "envmap", "filename": str(STUDIO_HDRI),
                   "to_world": mi.ScalarTransform4f().rotate([0, 0, 1], 200).rotate([1, 0, 0], 90)},
     }
-    from ..render.scene import is_strands, mitsuba_curves
+    from .strand_shape import mitsuba_curves
 
     for i, pm in enumerate(posed):
-        scene[f"part_{i:02d}_{pm.name}"] = mitsuba_curves(pm, stand_in=albedo) if is_strands(pm) else _mesh(mi, pm)
+        strands = hasattr(pm, "fibre")
+        scene[f"part_{i:02d}_{pm.name}"] = mitsuba_curves(pm, stand_in=albedo) if strands else _mesh(mi, pm)
     img = np.array(mi.render(mi.load_dict(scene)), dtype=np.float32)[..., :3]
     return img
 

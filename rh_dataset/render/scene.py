@@ -1,16 +1,13 @@
 """Turn posed meshes and hair strands, a light and a camera into a Mitsuba 3 scene dict. Nothing here renders.
 
 One plain function builds the dict (as Mitsuba's own `cornell_box()` does), so tests derive variants by editing it.
-Strands become one `bsplinecurve` shape per fibre with Mitsuba's `hair` BSDF (melanin-parameterised), or, for the
-AOV pass (`hair_stand_in=True`), a `diffuse` BSDF whose reflectance is the fibre's albedo (rh_dataset.characters.
-hair_fibre), since the `aov` integrator reads ~0 as the `hair` BSDF's albedo.
+Strands become one `bsplinecurve` shape per fibre (`rh_dataset.characters.strand_shape`) with Mitsuba's `hair`
+BSDF, or, for the AOV pass (`hair_stand_in=True`), a `diffuse` BSDF whose reflectance is the fibre's albedo.
 """
 from __future__ import annotations
 
 import dataclasses
-import tempfile
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Protocol, Sequence
 
 import numpy as np
@@ -20,8 +17,7 @@ from rh_common.camera import Camera
 from .camera import mitsuba_sensor
 from ..variant import load_mitsuba, require_variant
 
-__all__ = ["MeshLike", "StrandsLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf",
-           "mitsuba_curves", "is_strands"]
+__all__ = ["MeshLike", "StrandsLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf", "is_strands"]
 
 
 class MaterialLike(Protocol):
@@ -147,46 +143,6 @@ def mitsuba_mesh(mesh: MeshLike) -> Any:
     return m
 
 
-# Mitsuba 3.9's curve shapes load only from a file: each shape is loaded from a 4-point strand written to a temporary
-# directory (removed at once), then filled from arrays through mi.traverse (control_points, segment_indices).
-_TEMPLATE = "0 0 0 0.001\n0 0 1 0.001\n0 0 2 0.001\n0 0 3 0.001\n"
-
-
-def mitsuba_curves(strands: StrandsLike, stand_in: bool = False) -> Any:
-    """A `bsplinecurve` shape: each strand's control points with its first and last repeated twice more, so the
-    uniform cubic B-spline starts at the root and ends at the tip. `stand_in`: the AOV pass's diffuse BSDF."""
-    mi = load_mitsuba()
-    require_variant()
-    P = np.asarray(strands.points, dtype=np.float32)
-    R = np.asarray(strands.radius, dtype=np.float32)
-    if P.ndim != 3 or P.shape[2] != 3 or R.shape != P.shape[:2] or P.shape[1] < 2:
-        raise ValueError(f"strands {strands.name}: points must be (S, K, 3), radius (S, K); got {P.shape} {R.shape}")
-    if not (np.all(np.isfinite(P)) and np.all(R > 0)):
-        raise ValueError(f"strands {strands.name}: non-finite control points or non-positive radii")
-    f = strands.fibre
-    if stand_in:
-        bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [float(x) for x in f.albedo]}}
-    else:
-        bsdf = {"type": "hair", "eumelanin": float(f.eumelanin), "pheomelanin": float(f.pheomelanin),
-                "longitudinal_roughness": float(f.longitudinal_roughness),
-                "azimuthal_roughness": float(f.azimuthal_roughness)}
-    S, K = R.shape
-    P = np.concatenate([P[:, :1], P[:, :1], P, P[:, -1:], P[:, -1:]], 1)
-    R = np.concatenate([R[:, :1], R[:, :1], R, R[:, -1:], R[:, -1:]], 1)
-    k = K + 4
-    cp = np.concatenate([P, R[..., None]], -1).reshape(-1)
-    seg = (np.arange(S, dtype=np.uint32)[:, None] * k + np.arange(k - 3, dtype=np.uint32)[None, :]).ravel()
-    with tempfile.TemporaryDirectory(prefix="rh_curves_") as tmp:
-        (Path(tmp) / "strand.txt").write_text(_TEMPLATE)
-        shape = mi.load_dict({"type": "bsplinecurve", "filename": str(Path(tmp) / "strand.txt"), "bsdf": bsdf})
-    params = mi.traverse(shape)
-    params["control_points"] = mi.Float(cp)
-    params["segment_indices"] = mi.UInt32(seg)
-    params["control_point_count"] = int(S * k)
-    params.update()
-    return shape
-
-
 def scene_dict(meshes: Sequence[MeshLike | StrandsLike], emitter: dict | None, camera: Camera, integrator: dict,
                spp: int, *, pixel_format: str, hair_stand_in: bool = False) -> dict:
     """The whole Mitsuba scene: one sensor, the environment emitter (None: no light at all, for passes that read
@@ -200,6 +156,8 @@ def scene_dict(meshes: Sequence[MeshLike | StrandsLike], emitter: dict | None, c
         d["environment"] = emitter
     for i, mesh in enumerate(meshes):
         if is_strands(mesh):
+            from rh_dataset.characters.strand_shape import mitsuba_curves
+
             d[f"curves_{i:02d}_{mesh.name}"] = mitsuba_curves(mesh, stand_in=hair_stand_in)
         else:
             d[f"mesh_{i:02d}_{mesh.name}"] = mitsuba_mesh(mesh)
