@@ -65,8 +65,8 @@ STRAND_STYLES = {
     "long": StrandStyle(4500, 20, (0.6, 0.6), 0.01, 0.0006, 0.4, 0.004, hangs=True),
     "long_wavy": StrandStyle(4500, 26, (0.6, 0.6), 0.012, 0.0006, 0.5, 0.005, wave=0.012, wave_period=0.1,
                              hangs=True),
-    "ponytail": StrandStyle(4000, 14, (0.5, 0.5), 0.004, 0.0006, 0.3, 0.003),
-    "bun": StrandStyle(4000, 12, (0.5, 0.5), 0.004, 0.0006, 0.2, 0.001),
+    "ponytail": StrandStyle(4000, 20, (0.5, 0.5), 0.004, 0.0006, 0.3, 0.003),
+    "bun": StrandStyle(4000, 16, (0.5, 0.5), 0.004, 0.0006, 0.2, 0.001),
 }
 
 
@@ -217,7 +217,7 @@ def _grow(style: str, st: StrandStyle, sc: Scalp, feats: BodyFeatures, under: np
             d /= np.linalg.norm(d, axis=1, keepdims=True)
             tn, en = _angles(d)
             a_on = arc[on] + STEP
-            h = 0.0008 + lift_top[on] * _smoothstep(a_on / 0.05)
+            h = 0.0015 + lift_top[on] * _smoothstep(a_on / 0.05)
             p[on] = (sc.radius_at(tn, en) + h)[:, None] * d
             idx = np.flatnonzero(on)
             if st.hangs:
