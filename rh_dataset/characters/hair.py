@@ -59,14 +59,14 @@ class StrandStyle:
 
 
 STRAND_STYLES = {
-    "buzz": StrandStyle(9000, 4, (0.004, 0.007), 0.001, 0.0004, 0.0, 0.0005),
-    "short": StrandStyle(5000, 7, (0.045, 0.08), 0.012, 0.0006, 0.3, 0.002),
-    "bob": StrandStyle(4500, 10, (0.3, 0.3), 0.012, 0.0006, 0.35, 0.003, hangs=True),
-    "long": StrandStyle(4500, 20, (0.6, 0.6), 0.01, 0.0006, 0.4, 0.004, hangs=True),
-    "long_wavy": StrandStyle(4500, 26, (0.6, 0.6), 0.012, 0.0006, 0.5, 0.005, wave=0.012, wave_period=0.1,
+    "buzz": StrandStyle(9000, 4, (0.004, 0.007), 0.001, 0.0005, 0.0, 0.0005),
+    "short": StrandStyle(5000, 7, (0.045, 0.08), 0.012, 0.001, 0.3, 0.002),
+    "bob": StrandStyle(4500, 10, (0.3, 0.3), 0.012, 0.001, 0.35, 0.003, hangs=True),
+    "long": StrandStyle(4500, 20, (0.6, 0.6), 0.01, 0.001, 0.4, 0.004, hangs=True),
+    "long_wavy": StrandStyle(4500, 26, (0.6, 0.6), 0.012, 0.001, 0.5, 0.005, wave=0.012, wave_period=0.1,
                              hangs=True),
-    "ponytail": StrandStyle(4000, 20, (0.5, 0.5), 0.004, 0.0006, 0.3, 0.003),
-    "bun": StrandStyle(4000, 16, (0.5, 0.5), 0.004, 0.0006, 0.2, 0.001),
+    "ponytail": StrandStyle(4000, 20, (0.5, 0.5), 0.004, 0.001, 0.3, 0.003),
+    "bun": StrandStyle(4000, 16, (0.5, 0.5), 0.004, 0.001, 0.2, 0.001),
 }
 
 
