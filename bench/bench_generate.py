@@ -55,10 +55,13 @@ def main() -> None:
         subject = source.subject(0)
         t_subject = time.perf_counter() - t
         pose = source.pose(subject, split, 0)
-        tris = sum(len(m.faces) for m in source.meshes(subject, pose))
+        shapes = source.meshes(subject, pose)
+        tris = sum(len(m.faces) for m in shapes if hasattr(m, "faces"))
+        strands = sum(len(m.points) for m in shapes if hasattr(m, "fibre"))
+        hair = f", {strands} hair strands ({subject.character.recipe.hair.style})" if strands else ""
         print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average "
               f"{' '.join(Path('/proc/loadavg').read_text().split()[:3]) if Path('/proc/loadavg').exists() else '?'}"
-              f"; Mitsuba variant {variant}; {tris} triangles before culling; {args.resolution}x{args.resolution}; "
+              f"; Mitsuba variant {variant}; {tris} triangles before culling{hair}; {args.resolution}x{args.resolution}; "
               f"protocol {spec.protocol} {split.name} split ({split.scene_class})")
         print(f"subject (build character, frame camera) {t_subject:.2f} s\n")
         import drjit as dr

@@ -44,8 +44,21 @@ def test_stage_meshes_camera_and_light(exported, split):
     character = build_character(CharacterRecipe.from_json(read_json(ds / "subject_000" / "character.json")))
     pose = BodyPose.from_json(meta["body"]["pose"])
     posed = pose_character(character, dict(pose.bones), pose.root_transform)
+    strands = [p for p in posed if hasattr(p, "fibre")]
+    posed = [p for p in posed if not hasattr(p, "fibre")]
     meshes = [UsdGeom.Mesh(p) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
     assert sorted(m.GetPrim().GetName() for m in meshes) == sorted(p.name for p in posed)
+    # Hair: one BasisCurves per fibre, the renderer's control points (ends repeated twice more) and 2 x radius.
+    assert strands
+    for ps in strands:
+        c = UsdGeom.BasisCurves(stage.GetPrimAtPath(f"/World/Character/{ps.name}"))
+        assert c.GetBasisAttr().Get() == UsdGeom.Tokens.bspline
+        counts = np.array(c.GetCurveVertexCountsAttr().Get())
+        assert len(counts) == len(ps.points) and set(counts) == {ps.points.shape[1] + 4}
+        pts = np.array(c.GetPointsAttr().Get()).reshape(len(ps.points), -1, 3)
+        np.testing.assert_array_equal(pts[:, 2:-2], ps.points)
+        np.testing.assert_allclose(np.array(c.GetWidthsAttr().Get()).reshape(len(ps.points), -1)[:, 2:-2],
+                                   2 * ps.radius, rtol=1e-6)
     for pm in posed:
         m = UsdGeom.Mesh(stage.GetPrimAtPath(f"/World/Character/{pm.name}"))
         pts = np.array(m.GetPointsAttr().Get())

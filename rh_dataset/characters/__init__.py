@@ -1,4 +1,4 @@
-"""Characters: anny bodies dressed in procedural garments and hair, with procedural skin and fabric textures.
+"""Characters: anny bodies dressed in procedural garments and strand hair, with procedural skin and fabric textures.
 
 Public API: recipes (`CharacterRecipe`, `sample_recipe`), `build_character`, `pose_character`, `body_bounds`.
 The body model itself is loaded by `rh_common.body_model` (shared with RANA).
@@ -6,8 +6,10 @@ The body model itself is loaded by `rh_common.body_model` (shared with RANA).
 from .character import (
     Character,
     CharacterPart,
+    CharacterStrands,
     Material,
     PosedMesh,
+    PosedStrands,
     body_bounds,
     build_character,
     mitsuba_texcoords,
@@ -30,8 +32,10 @@ from .recipe import (
 __all__ = [
     "Character",
     "CharacterPart",
+    "CharacterStrands",
     "Material",
     "PosedMesh",
+    "PosedStrands",
     "body_bounds",
     "build_character",
     "mitsuba_texcoords",

@@ -1,4 +1,4 @@
-"""A character = anny body + garment shells + hair, each a textured part that follows the body's skinning.
+"""A character = anny body + garment shells (textured meshes) + strand hair, each following the body's skinning.
 
 UV convention: every `uvs` array is v-up (OpenGL): texture row 0 (the top of an albedo array) is v = 1. Mitsuba 3's
 `bitmap` texture looks rows up the other way round (row 0 at v = 0, checked by rendering a two-colour quad), so a
@@ -8,7 +8,9 @@ Posing: the body is run through anny with the phenotype and the pose; vertex nor
 body; each part vertex sits at its anchor (a posed body vertex, or a blend of them) plus `offset` metres along the
 anchor's normal. Nothing is simulated per frame, so shell garments fold only where the skin folds, but they follow
 every pose. Draped garments (drape.py) are simulated once in the rest pose and then skinned with the body's
-linear-blend weights transferred to them.
+linear-blend weights transferred to them. Hair is strands (`hair.py`): every control point is anchored the same
+way as a shell vertex, and posing gives `PosedStrands` (control points and radii, one `HairFibre` per set of
+strands) beside the `PosedMesh`es.
 """
 from __future__ import annotations
 
@@ -25,14 +27,17 @@ from .body_features import body_features
 from .drape import SkinBinding, push_out, skin_points
 from .geometry import split_faces
 from .hair import build_hair
+from .hair_fibre import HairFibre, fibres_for_colour
 from .recipe import CharacterRecipe
-from .textures import body_layout_coords, garment_texture, hair_texture, shoe_sole, skin_texture, texel_positions
+from .textures import body_layout_coords, garment_texture, shoe_sole, skin_texture, texel_positions
 
 __all__ = [
     "Material",
     "CharacterPart",
+    "CharacterStrands",
     "Character",
     "PosedMesh",
+    "PosedStrands",
     "build_character",
     "pose_character",
     "body_bounds",
@@ -130,10 +135,38 @@ class CharacterPart:
 
 
 @dataclasses.dataclass(frozen=True)
+class CharacterStrands:
+    """Hair strands of one fibre: S strands x K control points. radius (S, K) float32 metres; blend_vertices /
+    blend_weights (S*K, B) and offset (S*K,): each control point's anchor, as `CharacterPart` blends."""
+
+    name: str
+    radius: np.ndarray
+    blend_vertices: np.ndarray
+    blend_weights: np.ndarray
+    offset: np.ndarray
+    fibre: HairFibre
+
+    def __post_init__(self) -> None:
+        r = _ro(self.radius, np.float32)
+        n = r.size
+        if r.ndim != 2 or r.shape[1] < 2 or not np.all(r > 0):
+            raise ValueError(f"CharacterStrands {self.name}: radius must be (S, K >= 2) and positive")
+        bv, bw, off = _ro(self.blend_vertices, np.int32), _ro(self.blend_weights, np.float32), _ro(self.offset,
+                                                                                                    np.float32)
+        if bv.shape != bw.shape or bv.ndim != 2 or bv.shape[0] != n or off.shape != (n,):
+            raise ValueError(f"CharacterStrands {self.name}: blend arrays must be ({n}, B), offset ({n},)")
+        if not np.allclose(bw.sum(1), 1.0, atol=1e-5) or bw.min() < 0 or off.min() < 0:
+            raise ValueError(f"CharacterStrands {self.name}: blend_weights must be convex, offset >= 0")
+        for f, a in (("radius", r), ("blend_vertices", bv), ("blend_weights", bw), ("offset", off)):
+            object.__setattr__(self, f, a)
+
+
+@dataclasses.dataclass(frozen=True)
 class Character:
     recipe: CharacterRecipe
     parts: list[CharacterPart]
     phenotype: dict[str, float]
+    strands: tuple[CharacterStrands, ...] = ()
 
     def part(self, name: str) -> CharacterPart:
         for p in self.parts:
@@ -159,9 +192,24 @@ class PosedMesh:
     material: Material
 
 
-# Skin: a dielectric sheen on a rough surface; hair: a stronger, tighter sheen (hair cuticles are smooth).
+@dataclasses.dataclass(frozen=True)
+class PosedStrands:
+    """Posed hair strands in world coordinates: points (S, K, 3) float32 control points of cubic B-splines,
+    radius (S, K) float32 metres, and their fibre (Mitsuba `hair` BSDF parameters and albedo)."""
+
+    name: str
+    points: np.ndarray
+    radius: np.ndarray
+    fibre: HairFibre
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """The control points as (S*K, 3), for bounds."""
+        return self.points.reshape(-1, 3)
+
+
+# Skin: a dielectric sheen on a rough surface.
 SKIN_ROUGHNESS, SKIN_SPECULAR = 0.5, 0.35
-HAIR_ROUGHNESS, HAIR_SPECULAR = 0.3, 0.6
 SHOE_SPECULAR = 0.45
 FABRIC_SPECULAR = 0.15
 
@@ -247,11 +295,35 @@ def _build_cached(recipe_json: str, res: int) -> Character:
         spec = SHOE_SPECULAR if g.kind == "shoes" else FABRIC_SPECULAR
         parts.append(_to_part(geo, Material(tex, g.roughness, spec)))
 
-    hair_geos = build_hair(recipe.hair.style, feats, topology, under=under)
-    hair_tex = hair_texture(recipe.hair.colour, np.random.default_rng([seed, _STREAM_HAIR]), max(res // 2, 16))
-    hair_mat = Material(hair_tex, HAIR_ROUGHNESS, HAIR_SPECULAR)
-    parts += [_to_part(geo, hair_mat) for geo in hair_geos]
-    return Character(recipe=recipe, parts=parts, phenotype=dict(recipe.phenotype))
+    rng = np.random.default_rng([seed, _STREAM_HAIR])
+    hair = build_hair(recipe.hair.style, feats, rng, topology, under=under)
+    return Character(recipe=recipe, parts=parts, phenotype=dict(recipe.phenotype),
+                     strands=_split_fibres(hair, fibres_for_colour(recipe.hair.colour), rng))
+
+
+def _split_fibres(hair, fibres: tuple[HairFibre, ...], rng: np.random.Generator) -> tuple[CharacterStrands, ...]:
+    """Deal the strands to the fibres in proportion to their fractions (a random, seeded assignment)."""
+    s, k = hair.radius.shape
+    order = rng.permutation(s)
+    counts = np.round(np.cumsum([f.fraction for f in fibres]) * s).astype(int)
+    out, start = [], 0
+    for i, (f, end) in enumerate(zip(fibres, counts)):
+        idx = np.sort(order[start:end])
+        start = end
+        if not len(idx):
+            continue
+        rows = (idx[:, None] * k + np.arange(k)[None, :]).ravel()
+        out.append(CharacterStrands("hair" if i == 0 else f"hair_{i}", hair.radius[idx], hair.blend_vertices[rows],
+                                    hair.blend_weights[rows], hair.offset[rows], f))
+    return tuple(out)
+
+
+def _anchor(verts: np.ndarray, normals: np.ndarray, bv: np.ndarray, bw: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """Blended anchors plus offsets along the blended normals (float64)."""
+    w = bw.astype(np.float64)[..., None]
+    nb = (normals[bv] * w).sum(1)
+    nb /= np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
+    return (verts[bv] * w).sum(1) + off[:, None].astype(np.float64) * nb
 
 
 def _check_transform(name: str, m: np.ndarray) -> np.ndarray:
@@ -286,10 +358,11 @@ def pose_character(
     character: Character,
     bone_deltas: dict[str, np.ndarray] | None = None,
     root_transform: np.ndarray | None = None,
-) -> list[PosedMesh]:
+) -> list[PosedMesh | PosedStrands]:
     """Pose every part. `bone_deltas`: bone label -> 4x4 local-ref delta (None or identities = anny's rest A-pose).
     `root_transform`: a rigid world 4x4 applied after skinning (the turntable's rotation about +Z through the
-    pelvis). anny's root stays where anny puts it (pelvis at the origin before the pose's root translation)."""
+    pelvis). anny's root stays where anny puts it (pelvis at the origin before the pose's root translation).
+    The meshes come first, in part order, then one `PosedStrands` per `character.strands`."""
     topo = body_topology()
     out = run_anny(character.phenotype, bone_deltas)
     verts = out["vertices"]
@@ -311,11 +384,7 @@ def pose_character(
             n = normals[part.body_vertex]
             v = p + part.offset[:, None].astype(np.float64) * n
         else:
-            w = part.blend_weights.astype(np.float64)[..., None]
-            p = (verts[part.blend_vertices] * w).sum(1)
-            nb = (normals[part.blend_vertices] * w).sum(1)
-            nb /= np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
-            v = p + part.offset[:, None].astype(np.float64) * nb
+            v = _anchor(verts, normals, part.blend_vertices, part.blend_weights, part.offset)
             n = _welded_normals(v, part.faces)
         n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
         n = n / np.linalg.norm(n, axis=1, keepdims=True)  # second pass: unit length to float32 precision
@@ -329,10 +398,13 @@ def pose_character(
                 material=part.material,
             )
         )
+    for h in character.strands:
+        pts = _anchor(verts, normals, h.blend_vertices, h.blend_weights, h.offset).reshape(*h.radius.shape, 3)
+        posed.append(PosedStrands(h.name, _ro(pts, np.float32), h.radius, h.fibre))
     return posed
 
 
-def body_bounds(posed_meshes: list[PosedMesh]) -> tuple[np.ndarray, np.ndarray]:
+def body_bounds(posed_meshes: list[PosedMesh | PosedStrands]) -> tuple[np.ndarray, np.ndarray]:
     """Axis-aligned bounds (min (3,), max (3,)) of all posed parts, float64."""
     if not posed_meshes:
         raise ValueError("body_bounds: no meshes")

@@ -51,7 +51,7 @@ def _mesh(mi, pm: PosedMesh):
     return mesh
 
 
-def render_preview(posed: list[PosedMesh], width: int = 256, height: int = 512, spp: int = 16,
+def render_preview(posed: list, width: int = 256, height: int = 512, spp: int = 16,
                    seed: int = 0, albedo: bool = False) -> np.ndarray:
     """Linear RGB render (H, W, 3) of posed meshes seen from -Y, framed on their bounds (`albedo`: the albedo AOV
     instead of radiance, e.g. as the denoiser's guide)."""
@@ -80,8 +80,11 @@ def render_preview(posed: list[PosedMesh], width: int = 256, height: int = 512, 
         "light": {"type": "envmap", "filename": str(STUDIO_HDRI),
                   "to_world": mi.ScalarTransform4f().rotate([0, 0, 1], 200).rotate([1, 0, 0], 90)},
     }
+    from .strand_shape import mitsuba_curves
+
     for i, pm in enumerate(posed):
-        scene[f"part_{i:02d}_{pm.name}"] = _mesh(mi, pm)
+        strands = hasattr(pm, "fibre")
+        scene[f"part_{i:02d}_{pm.name}"] = mitsuba_curves(pm, stand_in=albedo) if strands else _mesh(mi, pm)
     img = np.array(mi.render(mi.load_dict(scene)), dtype=np.float32)[..., :3]
     return img
 

@@ -43,7 +43,7 @@ TOPS = ("tshirt", "longsleeve")
 BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt")
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 PATTERNS = ("solid", "stripes", "checks", "noise")
-HAIR_STYLES = ("buzz", "short", "bob", "long", "bun", "ponytail")
+HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 
 
 def _check_unit(name: str, value: Any) -> float:
@@ -119,7 +119,8 @@ def skin_albedo_linear(skin: SkinTone) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------------------------
 @dataclasses.dataclass(frozen=True)
 class HairSpec:
-    """style: buzz (bald-ish stubble), short, bob (chin length), long (past the shoulders), bun, ponytail.
+    """style: buzz (bald-ish stubble), short, bob (chin length), long (straight, past the shoulders), long_wavy, bun,
+    ponytail (strands grown by `hair.py`).
     colour: sRGB in [0, 1] (display-referred, as a colour picker gives it)."""
 
     style: str
@@ -372,9 +373,9 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     skin = SkinTone(melanin=float(rng.uniform(0.0, 1.0)), redness=float(rng.uniform(0.2, 0.8)))
 
     if female:
-        style = rng.choice(HAIR_STYLES, p=[0.02, 0.16, 0.22, 0.3, 0.15, 0.15])
+        style = rng.choice(HAIR_STYLES, p=[0.02, 0.16, 0.2, 0.2, 0.12, 0.15, 0.15])
     else:
-        style = rng.choice(HAIR_STYLES, p=[0.22, 0.6, 0.06, 0.06, 0.02, 0.04])
+        style = rng.choice(HAIR_STYLES, p=[0.22, 0.58, 0.06, 0.04, 0.04, 0.02, 0.04])
     # Darker skin makes dark hair more likely; older adults may be grey (anny age 0.82 ~ 55 years).
     w = np.array([1.0, 1.5, 1.2, 0.8, 0.5, 0.4, 0.3, 0.0])
     w[:2] += 3.0 * skin.melanin

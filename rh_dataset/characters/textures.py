@@ -26,7 +26,6 @@ __all__ = [
     "skin_texture",
     "garment_texture",
     "body_layout_coords",
-    "hair_texture",
     "shoe_sole",
     "ALBEDO_RANGE_FABRIC",
 ]
@@ -168,36 +167,6 @@ def body_layout_coords(
     ang = np.arctan2(pos[..., 0], -pos[..., 1])
     across = ang * 0.15  # ~ the trunk's radius: 1 radian of azimuth is ~15 cm of cloth
     return np.stack([across, pos[..., 2]], axis=-1).astype(np.float32)
-
-
-def hair_texture(colour_srgb: tuple[float, float, float], rng: np.random.Generator, resolution: int) -> np.ndarray:
-    """Hair albedo in the hair parts' own layout (u across the strands, v along them, v = 1 at the roots on the
-    crown): fine strands and coarser clumps as noise stretched along v and wavering slowly across u, per-strand
-    variation in brightness and hue, roots a little darker and the lengths towards the tips a little lighter."""
-    res = int(resolution)
-    # Even black hair reflects a few percent diffusely (plus its sheen): a floor keeps it from reading as a hole.
-    base = np.clip(srgb_decode(np.asarray(colour_srgb, dtype=np.float32)), 0.025, 0.7)
-    rows, cols = np.mgrid[0:res, 0:res].astype(np.float32)
-    wave = value_noise(rng, (res, res), (3, 5)) * (res / 40.0) + value_noise(rng, (res, res), (8, 12)) * (res / 200.0)
-    coords = [rows, (cols + wave) % res]
-
-    def streaks(across: float, along: float) -> np.ndarray:
-        n = value_noise(rng, (res, res), (along, across))
-        return ndimage.map_coordinates(n, coords, order=1, mode="wrap")
-
-    fine = streaks(res / 2.5, 6)  # single strands, ~2-3 texels wide
-    mid = streaks(res / 8.0, 4)
-    clump = streaks(res / 24.0, 3)
-    broad = value_noise(rng, (res, res), 6)
-    shade = 1.0 + 0.22 * fine + 0.18 * mid + 0.16 * clump + 0.08 * broad
-    hue = streaks(res / 12.0, 3)
-    tint = 1.0 + 0.07 * hue[..., None] * np.array([1.0, -0.2, -0.8], dtype=np.float32)
-    v = 1.0 - (rows + 0.5) / res  # per row
-    length_m = (1.0 - v) * 0.7  # HAIR_METRES_PER_UV along the strands from the crown
-    roots = 0.78 + 0.22 * np.clip(length_m / 0.12, 0.0, 1.0)
-    tips = 1.0 + 0.12 * np.clip((length_m - 0.2) / 0.4, 0.0, 1.0)
-    img = base[None, None, :] * (shade * roots * tips)[..., None] * tint
-    return np.clip(img, 0.0, 1.0).astype(np.float32)
 
 
 def shoe_sole(

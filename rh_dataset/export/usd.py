@@ -6,6 +6,9 @@
 Stage: upAxis Z, metersPerUnit 1 (our world, docs/ARCHITECTURE.md). Prims:
     /World                       default prim; customData holds the frame's K, world_to_camera, exposure, light
     /World/Character/<part>      UsdGeom.Mesh (points, normals and st per vertex, subdivisionScheme none)
+    /World/Character/<hair>      UsdGeom.BasisCurves (cubic B-spline, ends repeated as the renderer does, widths =
+                                 2 x radius per control point, displayColor = the fibre's albedo; customData holds
+                                 the fibre's melanin concentrations)
     /World/Looks/<material>      UsdPreviewSurface ← UsdUVTexture(albedo PNG, sRGB) ← UsdPrimvarReader_float2(st)
     /World/SMPL                  with --smpl-model: the SMPL fit (UsdGeom.Mesh, world metres, purpose guide)
     /World/Camera                UsdGeom.Camera matching K and world_to_camera
@@ -196,6 +199,9 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, dataset: Path, hdri_f
         UsdGeom.Xform.Define(stage, "/World/Character")
         materials: dict[int, object] = {}
         for mesh in meshes:
+            if hasattr(mesh, "fibre"):
+                _curves(stage, UsdGeom, Vt, Gf, mesh)
+                continue
             k = id(mesh.material.albedo)
             if k not in materials:
                 materials[k] = _material(stage, f"/World/Looks/{mesh.name}_mat", mesh.material,
@@ -247,6 +253,30 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, dataset: Path, hdri_f
     finally:
         if tmp.exists():  # interrupted (rh_common.interrupt) or failed before the rename: keep no partial stage
             tmp.unlink()
+
+
+def _curves(stage, UsdGeom, Vt, Gf, strands) -> None:
+    """Hair strands as one BasisCurves prim (see the module docstring)."""
+    P = np.asarray(strands.points, dtype=np.float32)
+    R = np.asarray(strands.radius, dtype=np.float32)
+    P = np.concatenate([P[:, :1], P[:, :1], P, P[:, -1:], P[:, -1:]], 1)
+    R = np.concatenate([R[:, :1], R[:, :1], R, R[:, -1:], R[:, -1:]], 1)
+    prim = UsdGeom.BasisCurves.Define(stage, f"/World/Character/{strands.name}")
+    prim.CreateTypeAttr(UsdGeom.Tokens.cubic)
+    prim.CreateBasisAttr(UsdGeom.Tokens.bspline)
+    prim.CreateWrapAttr(UsdGeom.Tokens.nonperiodic)
+    prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(P.reshape(-1, 3))))
+    prim.CreateCurveVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(P), P.shape[1], dtype=np.int32)))
+    prim.CreateWidthsAttr(Vt.FloatArray.FromNumpy(np.ascontiguousarray(2.0 * R.ravel())))
+    prim.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
+    V = P.reshape(-1, 3)
+    prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*(V.min(0) - R.max()).tolist()),
+                                         Gf.Vec3f(*(V.max(0) + R.max()).tolist())]))
+    prim.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*[float(x) for x in strands.fibre.albedo])]))
+    prim.GetPrim().SetCustomDataByKey("rh_hair_fibre", {
+        "eumelanin": float(strands.fibre.eumelanin), "pheomelanin": float(strands.fibre.pheomelanin),
+        "longitudinal_roughness": float(strands.fibre.longitudinal_roughness),
+        "azimuthal_roughness": float(strands.fibre.azimuthal_roughness)})
 
 
 def specular_to_ior(specular: float) -> float:

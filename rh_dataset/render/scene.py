@@ -1,6 +1,8 @@
-"""Turn posed meshes, a light and a camera into a Mitsuba 3 scene dict. Nothing here renders.
+"""Turn posed meshes and hair strands, a light and a camera into a Mitsuba 3 scene dict. Nothing here renders.
 
 One plain function builds the dict (as Mitsuba's own `cornell_box()` does), so tests derive variants by editing it.
+Strands become one `bsplinecurve` shape per fibre (`rh_dataset.characters.strand_shape`) with Mitsuba's `hair`
+BSDF, or, for the AOV pass (`hair_stand_in=True`), a `diffuse` BSDF whose reflectance is the fibre's albedo.
 """
 from __future__ import annotations
 
@@ -16,7 +18,7 @@ from .camera import mitsuba_sensor
 from .sampler import SAMPLERS
 from ..variant import load_mitsuba, require_variant
 
-__all__ = ["MeshLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf"]
+__all__ = ["MeshLike", "StrandsLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf", "is_strands"]
 
 
 class MaterialLike(Protocol):
@@ -32,6 +34,26 @@ class MeshLike(Protocol):
     faces: np.ndarray
     uvs: np.ndarray  # OpenGL convention: v = 0 at the bottom row of the texture
     material: MaterialLike
+
+
+class FibreLike(Protocol):
+    eumelanin: float
+    pheomelanin: float
+    longitudinal_roughness: float
+    azimuthal_roughness: float
+    albedo: np.ndarray  # (3,) linear RGB, the stand-in's reflectance
+
+
+class StrandsLike(Protocol):
+    name: str
+    points: np.ndarray  # (S, K, 3) cubic B-spline control points, metres
+    radius: np.ndarray  # (S, K) metres
+    fibre: FibreLike
+
+
+def is_strands(shape) -> bool:
+    """Hair strands rather than a triangle mesh."""
+    return getattr(shape, "fibre", None) is not None
 
 
 @dataclass(frozen=True)
@@ -134,10 +156,10 @@ def mitsuba_mesh(mesh: MeshLike) -> Any:
     return m
 
 
-def scene_dict(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camera, integrator: dict, spp: int,
-               *, pixel_format: str, sampler: str = "independent") -> dict:
+def scene_dict(meshes: Sequence[MeshLike | StrandsLike], emitter: dict | None, camera: Camera, integrator: dict,
+               spp: int, *, pixel_format: str, sampler: str = "independent", hair_stand_in: bool = False) -> dict:
     """The whole Mitsuba scene: one sensor, the environment emitter (None: no light at all, for passes that read
-    only primary hits), the character's meshes."""
+    only primary hits), the character's meshes and hair strands (`hair_stand_in`: diffuse albedo stand-ins)."""
     d: dict[str, Any] = {
         "type": "scene",
         "integrator": integrator,
@@ -146,5 +168,10 @@ def scene_dict(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camera,
     if emitter is not None:
         d["environment"] = emitter
     for i, mesh in enumerate(meshes):
-        d[f"mesh_{i:02d}_{mesh.name}"] = mitsuba_mesh(mesh)
+        if is_strands(mesh):
+            from rh_dataset.characters.strand_shape import mitsuba_curves
+
+            d[f"curves_{i:02d}_{mesh.name}"] = mitsuba_curves(mesh, stand_in=hair_stand_in)
+        else:
+            d[f"mesh_{i:02d}_{mesh.name}"] = mitsuba_mesh(mesh)
     return d
