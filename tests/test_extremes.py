@@ -162,9 +162,10 @@ def test_exposure_extremes_stay_finite_or_raise():
         with pytest.raises(ValueError, match="exposure"):
             to_display(rad, bad)
     # exposure_for: 1 / mean luminance; a mean at or below 1e-12 falls back to 1.0 (documented).
-    dim = types.SimpleNamespace(radiance=np.full((8, 16, 3), 1e-6, np.float32))
+    envmap = types.SimpleNamespace(kind="envmap")
+    dim = types.SimpleNamespace(radiance=np.full((8, 16, 3), 1e-6, np.float32), spec=envmap)
     assert exposure_for(dim) == pytest.approx(1e6, rel=1e-4)
-    very_dim = types.SimpleNamespace(radiance=np.full((8, 16, 3), 1e-13, np.float32))
+    very_dim = types.SimpleNamespace(radiance=np.full((8, 16, 3), 1e-13, np.float32), spec=envmap)
     assert exposure_for(very_dim) == 1.0
 
 
@@ -240,10 +241,14 @@ def _extreme_poses():
 
 def test_extreme_legal_poses_give_finite_unit_normals(character):
     from rh_dataset.characters import pose_character
+    from rh_dataset.render.scene import is_strands
 
     for name, pose in _extreme_poses().items():
         for m in pose_character(character, dict(pose.bones), pose.root_transform):
             assert np.all(np.isfinite(m.vertices)), (name, m.name)
+            if is_strands(m):  # hair: curves carry radii, not vertex normals
+                assert np.all(np.isfinite(m.radius)) and np.all(m.radius > 0), (name, m.name)
+                continue
             length = np.linalg.norm(m.normals.astype(np.float64), axis=1)
             assert np.all(np.isfinite(m.normals)) and np.allclose(length, 1.0, atol=1e-5), (name, m.name)
 
