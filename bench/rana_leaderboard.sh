@@ -20,6 +20,9 @@
 # (one torch thread each); the pretrained runs of both protocols follow it in parallel.
 # PHASES (default "all") runs a part only, for a board made in pieces: "scratch" (the rows without pretraining),
 # "pretrain" (pretraining, then the pretrained rows), "board" (rh-eval, rh-leaderboard, screenshots), or a list.
+# OLAT=1 (default) generates the olat_a / olat_b scenes instead of a / b: their train and test splits are a's and
+# b's byte for byte, plus an `olat` split (test poses under single lights, frame i = pose i // 16, light i % 16),
+# which every row also predicts and is scored on (tables of their own on each board). OLAT=0: a and b only.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -27,6 +30,7 @@ WORK=${WORK:-/tmp/rana_lb}
 OUT=${OUT:-leaderboards/small}
 STEPS=${STEPS:-50}
 FREEZE=${FREEZE:-10}
+OLAT=${OLAT:-1}
 PRETRAIN=${PRETRAIN:-1}   # 0 = leave out the "RANA + pretraining" row (and the pretraining)
 THREADS=${THREADS:-1}
 PRE_SUBJECTS=${PRE_SUBJECTS:-6}    # pretraining characters (the paper: 400)
@@ -46,7 +50,8 @@ if [ "${SKIP_DATA:-0}" = 1 ]; then
   echo "SKIP_DATA=1: using the datasets already in $DATA and $PRE_DATA as they are"
 else
   for p in a b; do
-    rh-generate --protocol $p --out "$DATA" --subjects 2 --frames 20 --resolution 128 --preset draft --no-progress
+    scene=$p; [ "$OLAT" = 1 ] && scene=olat_$p
+    rh-generate --protocol $scene --out "$DATA" --subjects 2 --frames 20 --resolution 128 --preset draft --no-progress
   done
   rh-generate --protocol rana_pretrain --out "$PRE_DATA" --subjects "$PRE_SUBJECTS" --frames "$PRE_FRAMES" \
     --resolution 128 --preset draft --no-progress
@@ -75,6 +80,19 @@ variant() {
   rana train --dataset "$DATA" --protocol $p --runs "$WORK/runs_$p/$v" "${COMMON[@]}" "$@"
   rana predict --dataset "$DATA" --protocol $p --runs "$WORK/runs_$p/$v" --out "$WORK/preds_$p/$v" --no-progress \
     --name "$name"
+  if [ "$OLAT" = 1 ]; then
+    rana predict --dataset "$DATA" --protocol $p --runs "$WORK/runs_$p/$v" --out "$WORK/preds_${p}_olat/$v" \
+      --no-progress --name "$name" --split olat
+  fi
+}
+# SMPL+D from a run's coarse stage (test split, and olat when OLAT=1).
+smpld() {
+  local p=$1 run=$2 out=$3 name=$4
+  rana smpld --dataset "$DATA" --protocol $p --runs "$run" --out "$WORK/preds_$p/$out" --no-progress --name "$name"
+  if [ "$OLAT" = 1 ]; then
+    rana smpld --dataset "$DATA" --protocol $p --runs "$run" --out "$WORK/preds_${p}_olat/$out" --no-progress \
+      --name "$name" --split olat
+  fi
 }
 # The ablation's coarse stage has the same settings as its source run's: share it instead of recomputing it.
 share_coarse() {
@@ -87,9 +105,11 @@ share_coarse() {
 scratch() {  # everything that needs no pretraining, protocols one after the other
   for p in a b; do
     variant $p no_pretraining "RANA w/o pretraining (cpu, $STEPS steps)"
-    rana smpld --dataset "$DATA" --protocol $p --runs "$WORK/runs_$p/no_pretraining" --out "$WORK/preds_$p/smpld_exposure_sh" \
-      --no-progress --name "SMPL+D (exposure-SH albedo)"
+    smpld $p "$WORK/runs_$p/no_pretraining" smpld_exposure_sh "SMPL+D (exposure-SH albedo)"
     rana-oracle --dataset "$DATA" --protocol $p --out "$WORK/preds_$p/oracle"
+    if [ "$OLAT" = 1 ]; then
+      rana-oracle --dataset "$DATA" --protocol $p --out "$WORK/preds_${p}_olat/oracle" --split olat
+    fi
   done
 }
 pretrained() {  # the full method and its albedo-regulariser ablation on one protocol
@@ -99,8 +119,7 @@ pretrained() {  # the full method and its albedo-regulariser ablation on one pro
     share_coarse "$WORK/runs_$p/rana" "$WORK/runs_$p/no_albedo_reg"
     variant $p no_albedo_reg "RANA w/o albedo regulariser" --pretrained "$PRE/pretrained.pt" --loss.lambda_albedo_reg 0
   fi
-  rana smpld --dataset "$DATA" --protocol $p --runs "$WORK/runs_$p/rana" --out "$WORK/preds_$p/smpld" --no-progress \
-    --name "SMPL+D (TextureNet albedo)"
+  smpld $p "$WORK/runs_$p/rana" smpld "SMPL+D (TextureNet albedo)"
 }
 board() {
   local p=$1 E="$WORK/results_$p"
@@ -109,6 +128,13 @@ board() {
   for m in $(ls "$WORK/preds_$p"); do
     rh-eval "$WORK/preds_$p/$m" --dataset "$DATA" --protocol $p --out "$E/$m.json" --no-progress
   done
+  if [ -d "$WORK/preds_${p}_olat" ]; then
+    stamp "protocol $p: evaluation of the olat split"
+    for m in $(ls "$WORK/preds_${p}_olat"); do
+      rh-eval "$WORK/preds_${p}_olat/$m" --dataset "$DATA" --protocol $p --split olat --out "$E/${m}_olat.json" \
+        --no-progress
+    done
+  fi
   rh-leaderboard "$E"/*.json --out "$WORK/board_$p"
   cp "$WORK/board_$p/leaderboard.md" "$OUT/protocol_$p/leaderboard.md"
 }
