@@ -189,7 +189,7 @@ def run_scene(name: str, args, work: Path) -> dict:
 
     R: dict = {"scene": name}
     t = time.perf_counter()
-    base = bt.build_scene(name, args.resolution, args.seed)
+    base = bt.build_scene(name, args.resolution, args.seed, strands=False)  # meshes only: see build_scene
     R["build_scene_s"] = time.perf_counter() - t  # our character/pose/light/camera, shared by both renderers
     diffuse = dataclasses.replace(base, name=f"{name}-lambertian", meshes=lambertian(base.meshes))
     R["triangles"] = base.triangles

@@ -74,7 +74,9 @@ def _sun_rotation(radiance: np.ndarray, target_phi_deg: float) -> float:
     return float((target_phi_deg - phi_sun) % 360.0)
 
 
-def build_scene(name: str, resolution: int, seed: int = 0) -> Scene:
+def build_scene(name: str, resolution: int, seed: int = 0, *, strands: bool = True) -> Scene:
+    """One reference scene. strands=False leaves the hair strands out (a bald subject): bench_cycles.py compares
+    renderers on triangle meshes only, since Cycles' curves are another primitive and BSDF than Mitsuba's."""
     from rh_dataset.characters import body_bounds, build_character, pose_character, sample_recipe
     from rh_common.body_model import load_anny
     from rh_dataset.generate import exposure_for, rng_for
@@ -97,10 +99,12 @@ def build_scene(name: str, resolution: int, seed: int = 0) -> Scene:
     base, _ = load_hdri(lib[hdri])
     light = build_light(LightSpec("envmap", hdri, str(lib[hdri]), rot, normalised_scale(base)))
     meshes = pose_character(character, dict(pose.bones), pose.root_transform)
+    if not strands:
+        meshes = [m for m in meshes if hasattr(m, "faces")]
     lo, hi = body_bounds(meshes)
     cam = frame_body(lo, hi, resolution, resolution, 30.0, fill=0.9)
     return Scene(name, meshes, mitsuba_emitter_dict(light), cam, exposure_for(light), hdri, pose.label,
-                 sum(len(m.faces) for m in meshes), light)
+                 sum(len(m.faces) for m in meshes if hasattr(m, "faces")), light)
 
 
 # ------------------------------------------------------------------------------------------------- rendering
