@@ -17,7 +17,7 @@ from rh_common import sh
 from rh_common.colourspace import quantize8
 from rh_common.imageio import read_exr, read_hdr, read_json, read_png, write_hdr
 from rh_dataset.export import main as export_main
-from rh_dataset.export.common import rodrigues
+from rh_dataset.poses.joints import axis_angle_matrix
 
 
 def _export(tmp_path_factory, ds, protocol):
@@ -131,7 +131,7 @@ def test_json_has_k_fov_hdri_and_body_parameters_that_reproduce_the_body(exporte
         bones.pop("root", None)
         local = run_anny(meta["body"]["phenotype"], bones)["vertices"]
         cam, _ = _cam_body(meta)
-        ours = local @ rodrigues(smpl["global_orient"]).T + np.array(smpl["global_trans"])
+        ours = local @ axis_angle_matrix(smpl["global_orient"]).T + np.array(smpl["global_trans"])
         np.testing.assert_allclose(ours, cam, atol=1e-6)
 
 

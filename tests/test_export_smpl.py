@@ -18,7 +18,7 @@ from export_data import tiny_dataset  # noqa: E402
 from rh_common.imageio import read_json  # noqa: E402
 from rh_dataset.export import main as export_main  # noqa: E402
 from rh_dataset.export.cli import export_dataset  # noqa: E402
-from rh_dataset.export.common import rodrigues  # noqa: E402
+from rh_dataset.poses.joints import axis_angle_matrix  # noqa: E402
 from rh_dataset.smpl.fit import FitSettings  # noqa: E402
 from rh_dataset.smpl.model import forward, load_body_model  # noqa: E402
 
@@ -116,7 +116,7 @@ def test_zju_mocap_params_and_vertices_as_neuralbody_reads_them(rh_export, model
     assert p["poses"].shape == (1, 72) and not p["poses"][0, :3].any() and p["shapes"].shape == (1, 10)
     assert p["shapes"][0].tolist() == rh["betas"]
     V0, _ = forward(model, _t(p["shapes"][0]), _t(p["poses"][0, 3:]), _t(np.zeros(3)))
-    world = V0[0].numpy() @ rodrigues(p["Rh"][0]).T + p["Th"][0]
+    world = V0[0].numpy() @ axis_angle_matrix(p["Rh"][0]).T + p["Th"][0]
     verts = np.load(seq / "vertices" / "1.npy")
     assert verts.shape == (6890, 3) and verts.dtype == np.float32
     assert np.abs(verts - world).max() < 1e-5

@@ -8,7 +8,7 @@ from scipy.ndimage import binary_dilation
 from export_data import tiny_dataset
 from rh_common.imageio import read_json, read_png
 from rh_dataset.export import main as export_main
-from rh_dataset.export.common import rodrigues
+from rh_dataset.poses.joints import axis_angle_matrix
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +74,7 @@ def test_vertices_project_onto_the_mask_and_params_rebuild_them(exported):
         bones = dict(pose.bones)
         bones.pop("root", None)
         local = run_anny(dict(zip(params["shape_labels"], params["shapes"][0])), bones)["vertices"]
-        np.testing.assert_allclose(local @ rodrigues(params["Rh"][0]).T + params["Th"][0], xyz, atol=1e-5)
+        np.testing.assert_allclose(local @ axis_angle_matrix(params["Rh"][0]).T + params["Th"][0], xyz, atol=1e-5)
         # ... and they are exactly the skin the renderer drew (the body part of the posed character).
         character = build_character(CharacterRecipe.from_json(read_json(ds / "subject_000" / "character.json")))
         body = pose_character(character, dict(pose.bones), pose.root_transform)[0]

@@ -14,7 +14,7 @@ from export_data import tiny_dataset  # noqa: E402
 from rh_common.imageio import read_json  # noqa: E402
 from rh_dataset.export import main as export_main  # noqa: E402
 from rh_dataset.export.cli import export_dataset  # noqa: E402
-from rh_dataset.export.common import rodrigues  # noqa: E402
+from rh_dataset.poses.joints import axis_angle_matrix  # noqa: E402
 from rh_dataset.smpl.fit import FitInput, FitSettings, FrameTarget, camera_frame, fit_subject  # noqa: E402
 from rh_dataset.smpl.model import SMPLX_EXTRA_KEYS, forward, load_body_model, write_smplx_npz  # noqa: E402
 from rh_dataset.smpl.skeletons import SMPLX  # noqa: E402
@@ -199,7 +199,7 @@ def test_zju_params_smplx(rh_export, models, tmp_path):
     V0, _ = forward(model, _t(p["shapes"]), _t(p["poses"][:, 3:]), _t(np.zeros((1, 3))))
     verts = np.load(seq / "vertices_smplx" / "1.npy")
     assert verts.shape == (10475, 3)
-    assert np.abs(verts - (V0[0].numpy() @ rodrigues(p["Rh"][0]).T + p["Th"][0])).max() < 1e-5
+    assert np.abs(verts - (V0[0].numpy() @ axis_angle_matrix(p["Rh"][0]).T + p["Th"][0])).max() < 1e-5
     rh = read_json(rh_out / "test" / "subject_01" / "frame_000001.json")["skeleton_0"]["smplx_data"]
     assert p["shapes"][0].tolist() == rh["betas"]  # the same deterministic fit
     assert np.load(seq / "params" / "1.npy", allow_pickle=True).item()["model"] != "smplx"  # params/ unchanged

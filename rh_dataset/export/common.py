@@ -16,7 +16,7 @@ import numpy as np
 from rh_common import layout
 from rh_common.imageio import atomic_path, read_json
 
-__all__ = ["ExportError", "FrameRef", "iter_frames", "check_dataset", "save_npy", "rodrigues", "axis_angle",
+__all__ = ["ExportError", "FrameRef", "iter_frames", "check_dataset", "save_npy",
            "root_motion", "hdri_path", "subject_index", "client_K"]
 
 
@@ -102,19 +102,6 @@ def save_npy(path: Path, obj) -> None:
         np.save(buf, np.asarray(obj), allow_pickle=False)
     with atomic_path(path) as tmp:
         tmp.write_bytes(buf.getvalue())
-
-
-def axis_angle(R: np.ndarray) -> np.ndarray:
-    """3x3 rotation → axis-angle vector (3,), angle in radians (the Rodrigues vector OpenCV and SMPL use)."""
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(np.asarray(R, dtype=np.float64)).as_rotvec()
-
-
-def rodrigues(v: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_rotvec(np.asarray(v, dtype=np.float64).reshape(3)).as_matrix()
 
 
 def root_motion(pose_json: dict) -> np.ndarray:

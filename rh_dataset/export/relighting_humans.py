@@ -27,8 +27,9 @@ from rh_common import layout
 from rh_common.colourspace import quantize8
 from rh_common.imageio import atomic_path, read_exr, read_png, write_json, write_png
 from rh_dataset.poses import ANNY_BONE_LABELS
+from rh_dataset.poses.joints import axis_angle
 
-from .common import FrameRef, axis_angle, client_K, root_motion, subject_index
+from .common import FrameRef, client_K, root_motion, subject_index
 from .rh_light import bake_frame_light
 
 __all__ = ["export_frame", "split_folder", "subject_folder", "rh_json", "write_readme", "PUBLISHED_SIZE"]

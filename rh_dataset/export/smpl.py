@@ -28,8 +28,9 @@ from rh_common.threads import torch_threads
 from rh_dataset.smpl.fit import (FitInput, FitQuality, FitRefused, FitSettings, FrameTarget, anny_joints,
                                  camera_frame, check_quality, fit_subject)
 from rh_dataset.smpl.model import BodyModel, SmplModelError, find_model_file, load_body_model
+from rh_dataset.poses.joints import axis_angle, axis_angle_matrix
 
-from .common import ExportError, FrameRef, axis_angle, rodrigues
+from .common import ExportError, FrameRef
 
 __all__ = ["SmplFits", "frame_target", "load_model", "smplx_pose_parts", "CACHE_DIR", "CACHE_DIRS",
            "VERTEX_DECIMALS_MM"]
@@ -208,7 +209,7 @@ class SmplFits:
         with torch.no_grad(), torch_threads(self.settings.threads):
             V0, J0 = forward(self.model, t(betas), t(fr["pose"]), t(np.zeros(3)), None)
         V0, j0 = V0[0].numpy(), J0[0, 0].numpy()
-        R = Rw @ rodrigues(np.asarray(fr["global_orient"]))
+        R = Rw @ axis_angle_matrix(np.asarray(fr["global_orient"]))
         Th = Rw @ np.asarray(fr["global_trans"]) + tw - R @ j0
         verts = (V0 @ R.T + Th).astype(np.float32)
         params = {"poses": np.concatenate([np.zeros(3), np.asarray(fr["pose"])])[None],

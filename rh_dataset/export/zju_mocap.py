@@ -27,8 +27,9 @@ import numpy as np
 from rh_common import layout
 from rh_common.imageio import atomic_path, read_png, write_json, write_png
 from rh_dataset.poses import ANNY_BONE_LABELS, BodyPose
+from rh_dataset.poses.joints import axis_angle
 
-from .common import FrameRef, axis_angle, client_K, root_motion, save_npy
+from .common import FrameRef, client_K, root_motion, save_npy
 
 __all__ = ["CAMERA", "export_frame", "write_annots", "read_annots", "frame_params", "posed_body_vertices"]
 

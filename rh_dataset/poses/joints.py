@@ -49,6 +49,16 @@ def rotation_about(axis: np.ndarray, deg: float) -> np.ndarray:
     return Rotation.from_rotvec(_unit(np.asarray(axis, float)) * np.radians(deg)).as_matrix()
 
 
+def axis_angle(R: np.ndarray) -> np.ndarray:
+    """3x3 rotation -> axis-angle vector (3,), angle in radians (the Rodrigues vector OpenCV and SMPL use)."""
+    return Rotation.from_matrix(np.asarray(R, dtype=np.float64)).as_rotvec()
+
+
+def axis_angle_matrix(v) -> np.ndarray:
+    """Axis-angle vector (3 numbers, radians) -> 3x3 rotation; the inverse of `axis_angle`."""
+    return Rotation.from_rotvec(np.asarray(v, dtype=np.float64).reshape(3)).as_matrix()
+
+
 def _align(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The minimal rotation taking unit vector a onto unit vector b."""
     axis = np.cross(a, b)

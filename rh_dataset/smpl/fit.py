@@ -32,6 +32,8 @@ import numpy as np
 
 from rh_common.threads import torch_threads
 
+from rh_dataset.poses.joints import axis_angle, axis_angle_matrix
+
 from .model import BodyModel, forward, model_tensors, rodrigues
 from .skeletons import SKELETONS
 
@@ -165,18 +167,6 @@ def _shortest(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.eye(3) + K + K @ K * ((1 - c) / s ** 2)
 
 
-def _rotmat(v: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_rotvec(v).as_matrix()
-
-
-def _rotvec(R: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(R).as_rotvec()
-
-
 def _initial_pose(rest_joints: np.ndarray, target: np.ndarray, parents: np.ndarray):
     """(global_orient, pose, trans) turning the rest skeleton's bones onto the target joints, root first."""
     n = len(parents)
@@ -195,8 +185,8 @@ def _initial_pose(rest_joints: np.ndarray, target: np.ndarray, parents: np.ndarr
             Rm = _shortest(cur[0], want[0]) if len(kids) == 1 else _kabsch(cur, want)
             local[j] = Gp.T @ Rm @ Gp
         G[j] = Gp @ local[j]
-    pose = np.concatenate([_rotvec(local[j]) for j in range(1, n)])
-    return _rotvec(local[0]), pose, target[0].copy()
+    pose = np.concatenate([axis_angle(local[j]) for j in range(1, n)])
+    return axis_angle(local[0]), pose, target[0].copy()
 
 
 def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -291,7 +281,7 @@ def _optimise(inp: FitInput):
     init = [_initial_pose(rest, f.joints, model.parents) for f in inp.frames]
     # The root turns as R(δ)·R0 about the pelvis with δ starting at zero, away from axis-angle's singular shell
     # at π (a body facing the camera is about π from SMPL's facing +Z).
-    R0 = torch.tensor(np.stack([_rotmat(x[0]) for x in init]), dtype=dt)
+    R0 = torch.tensor(np.stack([axis_angle_matrix(x[0]) for x in init]), dtype=dt)
     theta = torch.tensor(np.stack([np.concatenate([np.zeros(3), x[1], x[2]]) for x in init]), dtype=dt)
     beta = torch.tensor(beta0, dtype=dt)
     target_joints = torch.tensor(np.stack([f.joints for f in inp.frames]), dtype=dt)
@@ -409,4 +399,4 @@ def _optimise(inp: FitInput):
     with torch.no_grad():
         R = (rodrigues(theta[:, :3]) @ R0).numpy()
     th = theta.numpy()
-    return beta.numpy().copy(), [(_rotvec(R[i]), th[i, 3:P - 3].copy(), th[i, P - 3:].copy()) for i in range(B)]
+    return beta.numpy().copy(), [(axis_angle(R[i]), th[i, 3:P - 3].copy(), th[i, P - 3:].copy()) for i in range(B)]
