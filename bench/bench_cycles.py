@@ -20,8 +20,8 @@ Reported, per scene:
              evaluator's person region (bench_tradeoff.Scorer), per-channel mean radiance over the mask (ratio),
              the background (environment seen directly), the mask IoU (Cycles alpha vs Mitsuba coverage), and, as
              the noise baseline, an independent Mitsuba render at the same spp against the same reference;
-  sweep      spp 1..--max-spp for both renderers, render time only (Mitsuba: the beauty `mi.render` call, scene
-             load excluded; Cycles: first sample to 'Finished', scene sync/BVH excluded, both reported apart),
+  sweep      spp 1..--max-spp for both renderers, render time only (Mitsuba: the beauty pass with the standard
+             preset's sampler and focusing, plus the coverage pass focusing needs, scene load excluded; Cycles: first sample to 'Finished', scene sync/BVH excluded, both reported apart),
              median of --repeats, relMSE averaged over the repeats' independent seeds;
   ratio      the equal-error time ratio t_Mitsuba / t_Cycles at stated relMSE levels (default: the errors Mitsuba
              reaches at 16, 64 and 128 spp, our presets' sample counts), interpolated linearly in
@@ -54,6 +54,9 @@ if str(HERE) not in sys.path:
 import bench_tradeoff as bt  # noqa: E402  (the reference scenes, the reference cache, the Scorer, the table printer)
 from rh_common.blender import run_blender_script  # noqa: E402
 from rh_common.imageio import atomic_path, read_exr, write_json  # noqa: E402
+from rh_dataset.presets import load_presets  # noqa: E402
+
+STANDARD = load_presets()["standard"]  # our side renders with the standard preset's sampler and focusing
 
 BLENDER_SCRIPT = HERE / "cycles_render_bpy.py"
 NEAR, FAR = 0.01, 1000.0  # rh_dataset.render.camera.mitsuba_sensor's clip planes
@@ -178,9 +181,12 @@ def agreement(img: np.ndarray, ref: np.ndarray, mask: np.ndarray, exposure: floa
 
 # ------------------------------------------------------------------------------------------------- main
 
-def _mitsuba_render(scene, spp, depth, seed, chunk):
-    lay, b, _, _ = bt.render(scene, ["image"], spp, depth, seed=seed, chunk=chunk)
-    return lay["image"], b
+def _mitsuba_render(scene, spp, depth, seed, args):
+    """Our beauty image with the sampler and focusing of args (the `standard` preset's by default); the seconds are
+    the beauty pass plus, when focused, the coverage pass it needs (in a dataset that pass is paid anyway)."""
+    lay, b, a, _ = bt.render(scene, ["image"], spp, depth, seed=seed, chunk=args.chunk_spp, sampler=args.sampler,
+                             env_spp=args.env_spp, aov_spp=args.aov_spp)
+    return lay["image"], b + a
 
 
 def run_scene(name: str, args, work: Path) -> dict:
@@ -219,7 +225,7 @@ def run_scene(name: str, args, work: Path) -> dict:
                         threads=args.threads, camera_check=True, workdir=work)
     c_img = cyc["renders"][0]["image"]
     c_mask = cyc["renders"][1]["mask"]
-    m_img, _ = _mitsuba_render(diffuse, args.cycles_ref_spp, depth, 424242, args.chunk_spp)
+    m_img, _ = _mitsuba_render(diffuse, args.cycles_ref_spp, depth, 424242, args)
     ag_c = {**agreement(c_img, ref["image"], ref["mask"], diffuse.exposure), **sc.beauty(c_img)}
     ag_m = {**agreement(m_img, ref["image"], ref["mask"], diffuse.exposure), **sc.beauty(m_img)}
     R["agreement"] = {"spp": args.cycles_ref_spp, "cycles": ag_c, "mitsuba_same_spp": ag_m,
@@ -241,7 +247,7 @@ def run_scene(name: str, args, work: Path) -> dict:
     if args.principled_spp:
         cp = render_cycles(npz, "principled", depth, [{"spp": args.principled_spp, "seed": 3}], threads=args.threads,
                            workdir=work)["renders"][0]["image"]
-        mp, _ = _mitsuba_render(base, args.principled_spp * 4, depth, 515151, args.chunk_spp)
+        mp, _ = _mitsuba_render(base, args.principled_spp * 4, depth, 515151, args)
         pr = agreement(cp, mp, ref["mask"], base.exposure)
         diff_ratio = agreement(ref["image"], mp, ref["mask"], base.exposure)["mean_ratio_rgb"]  # Lambertian / principled (Mitsuba)
         R["principled"] = {"cycles_spp": args.principled_spp, "mitsuba_spp": args.principled_spp * 4, **pr,
@@ -262,7 +268,7 @@ def run_scene(name: str, args, work: Path) -> dict:
     c_sync = []
     for rep in range(args.repeats):
         for s in spps:
-            img, sec = _mitsuba_render(diffuse, s, depth, 1000 * rep + s, args.chunk_spp)
+            img, sec = _mitsuba_render(diffuse, s, depth, 1000 * rep + s, args)
             m_t[s].append(sec)
             m_e[s].append(sc.beauty(img)["relmse"])
         # one Blender process per repeat: a 1-spp warm-up (kernels, caches), then the sweep
@@ -385,6 +391,13 @@ def main(argv=None) -> dict:
                    "(default: Mitsuba's relMSE at 16, 64 and 128 spp, the sample counts of our presets)")
     p.add_argument("--threads", type=int, default=2, help="Cycles threads (Mitsuba's LLVM backend uses every core)")
     p.add_argument("--chunk-spp", type=int, default=256)
+    p.add_argument("--sampler", default=STANDARD.sampler, help="Mitsuba's sampler for our renders (default: the "
+                   f"standard preset's, {STANDARD.sampler})")
+    p.add_argument("--env-spp", type=lambda v: None if v in ("", "none") else int(v), default=STANDARD.env_spp,
+                   help="focused beauty pass: the environment seen directly at this spp, the person at full spp "
+                        f"(default: the standard preset's, {STANDARD.env_spp}; 'none' renders every pixel at full spp)")
+    p.add_argument("--aov-spp", type=int, default=STANDARD.aov_spp, help="spp of the coverage pass the focused pass "
+                   f"needs (default: the standard preset's, {STANDARD.aov_spp})")
     p.add_argument("--cache", default="/tmp/rh_ref")
     p.add_argument("--out", default="/tmp/rh_cycles")
     p.add_argument("--seed", type=int, default=0)
@@ -398,7 +411,8 @@ def main(argv=None) -> dict:
     load0 = os.getloadavg()
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average {load0[0]:.2f} {load0[1]:.2f} "
           f"{load0[2]:.2f} (shared: times are noisy); Mitsuba {variant}; Cycles CPU {args.threads} threads; "
-          f"{args.resolution}x{args.resolution}; depth {args.depth}", flush=True)
+          f"{args.resolution}x{args.resolution}; depth {args.depth}; Mitsuba sampler {args.sampler}, env spp "
+          f"{args.env_spp}, coverage pass {args.aov_spp} spp", flush=True)
     results = {"args": vars(args), "variant": variant, "load_average_start": load0[0],
                "load_average_start_all": list(load0), "scenes": {}}
     t0 = time.perf_counter()

@@ -110,8 +110,11 @@ def build_scene(name: str, resolution: int, seed: int = 0, *, strands: bool = Tr
 # ------------------------------------------------------------------------------------------------- rendering
 
 def render(scene: Scene, layers, spp: int, depth: int, seed: int, *, aov_spp: int = 1, chunk: int = 256,
-           denoise: bool = False, sampler: str = "independent"):
-    """render_frame in chunks of <= `chunk` spp (averaged); returns (layers, beauty_s, aov_s, denoise_s)."""
+           denoise: bool = False, sampler: str = "independent", env_spp: int | None = None):
+    """render_frame in chunks of <= `chunk` spp (averaged); returns (layers, beauty_s, aov_s, denoise_s).
+
+    env_spp: the focused beauty pass (the environment seen directly at env_spp, the person at spp); each chunk then
+    runs its own coverage (AOV) pass at aov_spp first, whose seconds are added to aov_s."""
     from rh_dataset.render.passes import render_frame
     from rh_dataset.render.scene import RenderSettings
 
@@ -123,11 +126,15 @@ def render(scene: Scene, layers, spp: int, depth: int, seed: int, *, aov_spp: in
         n_chunks = -(-spp // chunk)
         per = [spp // n_chunks + (1 if k < spp % n_chunks else 0) for k in range(n_chunks)]
         for k, s in enumerate(per):
+            focus = env_spp is not None and env_spp < s
             st = RenderSettings(spp=s, aov_spp=aov_spp, max_depth=depth, denoise=denoise and n_chunks == 1,
-                                sampler=sampler)
-            lay = ["image"] + (["mask", "albedo", "normal"] if denoise and n_chunks == 1 else [])
+                                sampler=sampler, env_spp=env_spp if focus else None)
+            lay = ["image"] + (["mask", "albedo", "normal"] if denoise and n_chunks == 1 else
+                               ["mask"] if focus else [])
             out = render_frame(scene.meshes, scene.emitter, scene.camera, st, lay, seed + 7919 * k)
             beauty_s += out.seconds["beauty"]
+            if focus:
+                aov_s += out.seconds["aov"]
             den_s += out.seconds.get("denoise", 0.0)
             acc["image"] = acc.get("image", 0.0) + out.layers["image"] * (s / spp)
     aov_layers = [l for l in layers if l != "image"]
