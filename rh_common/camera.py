@@ -140,7 +140,8 @@ def orbit_cameras(bounds_min: np.ndarray, bounds_max: np.ndarray, width: int, he
     centre = 0.5 * (lo + hi)
     r = 0.5 * math.hypot(hi[0] - lo[0], hi[1] - lo[1])
     t = np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False)
-    ring = np.stack([centre[0] + r * np.cos(t), centre[1] + r * np.sin(t)], axis=1)
+    rp = r / math.cos(math.pi / len(t))  # a polygon around the circle, not inside it: the fit errs on the safe side
+    ring = np.stack([centre[0] + rp * np.cos(t), centre[1] + rp * np.sin(t)], axis=1)
     points = np.concatenate([np.column_stack([ring, np.full(len(t), z)]) for z in (lo[2], hi[2])])
     dist = 0.0
     for az, el in views:

@@ -253,17 +253,17 @@ class ProtocolSpec:
             raise SpecError(f"{self.source or self.name}: split names must be unique and non-empty: {names}")
         for s in self.splits:
             if (s.cameras is None) != (self.rig is None):
-                raise SpecError(f"split {s.name}: a protocol with a 'cameras' block names each split's cameras, one "
-                                f"without names none")
+                raise SpecError(f"{where}: split {s.name}: a protocol with a 'cameras' block names each split's "
+                                f"cameras, one without names none")
             if s.cameras is not None and max(s.cameras) >= len(self.rig.views):
-                raise SpecError(f"split {s.name}: camera {max(s.cameras)} is not a view of the rig (it has "
+                raise SpecError(f"{where}: split {s.name}: camera {max(s.cameras)} is not a view of the rig (it has "
                                 f"{len(self.rig.views)}: 0..{len(self.rig.views) - 1})")
             if s.light == "train":
                 if "train" not in names or names.index("train") >= names.index(s.name) or s.poses != "train":
-                    raise SpecError(f"split {s.name}: light 'train' needs a train split before it and poses 'train' "
-                                    f"(frame i under train's light of frame i)")
+                    raise SpecError(f"{where}: split {s.name}: light 'train' needs a train split before it and poses "
+                                    f"'train' (frame i under train's light of frame i)")
                 if self.split("train").light not in ("fixed", "random"):
-                    raise SpecError(f"split {s.name}: light 'train' reuses a fixed or random train light")
+                    raise SpecError(f"{where}: split {s.name}: light 'train' reuses a fixed or random train light")
             if s.poses in ("train", "test"):
                 if s.poses not in names or names.index(s.poses) >= names.index(s.name):
                     raise SpecError(f"split {s.name}: poses {s.poses!r} needs a {s.poses} split before it")
@@ -401,10 +401,13 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
                 olat = OlatSpec(**o)
             except SpecError as exc:
                 raise SpecError(f"{where}: split {name}: {exc}") from None
-        splits.append(SplitSpec(name=name, frames=s["frames"], poses=s["poses"], light=s["light"],
-                                layers=tuple(s["layers"]), motion=motion, scene_class=cls,
-                                max_depth=classes[cls].max_depth if cls is not None else None, olat=olat,
-                                cameras=tuple(cameras) if cameras is not None else None))
+        try:
+            splits.append(SplitSpec(name=name, frames=s["frames"], poses=s["poses"], light=s["light"],
+                                    layers=tuple(s["layers"]), motion=motion, scene_class=cls,
+                                    max_depth=classes[cls].max_depth if cls is not None else None, olat=olat,
+                                    cameras=tuple(cameras) if cameras is not None else None))
+        except SpecError as exc:
+            raise SpecError(f"{where}: {exc}") from None
     rig = None
     if "cameras" in data:
         _check_keys(f"{where}: cameras", data["cameras"], _CAMERAS_KEYS, _CAMERAS_KEYS)
