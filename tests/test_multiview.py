@@ -239,16 +239,15 @@ def test_the_bodys_points_project_into_every_cameras_mask(tiny_c):
         uv = pc @ K.T
         uv = uv[:, :2] / uv[:, 2:]
         mask = read_png(fj.with_name(fj.stem + "_mask.png")) > 0
-        # one pixel of slack at 32 px: a vertex on the silhouette's edge may fall in a pixel the box filter left
-        # below one level of coverage
-        from scipy.ndimage import binary_dilation
-
-        grown = binary_dilation(mask, iterations=1)
         u, w = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
-        inside = (u >= 0) & (u < 32) & (w >= 0) & (w < 32)
-        assert inside.all(), f"{fj}: body points outside the frame"
-        assert grown[w, u].mean() > 0.995, f"{fj}: {1 - grown[w, u].mean():.2%} of the body's points miss the mask"
-        if "depth" in meta["files"] or any(n.endswith("_depth.exr") for n in meta["files"]):
+        assert ((u >= 0) & (u < 32) & (w >= 0) & (w < 32)).all(), f"{fj}: body points outside the frame"
+        # Pixels from the mask: at 32 px and 2 AOV samples a thin part's pixel may get no sample on the body, so a
+        # point may land one pixel (a diagonal one included) off the mask; a wrong camera misses by many pixels.
+        from scipy.ndimage import distance_transform_edt
+
+        off = distance_transform_edt(~mask)[w, u]
+        assert off.max() <= 1.5 and (off == 0).mean() > 0.85, f"{fj}: body points up to {off.max():.1f} px off"
+        if any(n.endswith("_depth.exr") for n in meta["files"]):
             depth = read_exr(fj.with_name(fj.stem + "_depth.exr"))
             assert depth[mask].min() > 0 and depth[mask].max() < pc[:, 2].max() + 0.2
 
