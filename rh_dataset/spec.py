@@ -14,6 +14,7 @@ from typing import Any
 
 from rh_common.imageio import dumps_json, sha256_file
 
+from .rig import CameraRig, parse_rig
 from .scene_files import SCENES_DIR, SpecError, _check_keys
 
 __all__ = [
@@ -101,28 +102,6 @@ class OlatSpec:
         from rh_dataset.lights.olat import olat_directions
 
         return len(olat_directions(self.directions))
-
-
-@dataclass(frozen=True)
-class CameraRig:
-    """Several calibrated cameras per frame (protocol c; `rh_common.camera.orbit_cameras`): view k sits on an orbit
-    about the centre of the subject's framed box at azimuth `views[k][0]` degrees (0 = the single camera of protocols
-    a and b, in front of the body on -Y; counter-clockwise seen from above) and elevation `views[k][1]` degrees
-    (positive: above, looking down), every view at one distance per subject that frames the box in all of them."""
-
-    views: tuple[tuple[float, float], ...]
-
-    def __post_init__(self) -> None:
-        if not self.views:
-            raise SpecError("cameras: views must list at least one [azimuth_deg, elevation_deg]")
-        for k, v in enumerate(self.views):
-            if not (isinstance(v, tuple) and len(v) == 2 and all(isinstance(x, (int, float))
-                                                                 and not isinstance(x, bool) for x in v)):
-                raise SpecError(f"cameras: view {k} must be [azimuth_deg, elevation_deg], got {v!r}")
-            if not -80.0 <= v[1] <= 80.0:
-                raise SpecError(f"cameras: view {k} elevation {v[1]} must be within [-80, 80] degrees")
-        if len(set(self.views)) != len(self.views):
-            raise SpecError("cameras: two views share an azimuth and elevation")
 
 
 @dataclass(frozen=True)
@@ -353,7 +332,6 @@ class ProtocolSpec:
 _PROTOCOL_KEYS = {"format", "name", "protocol", "description", "subjects", "character_pool", "resolution",
                   "fov_y_deg", "splits", "lights", "cameras"}
 _SPLIT_KEYS = {"frames", "poses", "light", "layers", "motion", "scene_class", "olat", "cameras"}
-_CAMERAS_KEYS = {"views"}
 _MOTION_KEYS = {"file", "start", "stride", "heading", "in_place"}
 _OLAT_KEYS = {"directions", "radius_deg", "colour"}
 _LIGHT_KEYS = {"sunsky", "exposure_ev_range", "hdri_folder", "mixture"}
@@ -408,16 +386,7 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
                                     cameras=tuple(cameras) if cameras is not None else None))
         except SpecError as exc:
             raise SpecError(f"{where}: {exc}") from None
-    rig = None
-    if "cameras" in data:
-        _check_keys(f"{where}: cameras", data["cameras"], _CAMERAS_KEYS, _CAMERAS_KEYS)
-        views = data["cameras"]["views"]
-        if not isinstance(views, list):
-            raise SpecError(f"{where}: cameras: views must be a list of [azimuth_deg, elevation_deg]")
-        try:
-            rig = CameraRig(tuple(tuple(v) if isinstance(v, list) else v for v in views))
-        except SpecError as exc:
-            raise SpecError(f"{where}: {exc}") from None
+    rig = parse_rig(where, data["cameras"]) if "cameras" in data else None
     lights = data.get("lights", {})
     _check_keys(f"{where}: lights", lights, _LIGHT_KEYS, set())
     return ProtocolSpec(

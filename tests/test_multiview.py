@@ -33,6 +33,24 @@ def test_protocol_c_has_ten_training_and_six_held_out_views_with_the_same_poses(
         assert "rig" not in d and all("cameras" not in s for s in d["splits"])
 
 
+def test_held_out_frames_show_the_training_pose_under_the_training_or_a_novel_light(tmp_path):
+    from rh_dataset.generate.frames import light_for
+    from rh_dataset.generate.plan import DatasetPlan, light_library, pose_frame
+    from rh_dataset.render.scene import RenderSettings
+
+    spec = load_protocol("c")
+    plan = DatasetPlan(out=tmp_path, spec=spec, settings=RenderSettings())
+    lib = light_library(spec)
+    train = [light_for(plan, spec.split("train"), 0, i, lib).spec for i in (0, 7)]
+    assert train[0] == train[1]  # one fixed light per subject
+    for i in (0, 7):
+        assert pose_frame(spec, spec.split("novel_view"), i) == (spec.split("train"), i)
+        assert pose_frame(spec, spec.split("test"), i) == (spec.split("train"), i)
+        assert light_for(plan, spec.split("novel_view"), 0, i, lib).spec == train[0]
+    novel = [light_for(plan, spec.split("test"), 0, i, lib).spec for i in range(4)]
+    assert all(n != train[0] for n in novel) and len({(n.name, n.rotation_deg) for n in novel}) == 4
+
+
 def _scene(tmp_path: Path, **edit) -> str:
     data = json.loads((Path(load_protocol("c").source)).read_text())
     for k, v in edit.items():
