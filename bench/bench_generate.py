@@ -7,11 +7,11 @@
 Renders frame 0 of subject 0's test split of protocol a (a random pose under a random bundled HDRI, every test
 layer: beauty pass + AOV pass) with `rh_dataset.generate.render_frame_to_disk`, the function the local and Ray
 backends call, into a temporary folder (`--split` another split; a multi-view split's frame is every camera of it,
-`protocol c`: the seconds are the frame's, all views together): the same camera fill, culling, per-split path depth and writer as a
-dataset. Prints a Markdown table of each stage's median seconds. The first render of each preset is a warm-up (JIT
-compilation, cached on disk afterwards) and is not timed; building the subject is timed once. The kernel columns
-(drjit's kernel history over the timed frames) say whether a frame after the first reuses its kernels: "compiled"
-counts kernels not found in drjit's caches, and their code generation + backend time.
+`protocol c`: the seconds are the frame's, all views together): the same camera fill, culling, per-split path depth
+and writer as a dataset. Prints a Markdown table of each stage's median seconds. The first render of each preset
+is a warm-up (JIT compilation, cached on disk afterwards) and is not timed; building the subject is timed once. The
+kernel columns (drjit's kernel history over the timed frames) say whether a frame after the first reuses its
+kernels: "compiled" counts kernels not found in drjit's caches, and their code generation + backend time.
 """
 from __future__ import annotations
 
@@ -97,7 +97,8 @@ def main() -> None:
             print(f"| {name} | {settings.sampler} | {settings.spp} | {settings.env_spp or '-'} | {settings.aov_spp} | "
                   f"{settings.for_split(split).max_depth} | "
                   f"{med['pose'] + med['light']:.2f} | {med['load']:.2f} | {med['beauty']:.2f} | {med['aov']:.2f} | "
-                  f"{med['meta'] + med['write']:.2f} | {total:.2f} | {n_views * px * settings.spp / med['beauty'] / 1e6:.1f} | "
+                  f"{med['meta'] + med['write']:.2f} | {total:.2f} | "
+                  f"{n_views * px * settings.spp / med['beauty'] / 1e6:.1f} | "
                   f"{len(kernels) / args.repeats:.0f} | {len(compiled) / args.repeats:.1f} | "
                   f"{compile_s / args.repeats:.2f} |", flush=True)
         from rh_common.imageio import read_png

@@ -41,8 +41,9 @@ def _cost(dataset: Path) -> str:
         return "render cost: no complete run in the log"
     n, sec = int(done[-1][0]), float(done[-1][1])
     per_frame = sec / n
-    return (f"render cost (its log, {spec['width']}x{spec['height']}, {ds['protocols']['protocol_c']['render']['preset']}"
-            f" preset, subject build included): {sec:.0f} s for {n} frames = {per_frame:.1f} s per frame of all "
+    preset = ds["protocols"]["protocol_c"]["render"]["preset"]
+    return (f"render cost (its log, {spec['width']}x{spec['height']}, {preset} preset, subject build included): "
+            f"{sec:.0f} s for {n} frames = {per_frame:.1f} s per frame of all "
             f"its cameras, {sec * frames / n / cams:.2f} s per camera-frame ({cams * n // frames} camera-frames)")
 
 

@@ -214,13 +214,13 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
     for gt in ds.frames:
         layers = found.get(gt.key, {})
         if "image" not in layers:
-            missing.append(f"{layout.prediction_file(root, gt.subject, pdir, gt.index, 'image', split=ds.split, view=gt.view)} (or .png): "
-                           f"missing frame")
+            expected = layout.prediction_file(root, gt.subject, pdir, gt.index, "image", split=ds.split, view=gt.view)
+            missing.append(f"{expected} (or .png): missing frame")
             continue
         for name, present in (("albedo", any_albedo), ("normal", any_normal)):
             if present and name not in layers:
-                missing.append(f"{layout.prediction_file(root, gt.subject, pdir, gt.index, name, split=ds.split, view=gt.view)} (or .png): "
-                               f"missing {name} (other frames have one)")
+                expected = layout.prediction_file(root, gt.subject, pdir, gt.index, name, split=ds.split, view=gt.view)
+                missing.append(f"{expected} (or .png): missing {name} (other frames have one)")
         frames.append(PredFrame(gt, layers.get("image"), layers.get("albedo"), layers.get("normal")))
     if missing and not allow_incomplete:
         problems.extend(missing)

@@ -36,7 +36,8 @@ from rh_dataset.poses import ANNY_BONE_LABELS, BodyPose
 
 from .common import FrameRef, axis_angle, client_K, root_motion, save_npy
 
-__all__ = ["CAMERA", "camera_name", "export_frame", "write_annots", "read_annots", "frame_params", "posed_body_vertices"]
+__all__ = ["CAMERA", "camera_name", "export_frame", "write_annots", "read_annots", "frame_params",
+           "posed_body_vertices"]
 
 CAMERA = "Camera_B1"
 PHENOTYPE_ORDER = ("gender", "age", "muscle", "weight", "height", "proportions")
