@@ -320,6 +320,13 @@ def test_verify_oracle_eval_and_zju_export_of_a_generated_protocol_c(tiny_c, tmp
         assert (zju / "subject_000" / "train" / v / "000001.png").is_file()
         assert (zju / "subject_000" / "train" / "mask_cihp" / v / "000001.png").is_file()
     assert sorted(p.name for p in (zju / "subject_000" / "train" / "params").iterdir()) == ["0.npy", "1.npy"]
+    # train + novel_view (same poses, same light) as one capture of every camera, NeuralBody's training_view
+    c = read_annots(zju / "subject_000" / "capture")
+    assert c["rh"]["views"] == ["cam_00", "cam_01", "cam_02"] and c["rh"]["training_view"] == [0, 2]
+    assert len(c["cams"]["K"]) == 3 and all(len(x["ims"]) == 3 for x in c["ims"])
+    test_view = [i for i in range(len(c["cams"]["K"])) if i not in c["rh"]["training_view"]]
+    assert [c["ims"][0]["ims"][i] for i in test_view] == ["cam_01/000000.png"]
+    assert (zju / "subject_000" / "capture" / "mask_cihp" / "cam_01" / "000000.png").is_file()
     from rh_dataset.export.common import ExportError
 
     with pytest.raises(ExportError, match="multi-view"):

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from collections import defaultdict
@@ -131,10 +132,22 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
             files += len(export_frame(f, out, protocol, dataset=dataset, hdri_folder=hdri_folder, ext=usd_ext,
                                       smpl=None if fits is None else fits.usd_mesh(f)))
     if fmt == "zju-mocap":
-        from .zju_mocap import sequence_dir, write_annots
+        from .zju_mocap import CAPTURE, camera_name, capture_splits, export_frame, sequence_dir, write_annots
 
-        for seq in sequences.values():
-            write_annots(sequence_dir(out, seq[0]), seq)
+        together = capture_splits(ds["protocols"][layout.protocol_dir(protocol)]["spec"])
+        if together and {f.split for f in frames} >= set(together):
+            # train + novel_view as one sequence of every camera (NeuralBody's training_view picks the train ones)
+            for f in (f for f in frames if f.split in together):
+                g = dataclasses.replace(f, split=CAPTURE)
+                body = first_view[(f.subject, together[0], f.index)]
+                files += len(export_frame(g, out, protocol, vertices=zju_vertices, body=body is f,
+                                          smpl=None if fits is None or body is not f else fits.zju_params(f),
+                                          smplx=None if fits_x is None or body is not f else fits_x.zju_params(f)))
+                sequences[(f.subject, CAPTURE)].append(g)
+        for (subject, split), seq in sequences.items():
+            training = sorted({camera_name(f) for f in frames if f.subject == subject and f.split == together[0]}) \
+                if split == CAPTURE else None
+            write_annots(sequence_dir(out, seq[0]), seq, training)
             files += 1
     if fmt == "relighting-humans":
         from .relighting_humans import write_readme

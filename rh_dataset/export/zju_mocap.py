@@ -19,7 +19,10 @@ A multi-view split (protocol c) is one sequence with every camera of the split, 
 images of camera `cam_NN` in `cam_NN/`, `mask/cam_NN/`, `mask_cihp/cam_NN/`, the frame records in `rh/cam_NN/`,
 cams K/R/T/D one entry per camera in the order of `annots['rh']['views']`, and ims[i]['ims'] frame i's image from
 each camera in that order (NeuralBody's `training_view` indexes it); params/ and vertices/ once per frame (the body
-is in world coordinates, the same in every view).
+is in world coordinates, the same in every view). Protocol c's train and novel_view splits show the same poses under
+the same light from the 10 training and the 6 held-out cameras: `<subject>/capture/` holds them together as one
+16-camera sequence, the way ZJU-MoCap's captures are split by NeuralBody (`annots['rh']['training_view']`: the
+train split's cameras, NeuralBody's `cfg.training_view`; the other cameras are its test views).
 
 As in ZJU-MoCap, cams['T'] is in millimetres (NeuralBody divides it by 1000), R/T map world to OpenCV camera
 coordinates, and params/<i>.npy belongs to image <i>.png (NeuralBody parses the index from the file name).
@@ -36,15 +39,26 @@ from rh_dataset.poses import ANNY_BONE_LABELS, BodyPose
 
 from .common import FrameRef, axis_angle, client_K, root_motion, save_npy
 
-__all__ = ["CAMERA", "camera_name", "export_frame", "write_annots", "read_annots", "frame_params",
+__all__ = ["CAMERA", "CAPTURE", "capture_splits", "camera_name", "export_frame", "write_annots", "read_annots", "frame_params",
            "posed_body_vertices"]
 
 CAMERA = "Camera_B1"
+CAPTURE = "capture"
+"""The sequence of protocol c's train split and the splits under its light (novel_view): every camera at once."""
 PHENOTYPE_ORDER = ("gender", "age", "muscle", "weight", "height", "proportions")
 
 
 def sequence_dir(out: Path, f: FrameRef) -> Path:
     return Path(out) / f.subject / f.split
+
+
+def capture_splits(spec: dict) -> list[str]:
+    """The splits of a dataset.json spec that form one multi-camera capture: a multi-view train split and every
+    split showing its poses under its light from other cameras (protocol c: train, novel_view); [] if none."""
+    splits = spec.get("splits", [])
+    held = [s["name"] for s in splits if s.get("cameras") and s["light"] == "train" and s["poses"] == "train"]
+    has_train = any(s["name"] == "train" and s.get("cameras") for s in splits)
+    return ["train", *held] if held and has_train else []
 
 
 def camera_name(f: FrameRef) -> str:
@@ -134,9 +148,10 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, vertices: bool = True
     return written
 
 
-def write_annots(seq_dir: Path, frames: list[FrameRef]) -> Path:
+def write_annots(seq_dir: Path, frames: list[FrameRef], training: list[str] | None = None) -> Path:
     """annots.npy of one sequence from its frames: one camera (the subject's), or every camera of a multi-view
-    split, each frame seen by all of them."""
+    split, each frame seen by all of them. `training`: the cameras a method trains on (the capture sequence),
+    recorded as their indices in `annots['rh']['training_view']`."""
     if not frames:
         raise ValueError(f"{seq_dir}: no frames")
     views = sorted({camera_name(f) for f in frames})
@@ -164,6 +179,8 @@ def write_annots(seq_dir: Path, frames: list[FrameRef]) -> Path:
     }
     if frames[0].view is not None:
         annots["rh"]["views"] = views  # the camera of each cams entry and ims position (multi-view only)
+    if training is not None:
+        annots["rh"]["training_view"] = [views.index(v) for v in training]
     path = Path(seq_dir) / "annots.npy"
     save_npy(path, annots)
     return path
