@@ -39,8 +39,8 @@ from rh_dataset.poses import ANNY_BONE_LABELS, BodyPose
 
 from .common import FrameRef, axis_angle, client_K, root_motion, save_npy
 
-__all__ = ["CAMERA", "CAPTURE", "capture_splits", "camera_name", "export_frame", "write_annots", "read_annots", "frame_params",
-           "posed_body_vertices"]
+__all__ = ["CAMERA", "CAPTURE", "capture_splits", "camera_name", "export_frame", "write_annots", "read_annots",
+           "frame_params", "posed_body_vertices"]
 
 CAMERA = "Camera_B1"
 CAPTURE = "capture"
