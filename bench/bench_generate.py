@@ -2,14 +2,16 @@
 
     python bench/bench_generate.py [--resolution 512] [--presets draft standard reference] [--repeats 2]
     python bench/bench_generate.py --presets standard --also standard:independent:128::16   # before/after, one run
+    python bench/bench_generate.py --protocol c --split test --resolution 128 --presets draft  # one frame, 6 views
 
 Renders frame 0 of subject 0's test split of protocol a (a random pose under a random bundled HDRI, every test
 layer: beauty pass + AOV pass) with `rh_dataset.generate.render_frame_to_disk`, the function the local and Ray
-backends call, into a temporary folder: the same camera fill, culling, per-split path depth and writer as a
-dataset. Prints a Markdown table of each stage's median seconds. The first render of each preset is a warm-up (JIT
-compilation, cached on disk afterwards) and is not timed; building the subject is timed once. The kernel columns
-(drjit's kernel history over the timed frames) say whether a frame after the first reuses its kernels: "compiled"
-counts kernels not found in drjit's caches, and their code generation + backend time.
+backends call, into a temporary folder (`--split` another split; a multi-view split's frame is every camera of it,
+`protocol c`: the seconds are the frame's, all views together): the same camera fill, culling, per-split path depth
+and writer as a dataset. Prints a Markdown table of each stage's median seconds. The first render of each preset
+is a warm-up (JIT compilation, cached on disk afterwards) and is not timed; building the subject is timed once. The
+kernel columns (drjit's kernel history over the timed frames) say whether a frame after the first reuses its
+kernels: "compiled" counts kernels not found in drjit's caches, and their code generation + backend time.
 """
 from __future__ import annotations
 
@@ -33,6 +35,7 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--protocol", default="a")
+    p.add_argument("--split", default="test")
     p.add_argument("--also", nargs="*", default=[],
                    help="extra rows preset:sampler:spp[:env_spp[:aov_spp]] (a preset with those overrides; no or empty "
                         "env_spp: every pixel at spp), e.g. standard:independent:128::16 for the settings before "
@@ -46,7 +49,8 @@ def main() -> None:
 
     variant = select_variant(None)
     spec = load_protocol(args.protocol).with_overrides(subjects=1, resolution=(args.resolution, args.resolution))
-    split = spec.split("test")
+    split = spec.split(args.split)
+    n_views = len(split.cameras) if split.cameras is not None else 1
     with tempfile.TemporaryDirectory(prefix="bench_generate_") as tmp:
         plan = resolve_plan(DatasetPlan(out=Path(tmp), spec=spec, settings=render_settings(args.presets[0]),
                                         seed=args.seed))
@@ -62,7 +66,7 @@ def main() -> None:
         print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average "
               f"{' '.join(Path('/proc/loadavg').read_text().split()[:3]) if Path('/proc/loadavg').exists() else '?'}"
               f"; Mitsuba variant {variant}; {tris} triangles before culling{hair}; {args.resolution}x{args.resolution}; "
-              f"protocol {spec.protocol} {split.name} split ({split.scene_class})")
+              f"protocol {spec.protocol} {split.name} split ({split.scene_class}), {n_views} camera(s) per frame")
         print(f"subject (build character, frame camera) {t_subject:.2f} s\n")
         import drjit as dr
 
@@ -93,7 +97,8 @@ def main() -> None:
             print(f"| {name} | {settings.sampler} | {settings.spp} | {settings.env_spp or '-'} | {settings.aov_spp} | "
                   f"{settings.for_split(split).max_depth} | "
                   f"{med['pose'] + med['light']:.2f} | {med['load']:.2f} | {med['beauty']:.2f} | {med['aov']:.2f} | "
-                  f"{med['meta'] + med['write']:.2f} | {total:.2f} | {px * settings.spp / med['beauty'] / 1e6:.1f} | "
+                  f"{med['meta'] + med['write']:.2f} | {total:.2f} | "
+                  f"{n_views * px * settings.spp / med['beauty'] / 1e6:.1f} | "
                   f"{len(kernels) / args.repeats:.0f} | {len(compiled) / args.repeats:.1f} | "
                   f"{compile_s / args.repeats:.2f} |", flush=True)
         from rh_common.imageio import read_png

@@ -52,7 +52,8 @@ def predict_oracle(dataset: str | Path, protocol: str, out: str | Path, split: s
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="rana-oracle", description=__doc__.strip().splitlines()[0])
     p.add_argument("--dataset", required=True, type=Path, help="dataset folder made by rh-generate")
-    p.add_argument("--protocol", default="a", choices=["a", "b"], help="which protocol's test split")
+    p.add_argument("--protocol", default="a", choices=["a", "b", "c"],
+                   help="which protocol's test split (c: multi-view, every held-out camera)")
     p.add_argument("--split", default="test",
                    help="the split to predict (default: test; e.g. olat): predictions go to <out>/<subject>/"
                         "protocol_<p>/<split>/, what rh-eval --split reads")

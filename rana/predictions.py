@@ -2,7 +2,8 @@
 
 In: the frames of a dataset's scored split (`test`, or another such as `olat`; read through `rh_common.layout`)
     and a method's float arrays per frame.
-Out: `<out>/method.json` and `<out>/<subject>/protocol_<p>/<split>/frame_%06d_{image,albedo,normal}.exr`.
+Out: `<out>/method.json` and `<out>/<subject>/protocol_<p>/<split>/frame_%06d_{image,albedo,normal}.exr` (in the
+frame's camera folder `<split>/cam_NN/` for a multi-view split, as in the dataset).
 """
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ class TestFrame:
     split_dir: Path
     meta: dict
     split: str = layout.TEST_SPLIT  # which split it belongs to: its predictions go to the folder of that name
+    view: str | None = None  # a multi-view split's camera (cam_NN): its predictions go to that camera's folder
 
     def layer_path(self, layer: str, ext: str = "exr") -> Path:
         return self.split_dir / layout.layer_file_name(self.index, layer, ext)
@@ -50,7 +52,7 @@ def iter_test_frames(dataset: str | Path, protocol: str, split: str = layout.TES
                                 f"`rh-generate --protocol {protocol} --out {root}`")
     for p in paths:
         record = layout.read_frame_record(p)
-        yield TestFrame(record.subject, record.protocol, record.index, p.parent, record.to_json(), split)
+        yield TestFrame(record.subject, record.protocol, record.index, p.parent, record.to_json(), split, record.view)
 
 
 class PredictionWriter:
@@ -68,7 +70,7 @@ class PredictionWriter:
             if arr is None:
                 continue
             path = layout.prediction_file(self.out, frame.subject, frame.protocol, frame.index, layer, "exr",
-                                          split=frame.split)
+                                          split=frame.split, view=frame.view)
             arr = np.asarray(arr, dtype=np.float32)
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"{path}: prediction has NaN/Inf")

@@ -1,6 +1,7 @@
 """Pinhole camera: intrinsics, OpenCV extrinsics, projection, the frame JSON's `camera` block, and framing a body.
 
-In: resolution, vertical field of view, origin/target/up (or a body's bounding box for `frame_body`). Out: `K`,
+In: resolution, vertical field of view, origin/target/up (or a body's bounding box for `frame_body`, and a list of
+(azimuth, elevation) views for `orbit_cameras`, protocol c's rig). Out: `K`,
 `world_to_camera` and friends as numpy arrays. Conventions are in docs/ARCHITECTURE.md ("Camera model").
 Why in rh_common: a dataset's camera is part of its format, written by the path-traced generator and by RANA's
 synthetic datasets alike. The Mitsuba sensor that renders exactly this camera is the generator's
@@ -13,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Camera", "frame_body"]
+__all__ = ["Camera", "frame_body", "orbit_cameras"]
 
 
 @dataclass(frozen=True)
@@ -106,3 +107,51 @@ def frame_body(bounds_min: np.ndarray, bounds_max: np.ndarray, width: int, heigh
     origin = (float(centre[0]), float(centre[1] - dist), float(centre[2]))
     return Camera(width=width, height=height, fov_y_deg=float(fov_y_deg), origin=origin,
                   target=(float(centre[0]), float(centre[1]), float(centre[2])))
+
+
+def _fits(cam: Camera, points: np.ndarray, fill: float) -> bool:
+    """Every point in front of the camera and inside the central `fill` fraction of the frame (both axes)."""
+    pc = points @ cam.world_to_camera[:3, :3].T + cam.world_to_camera[:3, 3]
+    if np.any(pc[:, 2] <= 1e-6):
+        return False
+    uv = cam.project(points)
+    half = np.array([cam.width, cam.height]) / 2.0
+    return bool(np.all(np.abs(uv - half) <= fill * half))
+
+
+def _orbit(centre: np.ndarray, azimuth_deg: float, elevation_deg: float, dist: float, width: int, height: int,
+           fov_y_deg: float) -> Camera:
+    az, el = math.radians(azimuth_deg), math.radians(elevation_deg)
+    # azimuth 0 is frame_body's camera (on -Y); counter-clockwise seen from above (+Z)
+    d = np.array([math.sin(az) * math.cos(el), -math.cos(az) * math.cos(el), math.sin(el)])
+    origin = centre + dist * d
+    return Camera(width=width, height=height, fov_y_deg=float(fov_y_deg),
+                  origin=tuple(float(x) for x in origin), target=tuple(float(x) for x in centre))
+
+
+def orbit_cameras(bounds_min: np.ndarray, bounds_max: np.ndarray, width: int, height: int, fov_y_deg: float,
+                  views, fill: float = 0.85) -> list[Camera]:
+    """One camera per (azimuth_deg, elevation_deg) of `views`, all looking at the box's centre from one distance:
+    the smallest (to 0.1%) at which the box, turned to any heading about the vertical (its enclosing vertical
+    cylinder), projects inside the central `fill` of the frame in every view. Azimuth 0, elevation 0 points the
+    way `frame_body`'s camera does; azimuth turns counter-clockwise seen from above; elevation > 0 looks down."""
+    lo = np.asarray(bounds_min, dtype=np.float64)
+    hi = np.asarray(bounds_max, dtype=np.float64)
+    centre = 0.5 * (lo + hi)
+    r = 0.5 * math.hypot(hi[0] - lo[0], hi[1] - lo[1])
+    t = np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False)
+    rp = r / math.cos(math.pi / len(t))  # a polygon around the circle, not inside it: the fit errs on the safe side
+    ring = np.stack([centre[0] + rp * np.cos(t), centre[1] + rp * np.sin(t)], axis=1)
+    points = np.concatenate([np.column_stack([ring, np.full(len(t), z)]) for z in (lo[2], hi[2])])
+    dist = 0.0
+    for az, el in views:
+        near = r * 1.001  # inside the cylinder nothing fits; far enough, everything does
+        far = near * 2.0
+        while not _fits(_orbit(centre, az, el, far, width, height, fov_y_deg), points, fill):
+            far *= 2.0
+        while far - near > 1e-3 * far:
+            mid = 0.5 * (near + far)
+            near, far = (near, mid) if _fits(_orbit(centre, az, el, mid, width, height, fov_y_deg), points,
+                                             fill) else (mid, far)
+        dist = max(dist, far)
+    return [_orbit(centre, float(az), float(el), dist, width, height, fov_y_deg) for az, el in views]

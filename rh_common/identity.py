@@ -5,8 +5,9 @@ frames into a split and splits into a dataset (`combine`). docs/ARCHITECTURE.md,
 
 A frame's digest covers
 - its semantic record: `subject`, `protocol`, `split`, `index`, `width`, `height`, `exposure`, `camera`, `body`,
-  `light` as canonical JSON (sorted keys, no spaces, floats as Python writes them back: the shortest repr that
-  reads back the same double, which is what `rh_common.imageio.write_json` wrote);
+  `light` (and `view`, the camera of a multi-view frame, where there is one) as canonical JSON (sorted keys, no
+  spaces, floats as Python writes them back: the shortest repr that reads back the same double, which is what
+  `rh_common.imageio.write_json` wrote);
 - every file it lists, decoded (EXR: float32, PNG: its stored integers), as canonical array bytes: the file name, dtype
   (little-endian), shape, then the values in C order.
 Not covered: `versions` (what ran: recorded, and two package sets that give the same pixels give the same
@@ -30,7 +31,8 @@ __all__ = ["IDENTITY_FORMAT", "SEMANTIC_KEYS", "canonical_json", "array_bytes", 
            "combine"]
 
 IDENTITY_FORMAT = "rh-content/1"
-SEMANTIC_KEYS = ("subject", "protocol", "split", "index", "width", "height", "exposure", "camera", "body", "light")
+SEMANTIC_KEYS = ("subject", "protocol", "split", "index", "width", "height", "exposure", "camera", "body", "light",
+                 "view")  # "view": a multi-view frame's camera; absent from protocols a and b (their digests unchanged)
 
 
 def canonical_json(obj: Any) -> bytes:

@@ -1,4 +1,4 @@
-"""`rh-generate`: path-trace a Relighting Humans dataset (protocol a or b) into a folder, resumably."""
+"""`rh-generate`: path-trace a Relighting Humans dataset (protocol a, b or c) into a folder, resumably."""
 from __future__ import annotations
 
 import argparse
@@ -34,12 +34,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--protocol", default="a",
                    help="'a' (train: A-pose turntable under one light; test: random poses and lights), 'b' (train: "
-                        "random poses under one light; test: the same poses under other lights), a scene name in "
+                        "random poses under one light; test: the same poses under other lights), 'c' (multi-view: "
+                        "train: 10 cameras under one light; novel_view, test: 6 held-out cameras under that light "
+                        "and under other lights), a scene name in "
                         "rh_dataset/scenes/ (e.g. 'demo'), or the path of a scene JSON file")
     p.add_argument("--out", required=True, type=Path,
                    help="dataset folder; several protocols may share one folder")
     p.add_argument("--subjects", type=int, default=None,
-                   help="number of subjects (default: the protocol's, 49 for a and b)")
+                   help="number of subjects (default: the protocol's, 49 for a and b, 10 for c)")
     p.add_argument("--frames", type=int, default=None,
                    help="cap on frames per split, for small runs (default: the protocol's, e.g. 100 train / 150 test)")
     p.add_argument("--resolution", type=_resolution, default=None,

@@ -59,9 +59,9 @@ def frames_finished(plan) -> tuple[int, int]:
     done = total = 0
     for s in range(plan.spec.subjects):
         for split in plan.spec.splits:
-            d = plan.split_dir(s, split.name)
-            total += split.frames
-            done += sum(layout.frame_json_path(d, i).is_file() for i in range(split.frames))
+            for _, d in plan.view_dirs(s, split):  # a multi-view split: every camera's frames
+                total += split.frames
+                done += sum(layout.frame_json_path(d, i).is_file() for i in range(split.frames))
     return done, total
 
 
@@ -70,11 +70,11 @@ def remaining_bytes(plan) -> int:
     total = 0
     for s in range(plan.spec.subjects):
         for split in plan.spec.splits:
-            d = plan.split_dir(s, split.name)
-            missing = sum(not layout.frame_json_path(d, i).is_file() for i in range(split.frames))
-            if missing:
-                total += missing * frame_bytes(split.layers, plan.spec.width, plan.spec.height)
-                total += FIXED_BYTES["contact_sheet"]
+            for _, d in plan.view_dirs(s, split):
+                missing = sum(not layout.frame_json_path(d, i).is_file() for i in range(split.frames))
+                if missing:
+                    total += missing * frame_bytes(split.layers, plan.spec.width, plan.spec.height)
+                    total += FIXED_BYTES["contact_sheet"]
     return int(total * MARGIN)
 
 

@@ -14,6 +14,7 @@ from typing import Any
 
 from rh_common.imageio import dumps_json, sha256_file
 
+from .rig import CameraRig, parse_rig
 from .scene_files import SCENES_DIR, SpecError, _check_keys
 
 __all__ = [
@@ -22,6 +23,7 @@ __all__ = [
     "SplitSpec",
     "MotionSpec",
     "OlatSpec",
+    "CameraRig",
     "CharacterSource",
     "ProtocolSpec",
     "load_protocol",
@@ -30,7 +32,7 @@ __all__ = [
 
 
 POSE_SOURCES = ("turntable", "random", "train", "test", "motion")
-LIGHT_SOURCES = ("fixed", "random", "olat")
+LIGHT_SOURCES = ("fixed", "random", "olat", "train")
 KNOWN_LAYERS = ("image", "mask", "albedo", "normal", "depth")
 
 
@@ -110,8 +112,8 @@ class SplitSpec:
     """turntable (A-pose, 360 degrees), random (pose prior), train or test (the same poses as this protocol's train
     or test split)."""
     light: str
-    """fixed (one light for the whole split), random (a new light per frame) or olat (each pose under each of the
-    `olat` block's directions)."""
+    """fixed (one light for the whole split), random (a new light per frame), olat (each pose under each of the
+    `olat` block's directions) or train (frame i under the train split's light of frame i: its one fixed light)."""
     layers: tuple[str, ...]
     motion: MotionSpec | None = None
     """The captured motion when poses is 'motion' (None otherwise)."""
@@ -123,6 +125,9 @@ class SplitSpec:
     resumed run refuses to mix depths). None for splits that do not path-trace."""
     olat: OlatSpec | None = None
     """The OLAT lights when light is 'olat' (None otherwise)."""
+    cameras: tuple[int, ...] | None = None
+    """Views of the protocol's camera rig this split renders (indices into `CameraRig.views`), every frame from
+    each of them; None: the protocol's one camera per subject (protocols a and b)."""
 
     @property
     def path_traced(self) -> bool:
@@ -142,6 +147,9 @@ class SplitSpec:
         if (self.light == "olat") != (self.olat is not None):
             raise SpecError(f"split {self.name}: light 'olat' and an 'olat' block go together (got light "
                             f"{self.light!r} {'with' if self.olat else 'without'} an olat block)")
+        if self.cameras is not None and (not self.cameras or len(set(self.cameras)) != len(self.cameras) or any(
+                isinstance(c, bool) or not isinstance(c, int) or c < 0 for c in self.cameras)):
+            raise SpecError(f"split {self.name}: cameras must be distinct view indices (>= 0), got {self.cameras!r}")
         bad = [x for x in self.layers if x not in KNOWN_LAYERS]
         if bad or not self.layers:
             raise SpecError(f"split {self.name}: layers must be a non-empty subset of {KNOWN_LAYERS}, got {bad or '[]'}")
@@ -200,11 +208,16 @@ class ProtocolSpec:
     'fixed' lights (the training light) never use it, so a mixed scene's train split is its protocol's."""
     character: CharacterSource | None = None
     """An imported character for every subject instead of anny characters; None = anny (the default)."""
+    rig: CameraRig | None = None
+    """Several cameras per frame (protocol c): every split names the views it renders; None = one camera."""
     source: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
-        if self.protocol not in ("a", "b"):
-            raise SpecError(f"{self.source or self.name}: protocol must be 'a' or 'b', got {self.protocol!r}")
+        where = self.source or self.name
+        if self.protocol not in ("a", "b", "c"):
+            raise SpecError(f"{where}: protocol must be 'a', 'b' or 'c', got {self.protocol!r}")
+        if (self.protocol == "c") != (self.rig is not None):
+            raise SpecError(f"{where}: protocol 'c' (multi-view) and a 'cameras' block go together")
         if not isinstance(self.subjects, int) or self.subjects < 1:
             raise SpecError(f"{self.source or self.name}: subjects must be a positive integer, got {self.subjects!r}")
         for dim in ("width", "height"):
@@ -218,6 +231,18 @@ class ProtocolSpec:
         if len(set(names)) != len(names) or not names:
             raise SpecError(f"{self.source or self.name}: split names must be unique and non-empty: {names}")
         for s in self.splits:
+            if (s.cameras is None) != (self.rig is None):
+                raise SpecError(f"{where}: split {s.name}: a protocol with a 'cameras' block names each split's "
+                                f"cameras, one without names none")
+            if s.cameras is not None and max(s.cameras) >= len(self.rig.views):
+                raise SpecError(f"{where}: split {s.name}: camera {max(s.cameras)} is not a view of the rig (it has "
+                                f"{len(self.rig.views)}: 0..{len(self.rig.views) - 1})")
+            if s.light == "train":
+                if "train" not in names or names.index("train") >= names.index(s.name) or s.poses != "train":
+                    raise SpecError(f"{where}: split {s.name}: light 'train' needs a train split before it and poses "
+                                    f"'train' (frame i under train's light of frame i)")
+                if self.split("train").light not in ("fixed", "random"):
+                    raise SpecError(f"{where}: split {s.name}: light 'train' reuses a fixed or random train light")
             if s.poses in ("train", "test"):
                 if s.poses not in names or names.index(s.poses) >= names.index(s.name):
                     raise SpecError(f"split {s.name}: poses {s.poses!r} needs a {s.poses} split before it")
@@ -286,10 +311,14 @@ class ProtocolSpec:
             d.pop("character")
         if d["light_mixture"] is None:  # datasets without a mixture keep the description (and digest) they had
             d.pop("light_mixture")
+        if d["rig"] is None:  # single-camera protocols keep the description (and digest) they had
+            d.pop("rig")
         d["splits"] = [dataclasses.asdict(s) for s in self.splits]
         for split, out in zip(self.splits, d["splits"]):
             if split.olat is None:
                 out.pop("olat")  # splits without OLAT lights keep the record (and digest) they always had
+            if split.cameras is None:
+                out.pop("cameras")
             if split.motion is None:
                 out.pop("motion")  # datasets without motion keep the record (and digest) they always had
             else:
@@ -301,8 +330,8 @@ class ProtocolSpec:
 
 
 _PROTOCOL_KEYS = {"format", "name", "protocol", "description", "subjects", "character_pool", "resolution",
-                  "fov_y_deg", "splits", "lights"}
-_SPLIT_KEYS = {"frames", "poses", "light", "layers", "motion", "scene_class", "olat"}
+                  "fov_y_deg", "splits", "lights", "cameras"}
+_SPLIT_KEYS = {"frames", "poses", "light", "layers", "motion", "scene_class", "olat", "cameras"}
 _MOTION_KEYS = {"file", "start", "stride", "heading", "in_place"}
 _OLAT_KEYS = {"directions", "radius_deg", "colour"}
 _LIGHT_KEYS = {"sunsky", "exposure_ev_range", "hdri_folder", "mixture"}
@@ -310,7 +339,7 @@ _LIGHT_KEYS = {"sunsky", "exposure_ev_range", "hdri_folder", "mixture"}
 
 def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
     where = str(path)
-    _check_keys(where, data, _PROTOCOL_KEYS, _PROTOCOL_KEYS - {"description", "lights"})
+    _check_keys(where, data, _PROTOCOL_KEYS, _PROTOCOL_KEYS - {"description", "lights", "cameras"})
     if data["format"] != "rh-scene/1":
         raise SpecError(f"{where}: format must be 'rh-scene/1', got {data['format']!r}")
     res = data["resolution"]
@@ -320,7 +349,11 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
     if not isinstance(data["splits"], dict):
         raise SpecError(f"{where}: splits must be an object of split name -> split")
     for name, s in data["splits"].items():
-        _check_keys(f"{where}: split {name}", s, _SPLIT_KEYS, _SPLIT_KEYS - {"motion", "scene_class", "olat"})
+        _check_keys(f"{where}: split {name}", s, _SPLIT_KEYS, _SPLIT_KEYS - {"motion", "scene_class", "olat",
+                                                                              "cameras"})
+        cameras = s.get("cameras")
+        if cameras is not None and not isinstance(cameras, list):
+            raise SpecError(f"{where}: split {name}: cameras must be a list of view indices, got {cameras!r}")
         motion = None
         if "motion" in s:
             m = s["motion"]
@@ -346,9 +379,14 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
                 olat = OlatSpec(**o)
             except SpecError as exc:
                 raise SpecError(f"{where}: split {name}: {exc}") from None
-        splits.append(SplitSpec(name=name, frames=s["frames"], poses=s["poses"], light=s["light"],
-                                layers=tuple(s["layers"]), motion=motion, scene_class=cls,
-                                max_depth=classes[cls].max_depth if cls is not None else None, olat=olat))
+        try:
+            splits.append(SplitSpec(name=name, frames=s["frames"], poses=s["poses"], light=s["light"],
+                                    layers=tuple(s["layers"]), motion=motion, scene_class=cls,
+                                    max_depth=classes[cls].max_depth if cls is not None else None, olat=olat,
+                                    cameras=tuple(cameras) if cameras is not None else None))
+        except SpecError as exc:
+            raise SpecError(f"{where}: {exc}") from None
+    rig = parse_rig(where, data["cameras"]) if "cameras" in data else None
     lights = data.get("lights", {})
     _check_keys(f"{where}: lights", lights, _LIGHT_KEYS, set())
     return ProtocolSpec(
@@ -356,7 +394,7 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
         subjects=data["subjects"], character_pool=data["character_pool"], width=res[0], height=res[1],
         fov_y_deg=float(data["fov_y_deg"]), splits=tuple(splits), sunsky=bool(lights.get("sunsky", False)),
         exposure_ev_range=tuple(lights.get("exposure_ev_range", (-0.5, 0.5))),
-        hdri_folder=lights.get("hdri_folder"), light_mixture=lights.get("mixture"), source=where,
+        hdri_folder=lights.get("hdri_folder"), light_mixture=lights.get("mixture"), rig=rig, source=where,
     )
 
 
@@ -368,11 +406,11 @@ def load_protocol(name_or_path: str) -> ProtocolSpec:
     """Load `rh_dataset/scenes/<name>.json` ('a' and 'b' are short for protocol_a/protocol_b) or a path to a JSON
     file of the user's own."""
     known = available_protocols()
-    aliases = {"a": "protocol_a", "b": "protocol_b"}
+    aliases = {"a": "protocol_a", "b": "protocol_b", "c": "protocol_c"}
     key = aliases.get(name_or_path, name_or_path)
     path = known.get(key) or Path(name_or_path)
     if not path.is_file():
-        raise SpecError(f"unknown protocol {name_or_path!r}: choose one of {sorted(['a', 'b', *known])} "
+        raise SpecError(f"unknown protocol {name_or_path!r}: choose one of {sorted(['a', 'b', 'c', *known])} "
                         f"or pass the path of a scene JSON file")
     try:
         data = json.loads(path.read_text())

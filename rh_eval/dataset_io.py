@@ -2,11 +2,12 @@
 docs/ARCHITECTURE.md (names and frame records through `rh_common.layout`), with every check that keeps a bad
 prediction set from producing a silently different score.
 
-Ground truth, per frame (`<dataset>/<subject>/protocol_<p>/<split>/`): `frame_%06d.json` (complete frames only:
-the JSON is written last) with `exposure`, `width`, `height`; layers `frame_%06d_{image.exr, mask.png,
-albedo.exr, normal.exr}`.
+Ground truth, per frame (`<dataset>/<subject>/protocol_<p>/<split>/`, or `<split>/cam_NN/` for each camera of a
+multi-view split, protocol c): `frame_%06d.json` (complete frames only: the JSON is written last) with `exposure`,
+`width`, `height`; layers `frame_%06d_{image.exr, mask.png, albedo.exr, normal.exr}`.
 
-Predictions (`<pred>/<subject>/protocol_<p>/<split>/frame_%06d_{image,albedo,normal}.{exr,png}`): the image is
+Predictions (`<pred>/<subject>/protocol_<p>/<split>/[cam_NN/]frame_%06d_{image,albedo,normal}.{exr,png}`, the
+camera folder exactly where the dataset has one): the image is
 required, albedo and normal optional but all-or-none across the frames. Refused, with the file named: a missing
 frame (unless `allow_incomplete`), an extra or unrecognised file, a layer given both as EXR and PNG, a wrong
 resolution, a wrong channel count, NaN/Inf, a PNG that is not 8-bit RGB/RGBA (16-bit, grey, palette), an
@@ -72,10 +73,12 @@ class GTFrame:
     width: int
     height: int
     exposure: float
+    view: str | None = None
+    """The camera (cam_NN) of a multi-view split's frame; None for a single-camera split."""
 
     @property
     def key(self) -> str:
-        return f"{self.subject}/{layout.frame_stem(self.index)}"
+        return layout.frame_key(self.subject, self.index, self.view)
 
     def layer(self, name: str) -> Path:
         """`name` is '<layer>.<ext>', e.g. 'image.exr'."""
@@ -131,16 +134,16 @@ def load_dataset(root: str | Path, protocol: str, split: str = layout.TEST_SPLIT
     subjects = sorted(d.name for d in root.iterdir()
                       if d.is_dir() and layout.split_dir(root, d.name, pdir, split).is_dir())
     for subject in subjects:
-        folder = layout.split_dir(root, subject, pdir, split)
-        for jp in sorted(folder.iterdir()):
-            index = layout.frame_index_of(jp.name)
-            if index is None:
-                continue
-            try:
-                rec = layout.read_frame_record(jp)
-            except ValueError as exc:
-                raise ValueError(f"{jp}: not a valid frame record (width, height, exposure, ...): {exc}") from exc
-            frames.append(GTFrame(subject, index, folder, rec.width, rec.height, float(rec.exposure)))
+        for view, folder in layout.frame_folders(layout.split_dir(root, subject, pdir, split)):
+            for jp in sorted(folder.iterdir()):
+                index = layout.frame_index_of(jp.name)
+                if index is None:
+                    continue
+                try:
+                    rec = layout.read_frame_record(jp)
+                except ValueError as exc:
+                    raise ValueError(f"{jp}: not a valid frame record (width, height, exposure, ...): {exc}") from exc
+                frames.append(GTFrame(subject, index, folder, rec.width, rec.height, float(rec.exposure), view))
     if not frames:
         raise FileNotFoundError(f"{root}: no {split} frames for {pdir} "
                                 f"(expected <subject>/{pdir}/{split}/frame_*.json)")
@@ -176,25 +179,34 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
         if entry.name not in ds.subjects:
             problems.append(f"{entry}: unexpected folder (not a subject of the dataset's {pdir} {ds.split} split)")
             continue
+        views = sorted({f.view for f in ds.frames if f.subject == entry.name and f.view is not None})
         test = layout.prediction_dir(root, entry.name, pdir, ds.split)
         if not test.is_dir():
             continue  # counted as missing below
-        for f in sorted(test.iterdir()):
-            if f.name.startswith("."):
-                continue
-            m = _PRED_RE.match(f.name)
-            if not m or not f.is_file():
-                problems.append(f"{f}: unexpected file (expected frame_NNNNNN_{{image,albedo,normal}}.{{exr,png}})")
-                continue
-            key = f"{entry.name}/{layout.frame_stem(int(m.group(1)))}"
-            if key not in by_key:
-                problems.append(f"{f}: extra frame (no ground-truth frame {key} in the {ds.split} split)")
-                continue
-            layers = found.setdefault(key, {})
-            if m.group(2) in layers:
-                problems.append(f"{f}: layer given twice ({layers[m.group(2)].name} and {f.name}); keep one")
-                continue
-            layers[m.group(2)] = f
+        folders = [(None, test)]
+        if views:  # a multi-view split: predictions in the dataset's camera folders, nothing beside them
+            folders = [(v, test / v) for v in views if (test / v).is_dir()]
+            for f in sorted(test.iterdir()):
+                if not f.name.startswith(".") and f.name not in views:
+                    problems.append(f"{f}: unexpected {'folder' if f.is_dir() else 'file'} (this split's "
+                                    f"predictions go in its camera folders: {', '.join(views)})")
+        for view, folder in folders:
+            for f in sorted(folder.iterdir()):
+                if f.name.startswith("."):
+                    continue
+                m = _PRED_RE.match(f.name)
+                if not m or not f.is_file():
+                    problems.append(f"{f}: unexpected file (expected frame_NNNNNN_{{image,albedo,normal}}.{{exr,png}})")
+                    continue
+                key = layout.frame_key(entry.name, int(m.group(1)), view)
+                if key not in by_key:
+                    problems.append(f"{f}: extra frame (no ground-truth frame {key} in the {ds.split} split)")
+                    continue
+                layers = found.setdefault(key, {})
+                if m.group(2) in layers:
+                    problems.append(f"{f}: layer given twice ({layers[m.group(2)].name} and {f.name}); keep one")
+                    continue
+                layers[m.group(2)] = f
     frames: list[PredFrame] = []
     missing: list[str] = []
     any_albedo = any("albedo" in v for v in found.values())
@@ -202,13 +214,13 @@ def scan_predictions(pred_root: str | Path, ds: DatasetIndex, *, allow_incomplet
     for gt in ds.frames:
         layers = found.get(gt.key, {})
         if "image" not in layers:
-            missing.append(f"{layout.prediction_file(root, gt.subject, pdir, gt.index, 'image', split=ds.split)} (or .png): "
-                           f"missing frame")
+            expected = layout.prediction_file(root, gt.subject, pdir, gt.index, "image", split=ds.split, view=gt.view)
+            missing.append(f"{expected} (or .png): missing frame")
             continue
         for name, present in (("albedo", any_albedo), ("normal", any_normal)):
             if present and name not in layers:
-                missing.append(f"{layout.prediction_file(root, gt.subject, pdir, gt.index, name, split=ds.split)} (or .png): "
-                               f"missing {name} (other frames have one)")
+                expected = layout.prediction_file(root, gt.subject, pdir, gt.index, name, split=ds.split, view=gt.view)
+                missing.append(f"{expected} (or .png): missing {name} (other frames have one)")
         frames.append(PredFrame(gt, layers.get("image"), layers.get("albedo"), layers.get("normal")))
     if missing and not allow_incomplete:
         problems.extend(missing)

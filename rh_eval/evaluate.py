@@ -364,6 +364,8 @@ class Evaluator:
         rows = []
         for pf, scores in zip(pred.frames, frames):
             row = {"subject": pf.gt.subject, "frame": pf.gt.index, **scores.columns()}
+            if pf.gt.view is not None:  # a multi-view split's camera (single-camera rows keep their columns)
+                row = {"subject": pf.gt.subject, "view": pf.gt.view, "frame": pf.gt.index, **scores.columns()}
             for c in cols:  # undefined (empty mask) is already None: stored as null, counted, never averaged
                 row.setdefault(c, None)
             rows.append(row)

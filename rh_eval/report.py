@@ -87,7 +87,8 @@ def write_result(out: Path, result: dict, rows: list[dict], cols: list[str], csv
         shutil.rmtree(thumbs_dir_for(out))
     csv_path = Path(csv_path) if csv_path else csv_path_for(out)
     extra = ["albedo_scale"] if any("albedo_scale" in r for r in rows) else []
-    header = ["subject", "frame", "empty_mask"] + cols + extra
+    view = ["view"] if any("view" in r for r in rows) else []  # a multi-view split's camera column
+    header = ["subject", *view, "frame", "empty_mask"] + cols + extra
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)

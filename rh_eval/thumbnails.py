@@ -200,6 +200,7 @@ def collect_thumbnails(frames, rows: list[dict], cols: list[str], fixed: set[str
         scores = {c: ("inf" if isinstance(row.get(c), float) and row[c] == math.inf else row.get(c)) for c in cols}
         out.tiles[k] = t
         out.frames.append({"name": k, "subject": pf.gt.subject, "frame": pf.gt.index, "roles": roles[k],
+                           **({"view": pf.gt.view} if pf.gt.view is not None else {}),
                            "seeded_rank": seeded_rank(pf.gt.subject, pf.gt.index), "scores": scores,
                            "light": light_summary(read_json(pf.gt.json_path).get("light"))})
     return out

@@ -39,7 +39,7 @@ def test_overrides_cap_frames_and_keep_protocol_b_consistent():
 
 @pytest.mark.parametrize("mutate, message", [
     (lambda d: d.update(colour="red"), "unknown key"),
-    (lambda d: d.update(protocol="c"), "protocol must be"),
+    (lambda d: d.update(protocol="d"), "protocol must be"),
     (lambda d: d.update(resolution=[0, 512]), "resolution width"),
     (lambda d: d["splits"]["test"].update(poses="dance"), "poses must be"),
     (lambda d: d["splits"]["test"].update(layers=["image", "beauty"]), "layers"),

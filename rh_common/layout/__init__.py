@@ -14,7 +14,8 @@ from .manifest import (MANIFEST_FORMAT, ManifestEntry, check_entry, content_iden
 from .paths import (CHARACTER_JSON, CONTACT_SHEET, DATASET_JSON, LOG_DIR, MANIFEST_JSON, METHOD_JSON,
                     PREDICTION_FILE_RE, PREDICTION_LAYERS, TEST_SPLIT, frame_index_of, frame_json_name, frame_json_path, frame_stem,
                     iter_frame_jsons, layer_file_name, prediction_dir, prediction_file, protocol_dir, protocol_of,
-                    split_dir, splits_of, subject_index, subject_name)
+                    split_dir, splits_of, subject_index, subject_name, view_name, view_index, view_dir, views_of,
+                    frame_folders, frame_key)
 from .pose import PoseArrays, read_body_pose, rigid_matrix
 from .record import FRAME_FORMAT, FileEntry, FrameRecord, read_frame_record, write_frame_record
 
@@ -22,6 +23,7 @@ __all__ = [
     "CHARACTER_JSON", "CONTACT_SHEET", "DATASET_JSON", "LOG_DIR", "MANIFEST_JSON", "METHOD_JSON", "TEST_SPLIT",
     "subject_name", "subject_index", "protocol_dir", "protocol_of", "split_dir", "frame_stem", "frame_json_name",
     "frame_json_path", "layer_file_name", "frame_index_of", "iter_frame_jsons", "splits_of",
+    "view_name", "view_index", "view_dir", "views_of", "frame_folders", "frame_key",
     "PREDICTION_LAYERS", "PREDICTION_FILE_RE", "prediction_dir", "prediction_file",
     "FRAME_FORMAT", "FileEntry", "FrameRecord", "read_frame_record", "write_frame_record",
     "LAYERS", "layer_files", "write_frame", "frame_is_complete",

@@ -127,7 +127,7 @@ def compare_datasets(a: str | os.PathLike, b: str | os.PathLike, identity_a: dic
             cmp.mismatches.append(f"{rel}: the two frames list other files")
             continue
         fa, fb = frame_arrays(a / rel, ra), frame_arrays(b / rel, rb)
-        split, differs = rel.rsplit("/", 1)[0].split("/", 1)[1], False
+        split, differs = "/".join(rel.split("/")[1:3]), False  # a multi-view split's cameras: one row
         for name, xa in fa.items():
             xb = fb[name]
             d = cmp.layers.setdefault(f"{split}/{name.split('_', 2)[2]}", LayerDiff(is_8bit=xa.dtype == np.uint8))

@@ -19,7 +19,7 @@ from pathlib import Path
 from rh_common import identity as content
 from rh_common.imageio import read_json, sha256_file, write_json
 
-from .paths import LOG_DIR, MANIFEST_JSON, iter_frame_jsons, protocol_dir
+from .paths import LOG_DIR, MANIFEST_JSON, frame_key, iter_frame_jsons, protocol_dir
 
 __all__ = ["MANIFEST_FORMAT", "ManifestEntry", "write_manifest", "read_manifest", "read_identity", "content_identity",
            "split_key", "split_identity", "unlisted_files", "check_entry"]
@@ -55,12 +55,14 @@ def content_identity(root: str | os.PathLike) -> dict:
     by_split: dict[str, dict[str, str]] = {}
     for fj in iter_frame_jsons(root):
         rel = fj.relative_to(root).as_posix()
-        subject, pdir, split = rel.split("/")[:3]
+        parts = rel.split("/")
+        subject, pdir, split = parts[:3]
+        view = parts[3] if len(parts) == 5 else None  # a multi-view split's camera folder
         try:
             frames[rel] = digest = content.frame_digest(fj)
         except (ValueError, KeyError, TypeError, OSError):  # not a frame record, or a layer missing or unreadable:
             continue                                       # rh-verify reports it; it is in no split's identity
-        by_split.setdefault(f"{pdir}/{split}", {})[f"{subject}/{fj.stem}"] = digest
+        by_split.setdefault(f"{pdir}/{split}", {})[frame_key(subject, int(fj.stem[len("frame_"):]), view)] = digest
     splits = {k: {"digest": content.combine(v), "frames": len(v)} for k, v in sorted(by_split.items())}
     return {"format": content.IDENTITY_FORMAT, "dataset": content.combine({k: v["digest"] for k, v in splits.items()}),
             "splits": splits, "frames": frames}

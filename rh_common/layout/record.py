@@ -17,6 +17,7 @@ from typing import Any, Mapping
 
 from rh_common.imageio import read_json, write_json
 
+from .paths import view_index
 from .pose import PoseArrays, read_body_pose
 
 __all__ = ["FRAME_FORMAT", "FileEntry", "FrameRecord", "read_frame_record", "write_frame_record"]
@@ -24,7 +25,8 @@ __all__ = ["FRAME_FORMAT", "FileEntry", "FrameRecord", "read_frame_record", "wri
 FRAME_FORMAT = "rh-frame/1"
 
 _OPTIONAL = ("camera", "body", "light", "render", "versions")
-_KEYS = {"format", "subject", "protocol", "split", "index", "width", "height", "exposure", "files", *_OPTIONAL}
+_KEYS = {"format", "subject", "protocol", "split", "index", "width", "height", "exposure", "files", "view",
+         *_OPTIONAL}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,6 +55,8 @@ class FrameRecord:
     light: Mapping[str, Any] | None = None
     render: Mapping[str, Any] | None = None
     versions: Mapping[str, Any] | None = None
+    view: str | None = None
+    """The camera (cam_NN, its folder) of a frame of a multi-view split (protocol c); None (absent) otherwise."""
     format: str = FRAME_FORMAT
 
     def __post_init__(self) -> None:
@@ -65,6 +69,8 @@ class FrameRecord:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 raise ValueError(f"frame record: {name!r} must be a non-negative integer, got {v!r}")
+        if self.view is not None and (not isinstance(self.view, str) or view_index(self.view) is None):
+            raise ValueError(f"frame record: 'view' must be a camera folder name (cam_NN), got {self.view!r}")
         if isinstance(self.exposure, bool) or not isinstance(self.exposure, (int, float)) or not self.exposure > 0:
             raise ValueError(f"frame record: 'exposure' must be a positive number, got {self.exposure!r}")
         for name, entry in self.files.items():
@@ -86,7 +92,7 @@ class FrameRecord:
             raise ValueError(f"frame record: 'files' must map file names to {{layer, sha256}} ({exc!r})") from exc
         return cls(subject=data["subject"], protocol=data["protocol"], split=data["split"], index=data["index"],
                    width=data["width"], height=data["height"], exposure=data["exposure"], files=files,
-                   format=data.get("format", ""), **{k: data.get(k) for k in _OPTIONAL})
+                   format=data.get("format", ""), view=data.get("view"), **{k: data.get(k) for k in _OPTIONAL})
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object (dumped with sorted keys by `rh_common.imageio.write_json`)."""
@@ -96,6 +102,8 @@ class FrameRecord:
             "files": {n: {"layer": e.layer, "sha256": e.sha256} for n, e in self.files.items()},
         }
         out.update({k: getattr(self, k) for k in _OPTIONAL if getattr(self, k) is not None})
+        if self.view is not None:
+            out["view"] = self.view
         return out
 
     def files_of(self, layer: str) -> list[str]:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from rh_common.threads import torch_threads as threads_block
 from rh_dataset.generate import DatasetPlan, FrameTask, GenerateError, OnFrame, run_subject, subject_source
-from rh_dataset.writer import contact_sheet
+from rh_dataset.generate.frames import contact_sheets
 
 __all__ = ["RayBackend", "RayTask", "MAX_RETRIES", "CRASH_HOOK_ENV"]
 
@@ -198,4 +198,4 @@ def _run_ray(backend: RayBackend, plan: DatasetPlan, on_frame: OnFrame) -> None:
     # Contact sheets need every frame of a split: the driver makes them once all tasks are done.
     for s in range(plan.spec.subjects):
         for split in plan.spec.splits:
-            contact_sheet(plan.split_dir(s, split.name), list(range(split.frames)), split.layers)
+            contact_sheets(plan, s, split)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from collections import defaultdict
@@ -82,12 +83,23 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
     frames = list(iter_frames(dataset, protocol, splits, subjects))
     if not frames:
         raise ExportError(f"{dataset}: no frames of protocol {protocol!r} to export")
+    if fmt != "zju-mocap" and any(f.view is not None for f in frames):
+        raise ExportError(f"{dataset}: protocol {protocol} is multi-view (cameras cam_NN per split): --format {fmt} "
+                          f"has one camera per sequence; export it with --format zju-mocap")
+    # A multi-view frame's body is the same from every camera: fitted and written once, for its first camera.
+    first_view: dict[tuple[str, str, int], object] = {}
+    for f in frames:
+        first_view.setdefault((f.subject, f.split, f.index), f)
     fits = fits_x = None
     if model is not None or model_x is not None:
         from .smpl import SmplFits
 
         # Every split of the exported subjects: the betas must not depend on --split.
-        every = list(iter_frames(dataset, protocol, None, subjects))
+        every, fitted = [], set()
+        for f in iter_frames(dataset, protocol, None, subjects):  # one camera per multi-view frame
+            if (f.subject, f.split, f.index) not in fitted:
+                fitted.add((f.subject, f.split, f.index))
+                every.append(f)
         log = lambda line: print(f"rh-export: {line}", flush=True)  # noqa: E731
         fits = None if model is None else SmplFits(model, out, every, smpl_settings, log=log)
         fits_x = None if model_x is None else SmplFits(model_x, out, every, smpl_settings, log=log)
@@ -109,9 +121,10 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
         elif fmt == "zju-mocap":
             from .zju_mocap import export_frame
 
-            files += len(export_frame(f, out, protocol, vertices=zju_vertices,
-                                      smpl=None if fits is None else fits.zju_params(f),
-                                      smplx=None if fits_x is None else fits_x.zju_params(f)))
+            body = first_view[(f.subject, f.split, f.index)]
+            files += len(export_frame(f, out, protocol, vertices=zju_vertices, body=body is f,
+                                      smpl=None if fits is None or body is not f else fits.zju_params(f),
+                                      smplx=None if fits_x is None or body is not f else fits_x.zju_params(f)))
             sequences[(f.subject, f.split)].append(f)
         else:
             from .usd import export_frame
@@ -119,10 +132,22 @@ def export_dataset(dataset: str | Path, protocol: str, fmt: str, out: str | Path
             files += len(export_frame(f, out, protocol, dataset=dataset, hdri_folder=hdri_folder, ext=usd_ext,
                                       smpl=None if fits is None else fits.usd_mesh(f)))
     if fmt == "zju-mocap":
-        from .zju_mocap import sequence_dir, write_annots
+        from .zju_mocap import CAPTURE, camera_name, capture_splits, export_frame, sequence_dir, write_annots
 
-        for seq in sequences.values():
-            write_annots(sequence_dir(out, seq[0]), seq)
+        together = capture_splits(ds["protocols"][layout.protocol_dir(protocol)]["spec"])
+        if together and {f.split for f in frames} >= set(together):
+            # train + novel_view as one sequence of every camera (NeuralBody's training_view picks the train ones)
+            for f in (f for f in frames if f.split in together):
+                g = dataclasses.replace(f, split=CAPTURE)
+                body = first_view[(f.subject, together[0], f.index)]
+                files += len(export_frame(g, out, protocol, vertices=zju_vertices, body=body is f,
+                                          smpl=None if fits is None or body is not f else fits.zju_params(f),
+                                          smplx=None if fits_x is None or body is not f else fits_x.zju_params(f)))
+                sequences[(f.subject, CAPTURE)].append(g)
+        for (subject, split), seq in sequences.items():
+            training = sorted({camera_name(f) for f in frames if f.subject == subject and f.split == together[0]}) \
+                if split == CAPTURE else None
+            write_annots(sequence_dir(out, seq[0]), seq, training)
             files += 1
     if fmt == "relighting-humans":
         from .relighting_humans import write_readme
@@ -146,7 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=HelpFormatter)
     # --dataset, --format and --out are required unless --write-test-smpl(x) is given (checked in main).
     p.add_argument("--dataset", type=Path, help="dataset folder made by rh-generate (required)")
-    p.add_argument("--protocol", default="a", help="protocol to export: a or b")
+    p.add_argument("--protocol", default="a", help="protocol to export: a, b or c (c: zju-mocap only)")
     p.add_argument("--format", choices=FORMATS, help="output layout (required)")
     p.add_argument("--out", type=Path, help="output folder (required; empty, new, or an earlier export of "
                                             "the same format, whose files are replaced)")

@@ -32,7 +32,10 @@ class FrameRef:
     split: str
     index: int
     split_dir: Path
+    """The folder holding the frame's files (a multi-view split's camera folder, `<split>/cam_NN`)."""
     meta: dict
+    view: str | None = None
+    """The camera (cam_NN) of a multi-view split's frame (protocol c); None for a single-camera split."""
 
     def layer(self, suffix: str) -> Path:
         """`suffix` is '<layer>.<ext>', e.g. 'image.png'."""
@@ -66,7 +69,7 @@ subject_index = layout.subject_index
 
 def iter_frames(root: Path, protocol: str, splits: tuple[str, ...] | None = None,
                 subjects: int | None = None) -> Iterator[FrameRef]:
-    """Frames in (subject, split as in the scene description, index) order."""
+    """Frames in (subject, split as in the scene description, camera, index) order."""
     root = Path(root)
     ds = check_dataset(root, protocol)
     spec = ds["protocols"][layout.protocol_dir(protocol)]["spec"]
@@ -76,12 +79,12 @@ def iter_frames(root: Path, protocol: str, splits: tuple[str, ...] | None = None
         subject_dirs = subject_dirs[:subjects]
     for sd in subject_dirs:
         for split in split_names:
-            split_dir = layout.split_dir(root, sd.name, protocol, split)
-            for fj in sorted(split_dir.glob("frame_*.json")):
-                if layout.frame_index_of(fj.name) is None:
-                    continue
-                record = layout.read_frame_record(fj)
-                yield FrameRef(sd.name, split, record.index, split_dir, record.to_json())
+            for view, folder in layout.frame_folders(layout.split_dir(root, sd.name, protocol, split)):
+                for fj in sorted(folder.glob("frame_*.json")):
+                    if layout.frame_index_of(fj.name) is None:
+                        continue
+                    record = layout.read_frame_record(fj)
+                    yield FrameRef(sd.name, split, record.index, folder, record.to_json(), view)
 
 
 def client_K(K: np.ndarray) -> np.ndarray:

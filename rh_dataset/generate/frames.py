@@ -29,7 +29,7 @@ from rh_dataset.variant import select_variant
 from rh_dataset.spec import SplitSpec
 from rh_dataset.writer import contact_sheet, write_frame
 
-__all__ = ["FrameResult", "OnFrame", "render_frame_to_disk", "run_subject", "light_for", "olat_light",
+__all__ = ["FrameResult", "OnFrame", "render_frame_to_disk", "run_subject", "contact_sheets", "light_for", "olat_light",
            "exposure_for", "frame_meta", "versions"]
 
 OnFrame = Callable[[FrameTask, bool], None]
@@ -43,7 +43,9 @@ class FrameResult:
     seconds: dict[str, float]
     """Wall time of each stage: pose, light, load, beauty, aov (and denoise), meta, write; total is their sum."""
     scene_model: dict
-    """What the renderer built (also the frame JSON's render.scene_model)."""
+    """What the renderer built (also the frame JSON's render.scene_model; a multi-view frame's last camera's)."""
+    json_paths: tuple[Path, ...] = ()
+    """Every frame JSON written: one per camera of a multi-view frame (`json_path` is the first)."""
 
 
 def light_for(plan: DatasetPlan, split: SplitSpec, s: int, i: int, library: dict):
@@ -53,6 +55,8 @@ def light_for(plan: DatasetPlan, split: SplitSpec, s: int, i: int, library: dict
 
     if split.light == "olat":
         return olat_light(split, i)
+    if split.light == "train":  # frame i under the train split's light of frame i (its one fixed light)
+        split = plan.spec.split("train")
     protocol_key = plan.spec.protocol
     if split.light == "fixed":
         rng = rng_for(plan.seed, "light", s, protocol_key, split.name)
@@ -124,13 +128,15 @@ def light_spec_json(spec) -> dict:
 
 
 def frame_meta(protocol: str, settings: RenderSettings, subject: Subject, split_name: str, body: dict, light,
-               render_seed: int, exposure: float, olat: dict | None = None) -> dict:
+               render_seed: int, exposure: float, olat: dict | None = None, *, camera=None,
+               view: str | None = None) -> dict:
     """The frame JSON without its file checksums (the writer adds those). `settings` are the split's own
-    (`RenderSettings.for_split`); `olat` is an OLAT frame's `light.olat` block (`lights.olat_record`)."""
-    cam = subject.camera
+    (`RenderSettings.for_split`); `olat` is an OLAT frame's `light.olat` block (`lights.olat_record`); `camera`
+    and `view` (cam_NN) a multi-view frame's camera (default: the subject's one camera, no view)."""
+    cam = subject.camera if camera is None else camera
     R = cam.world_to_opengl_rotation()
     sh_world = np.asarray(light.sh_world, dtype=np.float64)
-    return {
+    return {**({"view": view} if view is not None else {}),
         "subject": layout.subject_name(subject.index),
         "protocol": protocol,
         "split": split_name,
@@ -148,8 +154,10 @@ def frame_meta(protocol: str, settings: RenderSettings, subject: Subject, split_
 
 
 def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subject, split: SplitSpec,
-                         index: int) -> FrameResult:
+                         index: int, views: list[int | None] | None = None) -> FrameResult:
     """Render frame `index` of `split` for `subject` and write its layers and JSON (atomically, rh_dataset.writer).
+    A multi-view split's frame (protocol c) is posed and lit once, then rendered from each camera of `views` (default
+    every camera of the split), each camera-frame written whole in its own folder; `seconds` add up over them.
     Renders whether or not the frame is already on disk: skipping complete frames is `run_subject`'s job."""
     from rh_dataset.lights import mitsuba_emitter_dict
     from rh_dataset.render.passes import render_frame
@@ -165,29 +173,46 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
     exposure = exposure_for(light)
     seconds["light"] = time.perf_counter() - t
     key = f"protocol_{plan.spec.protocol}"
-    render_seed = int(rng_for(plan.seed, "render", s, key, split.name, index).integers(0, 2**31 - 2))
     # Only what the split needs: its scene class's path depth, no emitter without path tracing, no skin the clothes
     # hide (rh_dataset.render.cull); the frame JSON records it under render.scene_model.
     settings = plan.settings.for_split(split)
-    result = render_frame(meshes, mitsuba_emitter_dict(light) if split.path_traced else None, subject.camera,
-                          settings, split.layers, render_seed,
-                          hidden=source.hidden_faces(subject) if settings.cull else None)
-    seconds.update(result.seconds)
+    emitter = mitsuba_emitter_dict(light) if split.path_traced else None
+    hidden = source.hidden_faces(subject) if settings.cull else None
     t = time.perf_counter()
     olat = None
     if split.light == "olat":
         from rh_dataset.lights import olat_record
 
         olat = olat_record(light, split.olat.directions, olat_frame(split, index)[1])
-    meta = frame_meta(plan.spec.protocol, settings, subject, split.name,
-                      source.body_record(subject, split, index, pose), light, render_seed, exposure, olat)
-    meta["render"]["scene_model"] = result.info
+    body = source.body_record(subject, split, index, pose)
     seconds["meta"] = time.perf_counter() - t
-    t = time.perf_counter()
-    split_dir = plan.split_dir(s, split.name)
-    write_frame(split_dir, index, result.layers, meta)
-    seconds["write"] = time.perf_counter() - t
-    return FrameResult(FrameTask(s, split.name, index), layout.frame_json_path(split_dir, index), seconds, result.info)
+    json_paths, info = [], {}
+    for view, folder in plan.view_dirs(s, split):
+        if views is not None and view not in views:
+            continue
+        camera = subject.camera if view is None else subject.views[view]
+        # Each camera its own sample stream; a single-camera frame keeps the stream it always had.
+        keys = (split.name, index) if view is None else (split.name, index, view)
+        render_seed = int(rng_for(plan.seed, "render", s, key, *keys).integers(0, 2**31 - 2))
+        result = render_frame(meshes, emitter, camera, settings, split.layers, render_seed, hidden=hidden)
+        for k, v in result.seconds.items():
+            seconds[k] = seconds.get(k, 0.0) + v
+        t = time.perf_counter()
+        meta = frame_meta(plan.spec.protocol, settings, subject, split.name, body, light, render_seed, exposure,
+                          olat, camera=camera, view=None if view is None else layout.view_name(view))
+        meta["render"]["scene_model"] = info = result.info
+        seconds["meta"] += time.perf_counter() - t
+        t = time.perf_counter()
+        write_frame(folder, index, result.layers, meta)
+        seconds["write"] = seconds.get("write", 0.0) + time.perf_counter() - t
+        json_paths.append(layout.frame_json_path(folder, index))
+    return FrameResult(FrameTask(s, split.name, index), json_paths[0], seconds, info, tuple(json_paths))
+
+
+def contact_sheets(plan: DatasetPlan, s: int, split: SplitSpec) -> None:
+    """The split's contact sheet, one per camera folder of a multi-view split."""
+    for _, folder in plan.view_dirs(s, split):
+        contact_sheet(folder, list(range(split.frames)), split.layers)
 
 
 def run_subject(plan: DatasetPlan, source: SubjectSource, s: int, on_frame: OnFrame, *,
@@ -195,22 +220,23 @@ def run_subject(plan: DatasetPlan, source: SubjectSource, s: int, on_frame: OnFr
     """Render every missing frame of one subject (all splits) and its contact sheets.
 
     `frames` (split name -> frame indices) restricts the work to those frames (a distributed task's share);
-    `sheets=False` leaves the contact sheets to whoever knows that every frame of the split is done."""
+    `sheets=False` leaves the contact sheets to whoever knows that every frame of the split is done. A frame of a
+    multi-view split is done when every camera's is complete; a rerun renders only the cameras still missing."""
     select_variant(plan.variant)
     subject = None
     for split in plan.spec.splits:
         if frames is not None and split.name not in frames:
             continue
-        split_dir = plan.split_dir(s, split.name)
         for i in (range(split.frames) if frames is None else frames[split.name]):
             task = FrameTask(s, split.name, i)
-            if layout.frame_is_complete(split_dir, i, split.layers):
+            missing = [v for v, d in plan.view_dirs(s, split) if not layout.frame_is_complete(d, i, split.layers)]
+            if not missing:
                 on_frame(task, True)
                 continue
             if subject is None:  # built only when a frame is missing: a finished subject resumes at once
                 subject = source.subject(s)
                 keep_character_record(plan, s, subject.record)
-            render_frame_to_disk(plan, source, subject, split, i)
+            render_frame_to_disk(plan, source, subject, split, i, views=missing)
             on_frame(task, False)
         if sheets:
-            contact_sheet(split_dir, list(range(split.frames)), split.layers)
+            contact_sheets(plan, s, split)

@@ -41,6 +41,14 @@ class DatasetPlan:
     def split_dir(self, subject: int, split: str) -> Path:
         return layout.split_dir(self.out, subject, self.spec.protocol, split)
 
+    def view_dirs(self, subject: int, split: SplitSpec) -> list[tuple[int | None, Path]]:
+        """(rig view, folder of its frames) for each camera the split renders: `<split>/cam_NN` per view of a
+        multi-view split (protocol c), else [(None, the split folder)]."""
+        d = self.split_dir(subject, split.name)
+        if split.cameras is None:
+            return [(None, d)]
+        return [(v, d / layout.view_name(v)) for v in split.cameras]
+
 
 @dataclass(frozen=True)
 class FrameTask:

@@ -17,10 +17,11 @@ import numpy as np
 
 from rh_dataset.generate.plan import DatasetPlan, GenerateError, motion_frame, pose_frame
 from rh_dataset.generate.seeding import rng_for
-from rh_common.camera import Camera, frame_body
+from rh_common.camera import Camera, frame_body, orbit_cameras
 from rh_dataset.spec import SplitSpec
 
-__all__ = ["Subject", "SubjectSource", "AnnySubjects", "ImportedSubjects", "subject_source", "imported_bone_map"]
+__all__ = ["Subject", "SubjectSource", "AnnySubjects", "ImportedSubjects", "subject_source", "imported_bone_map",
+           "rig_cameras"]
 
 CAMERA_FILL = 0.96
 """Fraction of the frame's height the framed box fills (rh_common.camera.frame_body)."""
@@ -33,6 +34,9 @@ class Subject:
     record: dict
     """What character.json keeps: an anny recipe, or the imported character's description."""
     camera: Camera
+    views: tuple[Camera, ...] = ()
+    """The rig's cameras (protocol c: `ProtocolSpec.rig`, one per view, `rh_common.camera.orbit_cameras` on the
+    box `camera` frames); () for a single-camera protocol."""
 
 
 class SubjectSource(Protocol):
@@ -52,6 +56,13 @@ class SubjectSource(Protocol):
 
     def body_record(self, subject: Subject, split: SplitSpec, i: int, pose) -> dict:
         """The frame JSON's "body": model, pose, turntable angle, and for a pose from captured motion its source."""
+
+
+def rig_cameras(spec, lo, hi) -> tuple[Camera, ...]:
+    """The rig's cameras framing the box [lo, hi] (every view at one distance), or () without a rig."""
+    if spec.rig is None:
+        return ()
+    return tuple(orbit_cameras(lo, hi, spec.width, spec.height, spec.fov_y_deg, spec.rig.views, fill=CAMERA_FILL))
 
 
 def subject_source(plan: DatasetPlan) -> SubjectSource:
@@ -101,7 +112,7 @@ class AnnySubjects:
         lo = np.array([lo[0] - 0.05 * h, lo[1], lo[2] - 0.03 * h])
         hi = np.array([hi[0] + 0.05 * h, hi[1], hi[2] + 0.18 * h])
         cam = frame_body(lo, hi, spec.width, spec.height, spec.fov_y_deg, fill=CAMERA_FILL)
-        return Subject(s, character, recipe.to_json(), cam)
+        return Subject(s, character, recipe.to_json(), cam, rig_cameras(spec, lo, hi))
 
     def pose(self, subject: Subject, split: SplitSpec, i: int):
         from rh_common.body_model import load_anny
@@ -200,7 +211,7 @@ class ImportedSubjects:
         lo, hi = imported_bounds(character, [None, *used.values()])
         pad = 0.03 * (hi[2] - lo[2])
         cam = frame_body(lo - pad, hi + pad, spec.width, spec.height, spec.fov_y_deg, fill=CAMERA_FILL)
-        return Subject(s, character, character.to_json(), cam)
+        return Subject(s, character, character.to_json(), cam, rig_cameras(spec, lo - pad, hi + pad))
 
     def pose(self, subject: Subject, split: SplitSpec, i: int):
         return self._pose(subject.character, split, i)
