@@ -25,6 +25,8 @@ __all__ = [
     "PATTERNS",
     "FABRICS",
     "HAIR_STYLES",
+    "HAIR_COLOUR_NAMES",
+    "hair_colour_name",
     "SkinTone",
     "HairSpec",
     "Garment",
@@ -344,6 +346,16 @@ _HAIR_PALETTE = np.array(
      [170, 168, 165]],
     dtype=np.float64,
 ) / 255.0
+
+
+HAIR_COLOUR_NAMES = ("black", "dark brown", "brown", "light brown", "dark blonde", "blonde", "auburn", "grey")
+
+
+def hair_colour_name(rgb: tuple[float, float, float]) -> str:
+    """The palette colour (HAIR_COLOUR_NAMES) a hair colour was drawn from: the nearest in sRGB (the jitter is
+    mostly a brightness change of a few percent, smaller than the palette's steps)."""
+    d = np.linalg.norm(_HAIR_PALETTE - np.asarray(rgb, dtype=np.float64), axis=1)
+    return HAIR_COLOUR_NAMES[int(np.argmin(d))]
 
 
 def _jitter(rng: np.random.Generator, rgb: np.ndarray, amount: float) -> tuple[float, float, float]:
