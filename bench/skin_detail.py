@@ -12,7 +12,7 @@ Prints
 3. the detail's cost: skin texture build time with and without freckles, blush and veins, texture memory, and
    seconds per 512 x 512 frame (the draft preset: 12 multijitter spp, depth 3, AOV pass at 4) with the subject's
    drawn detail and fabric sheen against the same subject without either, under Blender's studio HDRI, front view,
-   rest pose. The images go to --out (before | after, and the face crop at 4x);
+   rest pose. The images go to --out (before | after; the face crops at 4x: image above, albedo layer below);
 4. what detail below the footprint would cost: skin pores as a tangent-space normal map at 2048^2 (0.47 mm texels;
    pores are 0.1-0.3 mm, so this is still coarser than pores): memory, render seconds, and how far it moves the
    image compared with the Monte Carlo noise (PSNR against the no-pores render, and between two seeds of it); and
@@ -185,7 +185,9 @@ def main() -> None:
         cols = np.flatnonzero(m[top:top + 40].max(0) > 0.5)
         cx = int(np.median(cols)) if len(cols) else RES // 2
         y0, x0 = max(top - 4, 0), max(cx - 32, 0)
-        crop = np.concatenate([imgs[k]["image"][y0:y0 + 64, x0:x0 + 64] for k in ("before", "after")], 1) * 1.3
+        crop = np.concatenate([np.concatenate([imgs[k]["image"][y0:y0 + 64, x0:x0 + 64] * 1.3,
+                                               imgs[k]["albedo"][y0:y0 + 64, x0:x0 + 64]], 0)
+                               for k in ("before", "after")], 1)
         _png(args.out / f"subject_{s:02d}_face_x4.png", np.repeat(np.repeat(crop, 4, 0), 4, 1))
 
     if args.no_pores or last is None:

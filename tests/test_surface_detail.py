@@ -108,7 +108,7 @@ def test_knit_ribs_have_the_stated_period():
     a = np.linspace(0.0, 0.24, n, endpoint=False, dtype=np.float32)  # 24 cm across, 0.5 mm texels
     coords = np.stack(np.meshgrid(a, np.zeros(4, np.float32)), -1)
     f = knit_ribs(coords)[0].astype(np.float64)
-    assert f.min() >= 0.92 - 1e-6 and f.max() <= 1.0
+    assert f.min() >= 0.85 - 1e-6 and f.max() <= 1.0
     spec = np.abs(np.fft.rfft(f - f.mean()))
     assert np.argmax(spec) == round(0.24 / KNIT_PERIOD_M)  # 20 wales in 24 cm
     g = Garment("longsleeve", (0.4, 0.3, 0.2), fabric="knit")

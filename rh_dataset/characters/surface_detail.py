@@ -6,7 +6,7 @@ multiplicative albedo factor (H, W, 3) float32 the skin texture is multiplied by
 knit garment's ribs. Both are deterministic functions of their inputs.
 
 Scale rule. At the protocols' 512 x 512, 30 degree vertical field of view and camera fill 0.96, one pixel covers
-~4.5 mm of skin at the body's distance (`bench/skin_detail.py` computes it per subject: 4.0-4.9 mm over the 49
+~4.6 mm of skin at the body's distance (`bench/skin_detail.py` computes it per subject: 4.0-5.1 mm over the 49
 benchmark subjects' framings). A pattern is resolved only if its features span a pixel, so detail is laid out in
 metres on the body (solid noise over the rest positions, not over the UV layout, whose texel size varies) at
 feature sizes >= ~4 mm: freckles of 4-6 mm (the large end of real freckles), veins ~6 mm wide, blush over
@@ -123,7 +123,7 @@ def skin_detail(freckles: float, blush: float, veins: float, feats: BodyFeatures
 
 def knit_ribs(coords_m: np.ndarray) -> np.ndarray:
     """Albedo factor (H, W) float32 of a knit's ribs: the wales run up the garment, `KNIT_PERIOD_M` apart; the
-    furrow between two wales is ~8% darker (its self-shadowing is left to the renderer's sheen and the geometry)."""
+    furrow between two wales is 15% darker, standing in for the self-shadowing a smooth shell cannot cast."""
     a = np.asarray(coords_m, dtype=np.float32)[..., 0]
     ridge = 0.5 + 0.5 * np.cos(2.0 * np.pi * a / KNIT_PERIOD_M)
-    return (1.0 - 0.08 * (1.0 - ridge) ** 2).astype(np.float32)
+    return (1.0 - 0.15 * (1.0 - ridge) ** 2).astype(np.float32)
