@@ -13,6 +13,7 @@ Prints
    seconds per 512 x 512 frame (the draft preset: 12 multijitter spp, depth 3, AOV pass at 4) with the subject's
    drawn detail and fabric sheen against the same subject without either, under Blender's studio HDRI, front view,
    rest pose. The images go to --out (before | after; the face crops at 4x: image above, albedo layer below);
+   `--figure docs/skin_detail.png` writes the face crops of every subject in one picture;
 4. what detail below the footprint would cost: skin pores as a tangent-space normal map at 2048^2 (0.47 mm texels;
    pores are 0.1-0.3 mm, so this is still coarser than pores): memory, render seconds, and how far it moves the
    image compared with the Monte Carlo noise (PSNR against the no-pores render, and between two seeds of it); and
@@ -102,6 +103,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--out", type=Path, default=Path("/tmp/skin_detail"))
     ap.add_argument("--no-pores", action="store_true", help="skip part 4 (the pore normal map renders)")
+    ap.add_argument("--figure", type=Path, help="also write one PNG: a row per subject of its face crops at 4x "
+                                                "(image before, after; albedo before, after)")
     args = ap.parse_args()
 
     import sys
@@ -156,7 +159,7 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     print(f"   seconds per {RES}x{RES} frame ({args.spp} spp, depth 3, aov 4; load average "
           f"{os.getloadavg()[0]:.2f}):")
-    last = None
+    last, rows_fig = None, []
     for s in args.subjects:
         r = recipes[s]
         imgs, secs = {}, {}
@@ -189,6 +192,10 @@ def main() -> None:
                                                imgs[k]["albedo"][y0:y0 + 64, x0:x0 + 64]], 0)
                                for k in ("before", "after")], 1)
         _png(args.out / f"subject_{s:02d}_face_x4.png", np.repeat(np.repeat(crop, 4, 0), 4, 1))
+        rows_fig.append(np.concatenate([crop[:64], crop[64:]], 1))
+    if args.figure is not None:
+        fig = np.concatenate(rows_fig, 0)
+        _png(args.figure, np.repeat(np.repeat(fig, 4, 0), 4, 1))
 
     if args.no_pores or last is None:
         return

@@ -171,3 +171,54 @@ def test_sheen_adds_light_at_grazing_angles_only():
     grazing = mean_image(1.0, 80.0) / mean_image(0.0, 80.0)
     assert np.all(np.abs(head_on - 1.0) < 0.01), head_on
     assert np.all(grazing > 1.05), grazing
+
+
+# -----------------------------------------------------------------------------------------------------------------
+# The diversity print (bench/subject_diversity.py)
+# -----------------------------------------------------------------------------------------------------------------
+def _diversity_module():
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "bench" / "subject_diversity.py"
+    spec = importlib.util.spec_from_file_location("subject_diversity", path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_hair_colour_names_recover_the_palette():
+    from rh_dataset.characters.recipe import HAIR_COLOUR_NAMES, _HAIR_PALETTE, hair_colour_name
+
+    for name, rgb in zip(HAIR_COLOUR_NAMES, _HAIR_PALETTE):
+        assert hair_colour_name(tuple(rgb * 1.06)) == name  # a brightness jitter of 6% keeps the name
+
+
+def test_diversity_counts_every_subject_and_picks_up_new_fields():
+    mod = _diversity_module()
+    recipes = [recipe_from_seed(2 * (i + 1), "benchmark", i) for i in range(6)]
+    lines = mod.summarise(recipes)
+    text = "\n".join(lines)
+    assert "subjects        6:" in text
+    styles = next(line for line in lines if line.startswith("hair styles"))
+    assert sum(int(w) for w in styles.replace(",", " ").split()[3::2]) == 6
+    cats = next(line for line in lines if line.strip().startswith("categories"))
+    assert sum(int(tok.split()[-1]) for tok in cats.split("(")[0].replace("categories", "").split(",")) == 6
+    # A recipe field the script does not know by name (a later part's headwear, say) gets its own row, counted
+    # by its kind.
+    class WithHat:
+        def __init__(self, r, hat):
+            self._r, self._hat = r, hat
+
+        def __getattr__(self, name):
+            return getattr(self._r, name)
+
+        def to_json(self):
+            return {**self._r.to_json(), "headwear": self._hat}
+
+    hats = [WithHat(r, h) for r, h in zip(recipes, [{"kind": "cap"}, None, {"kind": "cap"}, {"kind": "hijab"},
+                                                      None, None])]
+    row = next(line for line in mod.summarise(hats) if line.startswith("headwear"))
+    assert "none 3" in row and "cap 2" in row and "hijab 1" in row
