@@ -81,6 +81,40 @@ def linear_srgb_to_cct(rgb_linear: np.ndarray) -> float:
     return float(colour.xy_to_CCT(colour.XYZ_to_xy(xyz), method="McCamy 1992"))
 
 
+def linear_srgb_to_lab(rgb_linear: np.ndarray) -> np.ndarray:
+    """CIE 1976 L*a*b* (..., 3) float64 of linear Rec.709 / sRGB colours, relative to the sRGB white point (D65;
+    colour-science's RGB -> XYZ -> Lab, no chromatic adaptation). White (1, 1, 1) is (100, 0, 0)."""
+    rgb = np.asarray(rgb_linear, dtype=np.float64)
+    if rgb.shape[-1:] != (3,) or not np.all(np.isfinite(rgb)):
+        raise ValueError(f"linear_srgb_to_lab: expected finite (..., 3) linear RGB, got shape {rgb.shape}")
+    xyz = colour.RGB_to_XYZ(rgb, "sRGB", chromatic_adaptation_transform=None)
+    return np.asarray(colour.XYZ_to_Lab(xyz, colour.RGB_COLOURSPACES["sRGB"].whitepoint), dtype=np.float64)
+
+
+# Individual Typology Angle categories of skin (Chardon, Cretois & Hourseau 1991; Del Bino et al. 2006): lower
+# bound in degrees of each, lightest first; below the last bound is "dark".
+ITA_CATEGORIES = (("very light", 55.0), ("light", 41.0), ("intermediate", 28.0), ("tan", 10.0), ("brown", -30.0),
+                  ("dark", -np.inf))
+
+
+def ita_degrees(rgb_linear: np.ndarray) -> np.ndarray:
+    """Individual Typology Angle of linear sRGB skin colours: atan((L* - 50) / b*) in degrees (..., ) float64.
+
+    Written as atan2(L* - 50, b*), which equals the arctangent for b* > 0 (every skin colour is yellowish) and stays
+    defined at b* = 0; a colour with b* <= 0 is not a skin colour and its angle (>= 90 or <= -90) says so."""
+    lab = linear_srgb_to_lab(rgb_linear)
+    return np.degrees(np.arctan2(lab[..., 0] - 50.0, lab[..., 2]))
+
+
+def ita_category(ita: float) -> str:
+    """The ITA category of an angle in degrees: very light > 55 >= light > 41 >= intermediate > 28 >= tan > 10 >=
+    brown > -30 >= dark."""
+    a = float(ita)
+    if not np.isfinite(a):
+        raise ValueError(f"ita_category: the angle must be finite, got {ita!r}")
+    return next(name for name, lower in ITA_CATEGORIES if a > lower)
+
+
 def quantize8(x01: np.ndarray) -> np.ndarray:
     """[0, 1] floats to uint8 with round-half-up, the one quantisation rule for 8-bit files."""
     return np.floor(np.clip(np.asarray(x01, dtype=np.float64), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)

@@ -16,6 +16,7 @@ from .character import (
     pose_character,
 )
 from .recipe import (
+    FABRICS,
     GARMENT_KINDS,
     HAIR_STYLES,
     PATTERNS,
@@ -40,6 +41,7 @@ __all__ = [
     "build_character",
     "mitsuba_texcoords",
     "pose_character",
+    "FABRICS",
     "GARMENT_KINDS",
     "HAIR_STYLES",
     "PATTERNS",

@@ -59,12 +59,17 @@ class Material:
     """albedo: linear float32 (H, W, 3) in [0, 1], row 0 = v 1. roughness: microfacet roughness in [0, 1].
     specular: weight of the specular lobe in [0, 1] (0 = purely Lambertian; 0.5 ~ a dielectric of IOR 1.5, the
     principled-BSDF convention). two_sided: shade back faces too (hems, skirts and hair sheets are seen from inside).
+    sheen / sheen_tint: the principled BSDF's cloth sheen lobe (retro-reflection at grazing angles; 0 = none) and
+    how much of the albedo's colour it takes. The albedo ground truth stays `albedo`: the sheen is a lobe added on
+    top, like the specular one (docs/ARCHITECTURE.md, "Albedo").
     """
 
     albedo: np.ndarray
     roughness: float
     specular: float
     two_sided: bool = True
+    sheen: float = 0.0
+    sheen_tint: float = 0.5
 
     def __post_init__(self) -> None:
         a = np.asarray(self.albedo)
@@ -73,7 +78,7 @@ class Material:
         if not np.all(np.isfinite(a)) or a.min() < 0.0 or a.max() > 1.0:
             raise ValueError("Material.albedo must be finite and within [0, 1]")
         object.__setattr__(self, "albedo", _ro(a, np.float32))
-        for name in ("roughness", "specular"):
+        for name in ("roughness", "specular", "sheen", "sheen_tint"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float, np.floating)) and 0.0 <= float(v) <= 1.0):
                 raise ValueError(f"Material.{name} must be in [0, 1], got {v!r}")
@@ -214,7 +219,11 @@ SHOE_SPECULAR = 0.45
 FABRIC_SPECULAR = 0.15
 
 # Independent noise streams per texture: np.random.default_rng([seed, stream]).
-_STREAM_SKIN, _STREAM_HAIR, _STREAM_SOLE, _STREAM_GARMENT0 = 1, 2, 3, 10
+_STREAM_SKIN, _STREAM_HAIR, _STREAM_SOLE, _STREAM_SKIN_DETAIL, _STREAM_GARMENT0 = 1, 2, 3, 4, 10
+
+# Sheen of each fabric (recipe.FABRICS) for the principled BSDF's sheen lobe: woven cotton and denim have none worth
+# the name, a jersey a little, a knit's fibres more, a velvet's pile most (Burley 2012 uses sheen for exactly this).
+FABRIC_SHEEN = {"plain": 0.0, "jersey": 0.3, "knit": 0.6, "velvet": 1.0}
 
 # Shoe soles (linear RGB): white rubber, gum, black rubber; drawn per character, dark uppers favour white soles.
 _SOLE_COLOURS = np.array([[0.7, 0.7, 0.66], [0.32, 0.19, 0.09], [0.03, 0.03, 0.03]], dtype=np.float32)
@@ -272,7 +281,7 @@ def _build_cached(recipe_json: str, res: int) -> Character:
     body = split_faces(np.arange(len(topo.faces)), topology)
     positions = texel_positions(feats, res, topology)  # shared by the skin and every body-layout garment
     skin = skin_texture(recipe.skin, recipe.hair.colour, feats, np.random.default_rng([seed, _STREAM_SKIN]), res,
-                        topology, positions)
+                        topology, positions, detail_rng=np.random.default_rng([seed, _STREAM_SKIN_DETAIL]))
     parts = [
         CharacterPart("body", body.faces, body.uvs, body.body_vertex, np.zeros(len(body.body_vertex), np.float32),
                       Material(skin, SKIN_ROUGHNESS, SKIN_SPECULAR, two_sided=False))
@@ -293,7 +302,7 @@ def _build_cached(recipe_json: str, res: int) -> Character:
             if g.kind == "shoes":
                 tex = shoe_sole(tex, shoe_height_map(geo, feats, r2), SOLE_HEIGHT, _sole_colour(seed, g.colour))
         spec = SHOE_SPECULAR if g.kind == "shoes" else FABRIC_SPECULAR
-        parts.append(_to_part(geo, Material(tex, g.roughness, spec)))
+        parts.append(_to_part(geo, Material(tex, g.roughness, spec, sheen=FABRIC_SHEEN[g.fabric])))
 
     rng = np.random.default_rng([seed, _STREAM_HAIR])
     hair = build_hair(recipe.hair.style, feats, rng, topology, under=under)

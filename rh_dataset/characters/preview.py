@@ -36,6 +36,8 @@ def _mesh(mi, pm: PosedMesh):
         "roughness": max(pm.material.roughness, 0.05),
         "specular": pm.material.specular,
     }
+    if pm.material.sheen > 0.0:
+        bsdf.update(sheen=pm.material.sheen, sheen_tint=pm.material.sheen_tint)
     if pm.material.two_sided:
         bsdf = {"type": "twosided", "bsdf": bsdf}
     props = mi.Properties()

@@ -23,7 +23,10 @@ __all__ = [
     "POOLS",
     "GARMENT_KINDS",
     "PATTERNS",
+    "FABRICS",
     "HAIR_STYLES",
+    "HAIR_COLOUR_NAMES",
+    "hair_colour_name",
     "SkinTone",
     "HairSpec",
     "Garment",
@@ -43,6 +46,10 @@ TOPS = ("tshirt", "longsleeve")
 BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt")
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 PATTERNS = ("solid", "stripes", "checks", "noise")
+# Fabric finish (how the renderer's sheen lobe and the knit texture treat a garment; character.FABRIC_SHEEN):
+# plain = woven (cotton, denim: threads far below the pixel footprint, no sheen), jersey = fine knit (t-shirts),
+# knit = a sweater's visible ribs, velvet = a cut pile (strong sheen).
+FABRICS = ("plain", "jersey", "knit", "velvet")
 HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 
 
@@ -92,14 +99,20 @@ class SkinTone:
 
     melanin: 0 = very light, 1 = very dark (interpolates the anchor swatches above in log-linear space).
     redness: haemoglobin-like tint, 0 = sallow/olive, 1 = ruddy; 0.5 leaves the anchor hue unchanged.
+    freckles, blush, veins: strength in [0, 1] of the skin detail `textures.skin_detail` paints (freckles on the
+    face, shoulders and arms; redder cheeks and nose; the bluish venous network of wrists, forearms, hands and
+    temples). 0 paints none, so recipes written before these fields existed keep their textures bit for bit.
     """
 
     melanin: float
     redness: float = 0.5
+    freckles: float = 0.0
+    blush: float = 0.0
+    veins: float = 0.0
 
     def __post_init__(self) -> None:
-        _set(self, "melanin", _check_unit("skin.melanin", self.melanin))
-        _set(self, "redness", _check_unit("skin.redness", self.redness))
+        for name in ("melanin", "redness", "freckles", "blush", "veins"):
+            _set(self, name, _check_unit(f"skin.{name}", getattr(self, name)))
 
 
 def skin_albedo_linear(skin: SkinTone) -> np.ndarray:
@@ -139,7 +152,7 @@ class Garment:
     kind: one of GARMENT_KINDS. colour / colour2: sRGB in [0, 1] (colour2 is the second colour of stripes, checks
     and printed noise). pattern: one of PATTERNS. period_m: pattern repeat in metres. duty: fraction of a period in
     colour2 (stripes/checks) or coverage of the print (noise). vertical: stripes run vertically instead of around the
-    body. roughness: microfacet roughness in [0, 1] used by the renderer.
+    body. roughness: microfacet roughness in [0, 1] used by the renderer. fabric: one of FABRICS (sheen, knit ribs).
     """
 
     kind: str
@@ -150,8 +163,11 @@ class Garment:
     duty: float = 0.5
     vertical: bool = False
     roughness: float = 0.8
+    fabric: str = "plain"
 
     def __post_init__(self) -> None:
+        if self.fabric not in FABRICS:
+            raise ValueError(f"garment.fabric must be one of {FABRICS}, got {self.fabric!r}")
         if self.kind not in GARMENT_KINDS:
             raise ValueError(f"garment.kind must be one of {GARMENT_KINDS}, got {self.kind!r}")
         if self.pattern not in PATTERNS:
@@ -332,6 +348,16 @@ _HAIR_PALETTE = np.array(
 ) / 255.0
 
 
+HAIR_COLOUR_NAMES = ("black", "dark brown", "brown", "light brown", "dark blonde", "blonde", "auburn", "grey")
+
+
+def hair_colour_name(rgb: tuple[float, float, float]) -> str:
+    """The palette colour (HAIR_COLOUR_NAMES) a hair colour was drawn from: the nearest in sRGB (the jitter is
+    mostly a brightness change of a few percent, smaller than the palette's steps)."""
+    d = np.linalg.norm(_HAIR_PALETTE - np.asarray(rgb, dtype=np.float64), axis=1)
+    return HAIR_COLOUR_NAMES[int(np.argmin(d))]
+
+
 def _jitter(rng: np.random.Generator, rgb: np.ndarray, amount: float) -> tuple[float, float, float]:
     """Mostly a brightness change, a little hue change: independent per-channel jitter turns khaki into pink."""
     factor = (1.0 + rng.normal(0.0, amount)) * (1.0 + rng.normal(0.0, 0.25 * amount, 3))
@@ -391,5 +417,41 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     if rng.random() < 0.3:
         kinds.add("jacket")
     garments = tuple(_sample_garment(rng, k) for k in sorted(kinds, key=_LAYER.index))
+    skin, garments = _surface_detail(seed, skin, hair, garments)
     return CharacterRecipe(seed=int(seed), pool=pool, index=int(index), phenotype=phenotype, skin=skin, hair=hair,
                            garments=garments)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Skin and cloth detail (issue 17, part 4): drawn from their own stream after everything else, so the draws above
+# (and any later field's own stream) are untouched by it.
+# ---------------------------------------------------------------------------------------------------------------
+_STREAM_SURFACE_DETAIL = 1704
+# Which fabrics a garment kind is made of, with probabilities (shoes and everything unlisted: plain).
+_FABRIC_CHOICES = {
+    "tshirt": (("jersey", "plain"), (0.85, 0.15)),
+    "longsleeve": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),
+    "jacket": (("plain", "knit", "velvet"), (0.75, 0.15, 0.10)),
+    "trousers": (("plain", "velvet"), (0.92, 0.08)),  # denim / twill; velvet stands for corduroy and velour
+    "skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
+    "draped_skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
+}
+
+
+def _surface_detail(seed: int, skin: SkinTone, hair: HairSpec, garments: tuple[Garment, ...]
+                    ) -> tuple[SkinTone, tuple[Garment, ...]]:
+    """Freckles, blush and veins of the skin and each garment's fabric. Freckles are common on light skin and with
+    red hair, rare on dark skin; veins show through light skin only."""
+    rng = np.random.default_rng([int(seed), _STREAM_SURFACE_DETAIL])
+    r, g, b = hair.colour
+    red_hair = r > 0.3 and r > 1.8 * b and r > 1.3 * g
+    p_freckles = (0.6 if red_hair else 0.3) * (1.0 - skin.melanin) ** 2
+    freckles = float(rng.uniform(0.3, 1.0)) if rng.random() < p_freckles else 0.0
+    blush = float(rng.uniform(0.0, 1.0))
+    veins = float(rng.uniform(0.2, 1.0)) * (1.0 - skin.melanin)
+    skin = dataclasses.replace(skin, freckles=freckles, blush=blush, veins=veins)
+    out = []
+    for gm in garments:
+        names, p = _FABRIC_CHOICES.get(gm.kind, (("plain",), (1.0,)))
+        out.append(dataclasses.replace(gm, fabric=str(names[int(rng.choice(len(names), p=p))])))
+    return skin, tuple(out)

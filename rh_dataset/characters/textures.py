@@ -19,6 +19,7 @@ from .body import body_topology
 from .body_features import BodyFeatures, mask_image
 from .geometry import uv_raster
 from .recipe import Garment, SkinTone, skin_albedo_linear
+from .surface_detail import knit_ribs, skin_detail, texel_weights
 
 __all__ = [
     "value_noise",
@@ -74,9 +75,12 @@ def skin_texture(
     resolution: int = 1024,
     topology: str = ANNY_TOPOLOGY,
     positions: np.ndarray | None = None,
+    detail_rng: np.random.Generator | None = None,
 ) -> np.ndarray:
-    """Skin albedo: base tone with blotchy and fine variation, redder lips, lighter nails, slightly darker eyelids,
-    eyebrows in the hair colour. `positions`: `texel_positions(feats, resolution)` if already computed."""
+    """Skin albedo: base tone with blotchy and fine variation, the skin's freckles, blush and veins
+    (`surface_detail.skin_detail`, drawn from `detail_rng`; none when the tone's strengths are all 0), redder lips,
+    lighter nails, slightly darker eyelids, eyebrows in the hair colour. `positions`: `texel_positions(feats,
+    resolution)` if already computed."""
     res = int(resolution)
     base = skin_albedo_linear(skin)
     low = value_noise(rng, (res, res), 24)
@@ -86,6 +90,20 @@ def skin_texture(
     img = base[None, None, :] * shade[..., None]
     # Blotchy haemoglobin variation: a little more red, a little less green/blue.
     img = img * (1.0 + 0.05 * tint[..., None] * np.array([1.0, -0.6, -0.6], dtype=np.float32))
+    pos = texel_positions(feats, res, topology) if positions is None else positions
+    if max(skin.freckles, skin.blush, skin.veins) > 0.0:
+        if detail_rng is None:
+            raise ValueError("skin_texture: this skin has freckles, blush or veins; pass detail_rng")
+        face_id, bary = uv_raster(res, topology)
+        faces = body_topology(topology).faces
+
+        def weights(*groups: str) -> np.ndarray:
+            return texel_weights(feats.in_groups(*groups), face_id, bary, faces)
+
+        regions = {"face": _mask("face", res), "lips": _mask("lips", res),
+                   "arms": weights("shoulder", "upperarm", "lowerarm"), "forearms": weights("lowerarm", "hand"),
+                   "feet": weights("foot")}
+        img = img * skin_detail(skin.freckles, skin.blush, skin.veins, feats, pos, regions, detail_rng)
     lips = _mask("lips", res)
     img = _lerp(img, img * np.array([0.92, 0.55, 0.6], dtype=np.float32), 0.85 * lips)
     lids = _mask("eyelids", res)
@@ -94,7 +112,6 @@ def skin_texture(
     nail_col = 0.55 * img + 0.3 * np.array([0.75, 0.55, 0.5], dtype=np.float32)
     img = _lerp(img, nail_col, nails)
     # Eyebrows: an arched band ~1.8 cm above each eye centre, painted through the baked rest positions.
-    pos = texel_positions(feats, res, topology) if positions is None else positions
     face = _mask("face", res) > 0.2
     brow = np.zeros((res, res), dtype=np.float32)
     for side, sign in (("L", 1.0), ("R", -1.0)):
@@ -152,6 +169,8 @@ def garment_texture(
     img = _lerp(np.broadcast_to(c1, (res, res, 3)), np.broadcast_to(c2, (res, res, 3)), t)
     # Weave / fading: fine multiplicative variation so a solid fabric is not a flat colour.
     weave = 1.0 + 0.05 * value_noise(rng, (res, res), res / 6.0) + 0.04 * value_noise(rng, (res, res), 20)
+    if garment.fabric == "knit":  # a sweater's ribs are resolved (12 mm period); jersey and woven threads are not
+        weave = weave * knit_ribs(coords_m)
     img = img * weave[..., None]
     lo, hi = ALBEDO_RANGE_FABRIC
     return np.clip(img, lo * 0.8, hi).astype(np.float32)

@@ -20,11 +20,21 @@ from rh_dataset.generate.seeding import rng_for
 from rh_common.camera import Camera, frame_body, orbit_cameras
 from rh_dataset.spec import SplitSpec
 
-__all__ = ["Subject", "SubjectSource", "AnnySubjects", "ImportedSubjects", "subject_source", "imported_bone_map",
-           "rig_cameras"]
+__all__ = ["framing_box", "CAMERA_FILL", "Subject", "SubjectSource", "AnnySubjects", "ImportedSubjects",
+           "subject_source", "imported_bone_map", "rig_cameras"]
 
 CAMERA_FILL = 0.96
 """Fraction of the frame's height the framed box fills (rh_common.camera.frame_body)."""
+
+
+def framing_box(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The box a generated subject's camera frames, from the rest pose's bounds (min, max): random poses reach up to
+    ~0.2 body heights above the head (arms overhead) and sideways about as far as the A-pose's hands; feet stay near
+    the ground (the root does not move). Frame that box, not the rest pose's."""
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    h = hi[2] - lo[2]
+    return (np.array([lo[0] - 0.05 * h, lo[1], lo[2] - 0.03 * h]),
+            np.array([hi[0] + 0.05 * h, hi[1], hi[2] + 0.18 * h]))
 
 
 @dataclass(frozen=True)
@@ -104,13 +114,7 @@ class AnnySubjects:
         spec = self.plan.spec
         recipe = sample_recipe(rng_for(self.plan.seed, "character", s), pool=spec.character_pool, index=s)
         character = build_character(recipe)
-        lo, hi = body_bounds(pose_character(character, None, None))
-        # Random poses reach up to ~0.2 body heights above the head (arms overhead) and sideways about as far as
-        # the A-pose's hands; feet stay near the ground (the root does not move). Frame that box, not the rest
-        # pose's.
-        h = hi[2] - lo[2]
-        lo = np.array([lo[0] - 0.05 * h, lo[1], lo[2] - 0.03 * h])
-        hi = np.array([hi[0] + 0.05 * h, hi[1], hi[2] + 0.18 * h])
+        lo, hi = framing_box(*body_bounds(pose_character(character, None, None)))
         cam = frame_body(lo, hi, spec.width, spec.height, spec.fov_y_deg, fill=CAMERA_FILL)
         return Subject(s, character, recipe.to_json(), cam, rig_cameras(spec, lo, hi))
 

@@ -25,6 +25,7 @@ class MaterialLike(Protocol):
     albedo: np.ndarray  # (H, W, 3) float32 linear, row 0 = top of the texture image (v = 1)
     roughness: float
     specular: float
+    # optional: sheen, sheen_tint (the principled sheen lobe; absent = 0)
 
 
 class MeshLike(Protocol):
@@ -124,6 +125,12 @@ def mitsuba_bsdf(material: MaterialLike) -> Any:
         bsdf = {"type": "principled", "base_color": reflectance,
                 "roughness": float(np.clip(material.roughness, 0.02, 1.0)),
                 "specular": float(np.clip(material.specular, 0.0, 1.0))}
+        # Cloth sheen: a lobe added on top of the base; the `aov` integrator's albedo (eval_diffuse_reflectance) is
+        # still base_color, i.e. the texture (tests/test_surface_detail.py renders it).
+        sheen = float(getattr(material, "sheen", 0.0))
+        if sheen > 0.0:
+            bsdf["sheen"] = sheen
+            bsdf["sheen_tint"] = float(getattr(material, "sheen_tint", 0.5))
     # Hems, skirts and hair sheets are seen from inside: shade both faces alike.
     if getattr(material, "two_sided", False):
         bsdf = {"type": "twosided", "material": bsdf}
