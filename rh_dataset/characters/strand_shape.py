@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..variant import load_mitsuba, require_variant
+from ..variant import jit_array, load_mitsuba, require_variant
 
 __all__ = ["mitsuba_curves"]
 
@@ -50,8 +50,8 @@ def mitsuba_curves(strands, stand_in: bool = False) -> Any:
         (Path(tmp) / "strand.txt").write_text(_TEMPLATE)
         shape = mi.load_dict({"type": "bsplinecurve", "filename": str(Path(tmp) / "strand.txt"), "bsdf": bsdf})
     params = mi.traverse(shape)
-    params["control_points"] = mi.Float(cp)
-    params["segment_indices"] = mi.UInt32(seg)
+    params["control_points"] = jit_array(mi.Float, cp)  # aligned: the same kernel every frame
+    params["segment_indices"] = jit_array(mi.UInt32, seg)
     params["control_point_count"] = int(S * k)
     params.update()
     return shape

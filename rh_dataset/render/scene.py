@@ -16,7 +16,7 @@ from rh_common.camera import Camera
 
 from .camera import mitsuba_sensor
 from .sampler import SAMPLERS
-from ..variant import load_mitsuba, require_variant
+from ..variant import jit_array, load_mitsuba, require_variant
 
 __all__ = ["MeshLike", "StrandsLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf", "is_strands"]
 
@@ -148,10 +148,11 @@ def mitsuba_mesh(mesh: MeshLike) -> Any:
     props["bsdf"] = mitsuba_bsdf(mesh.material)
     m = mi.Mesh(mesh.name, len(V), len(F), props, has_vertex_normals=True, has_vertex_texcoords=True)
     params = mi.traverse(m)
-    params["vertex_positions"] = mi.Float(V.ravel())
-    params["vertex_normals"] = mi.Float(N.ravel())
-    params["vertex_texcoords"] = mi.Float(UV.ravel())
-    params["faces"] = mi.UInt32(F.ravel())
+    # Aligned copies (`jit_array`): a buffer's alignment decides the kernel drjit compiles for reading it.
+    params["vertex_positions"] = jit_array(mi.Float, V)
+    params["vertex_normals"] = jit_array(mi.Float, N)
+    params["vertex_texcoords"] = jit_array(mi.Float, UV)
+    params["faces"] = jit_array(mi.UInt32, F)
     params.update()
     return m
 
