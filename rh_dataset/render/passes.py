@@ -5,8 +5,8 @@ the beauty image needs many, and RESEARCH.md measured the split arrangement ~2x 
 layers need is built and run: an AOV-only frame (pretraining data) never path-traces, and its scene has neither the
 path integrator nor the environment emitter (the AOV pass reads primary hits only, which no light changes); with
 `RenderSettings.cull` it also leaves out triangles outside the view frustum. `FrameRender.info` says what was built.
-Hair strands (`scene.is_strands`) are never culled; in the AOV pass they carry a diffuse stand-in BSDF whose
-reflectance is the fibre's albedo, so a frame with both passes and hair loads a second scene for the AOVs.
+Hair strands (`scene.is_strands`) are never culled; their BSDF gives the AOV pass the fibre's albedo and the beauty
+pass Mitsuba's hair, so one scene serves both passes.
 """
 from __future__ import annotations
 
@@ -104,16 +104,10 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
     else:
         integrator = _AOV_INTEGRATOR
 
-    def load(stand_in: bool, lit: bool, integ: dict):
-        return mi.load_dict(scene_dict(meshes + strands, emitter if lit else None, camera, integ, settings.spp,
-                                       pixel_format="rgba", sampler=settings.sampler, hair_stand_in=stand_in))
-
-    # Hair needs two scenes when the image is path-traced: the AOV pass reads the strands' diffuse albedo stand-ins,
-    # the beauty pass the hair BSDF. Only one scene is alive at a time (a live scene makes the next load recompile
-    # its kernels), so the beauty scene is loaded after the AOV pass there.
-    separate = bool(strands) and path_traced
-    scene = None if separate else load(not path_traced, path_traced, integrator)
-    aov_scene = None
+    # One scene for both passes, hair included: the strands' BSDF answers the AOV pass's albedo query with the
+    # fibre's albedo and path-traces as Mitsuba's hair (strand_shape.HAIR_WITH_ALBEDO).
+    scene = mi.load_dict(scene_dict(meshes + strands, emitter if path_traced else None, camera, integrator,
+                                    settings.spp, pixel_format="rgba", sampler=settings.sampler))
     seconds["load"] = time.perf_counter() - t
     try:
         # The AOV pass first: the beauty pass may spend its samples where the AOV coverage says the person is.
@@ -121,17 +115,11 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
         aov = None
         if _AOV_LAYERS & set(layers) or denoise:
             t = time.perf_counter()
-            aov_scene = load(True, False, _AOV_INTEGRATOR) if separate else scene
-            aov = np.array(mi.render(aov_scene, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp,
+            aov = np.array(mi.render(scene, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp,
                                      seed=seed + 1), dtype=np.float32)
-            aov_scene = None
             seconds["aov"] = time.perf_counter() - t
             out.update(_postprocess_aovs(aov, camera, layers))
         if path_traced:
-            if scene is None:
-                t = time.perf_counter()
-                scene = load(False, True, integrator)
-                seconds["load"] += time.perf_counter() - t
             t = time.perf_counter()
             if settings.env_spp is not None and aov is not None:
                 chunks = _chunks(settings.spp)
@@ -144,7 +132,7 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
             out["image"] = np.ascontiguousarray(img[..., :3])
             seconds["beauty"] = time.perf_counter() - t
     finally:
-        scene = aov_scene = None  # a live scene makes the next load recompile its kernels
+        scene = None  # a live scene makes the next load recompile its kernels
     if denoise:  # opt-in (RenderSettings.denoise), recorded in the frame JSON; guided by this frame's AOVs
         t = time.perf_counter()
         aux = _postprocess_aovs(aov, camera, ("mask", "albedo", "normal"))

@@ -2,7 +2,7 @@
 
 One plain function builds the dict (as Mitsuba's own `cornell_box()` does), so tests derive variants by editing it.
 Strands become one `bsplinecurve` shape per fibre (`rh_dataset.characters.strand_shape`) with Mitsuba's `hair`
-BSDF, or, for the AOV pass (`hair_stand_in=True`), a `diffuse` BSDF whose reflectance is the fibre's albedo.
+BSDF, wrapped so that the AOV pass reads the fibre's albedo from it.
 """
 from __future__ import annotations
 
@@ -158,9 +158,9 @@ def mitsuba_mesh(mesh: MeshLike) -> Any:
 
 
 def scene_dict(meshes: Sequence[MeshLike | StrandsLike], emitter: dict | None, camera: Camera, integrator: dict,
-               spp: int, *, pixel_format: str, sampler: str = "independent", hair_stand_in: bool = False) -> dict:
+               spp: int, *, pixel_format: str, sampler: str = "independent") -> dict:
     """The whole Mitsuba scene: one sensor, the environment emitter (None: no light at all, for passes that read
-    only primary hits), the character's meshes and hair strands (`hair_stand_in`: diffuse albedo stand-ins)."""
+    only primary hits), the character's meshes and hair strands."""
     d: dict[str, Any] = {
         "type": "scene",
         "integrator": integrator,
@@ -172,7 +172,7 @@ def scene_dict(meshes: Sequence[MeshLike | StrandsLike], emitter: dict | None, c
         if is_strands(mesh):
             from rh_dataset.characters.strand_shape import mitsuba_curves
 
-            d[f"curves_{i:02d}_{mesh.name}"] = mitsuba_curves(mesh, stand_in=hair_stand_in)
+            d[f"curves_{i:02d}_{mesh.name}"] = mitsuba_curves(mesh)
         else:
             d[f"mesh_{i:02d}_{mesh.name}"] = mitsuba_mesh(mesh)
     return d
