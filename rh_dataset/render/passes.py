@@ -39,10 +39,11 @@ class FrameRender:
     {hidden_under_clothes, outside_frustum}."""
 
 
-# The inner path integrator with max_depth 1 and hidden emitters only contributes the alpha channel (coverage);
-# the AOVs come after RGBA in the output.
-_AOV_INTEGRATOR = {"type": "aov", "aovs": "alb:albedo,nrm:sh_normal,pos:position",
-                   "inner": {"type": "path", "max_depth": 1, "hide_emitters": True}}
+# The inner integrator only contributes the alpha channel (coverage: whether the camera ray hit a surface); the AOVs
+# come after RGBA in the output. `depth` rather than a `path` of max_depth 1 with hidden emitters: the same coverage
+# bits, but it never looks at the emitter, so the AOV pass on the beauty scene (one scene per frame) does not pay for
+# the environment map's lookups where rays miss the person (half the pass's time, measured at 512x512).
+_AOV_INTEGRATOR = {"type": "aov", "aovs": "alb:albedo,nrm:sh_normal,pos:position", "inner": {"type": "depth"}}
 
 
 def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camera, settings: RenderSettings,
