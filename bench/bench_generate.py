@@ -2,6 +2,7 @@
 
     python bench/bench_generate.py [--resolution 512] [--presets draft standard reference] [--repeats 2]
     python bench/bench_generate.py --presets standard --also standard:independent:128::16   # before/after, one run
+    python bench/bench_generate.py --presets draft standard --repeats 3 --distinct-frames   # new frames reuse kernels?
     python bench/bench_generate.py --protocol c --split test --resolution 128 --presets draft  # one frame, 6 views
 
 Renders frame 0 of subject 0's test split of protocol a (a random pose under a random bundled HDRI, every test
@@ -9,9 +10,10 @@ layer: beauty pass + AOV pass) with `rh_dataset.generate.render_frame_to_disk`, 
 backends call, into a temporary folder (`--split` another split; a multi-view split's frame is every camera of it,
 `protocol c`: the seconds are the frame's, all views together): the same camera fill, culling, per-split path depth
 and writer as a dataset. Prints a Markdown table of each stage's median seconds. The first render of each preset
-is a warm-up (JIT compilation, cached on disk afterwards) and is not timed; building the subject is timed once. The
-kernel columns (drjit's kernel history over the timed frames) say whether a frame after the first reuses its
-kernels: "compiled" counts kernels not found in drjit's caches, and their code generation + backend time.
+is a warm-up (JIT compilation, cached on disk afterwards) and is not timed; the timed ones render frame 0 again, or
+with `--distinct-frames` frames 1, 2, ... (other poses and lights); building the subject is timed once. The kernel
+columns (drjit's kernel history over the timed frames) say whether a frame after the first reuses its kernels:
+"compiled" counts kernels not found in drjit's caches, and their code generation + backend time.
 """
 from __future__ import annotations
 
@@ -36,6 +38,9 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--protocol", default="a")
     p.add_argument("--split", default="test")
+    p.add_argument("--distinct-frames", action="store_true",
+                   help="time frames 1..repeats of the split (each its own pose and light, as a dataset renders them) "
+                        "instead of frame 0 again: the kernel columns then say whether a new frame reuses kernels")
     p.add_argument("--also", nargs="*", default=[],
                    help="extra rows preset:sampler:spp[:env_spp[:aov_spp]] (a preset with those overrides; no or empty "
                         "env_spp: every pixel at spp), e.g. standard:independent:128::16 for the settings before "
@@ -87,8 +92,8 @@ def main() -> None:
             render_frame_to_disk(plan, source, subject, split, 0)  # warm-up: compiles (or loads) its kernels
             dr.kernel_history()  # clears it
             runs, kernels = [], []
-            for _ in range(args.repeats):
-                runs.append(render_frame_to_disk(plan, source, subject, split, 0))
+            for r in range(args.repeats):
+                runs.append(render_frame_to_disk(plan, source, subject, split, r + 1 if args.distinct_frames else 0))
                 kernels += [k for k in dr.kernel_history() if k.get("type") == dr.KernelType.JIT]
             compiled = [k for k in kernels if not k.get("cache_hit")]
             compile_s = sum(k.get("codegen_time", 0.0) + k.get("backend_time", 0.0) for k in compiled) / 1000

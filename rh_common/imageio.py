@@ -188,8 +188,10 @@ def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
         arr = arr[..., 0]
     if not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] in (3, 4))):
         raise ValueError(f"write_png {path}: expected (H, W[, 3|4]), got shape {arr.shape}")
+    # zlib level 1, not Pillow's 6: a 512x512 beauty preview encodes ~4x faster for ~25% more bytes (0.86 against
+    # 0.69 bytes per pixel, bench/bench_writer.py); the pixels are the same (PNG is lossless).
     with atomic_path(path) as tmp:
-        Image.fromarray(arr).save(tmp, format="PNG", compress_level=6)
+        Image.fromarray(arr).save(tmp, format="PNG", compress_level=1)
 
 
 def write_webp(path: str | os.PathLike, image: np.ndarray, *, quality: int = 80) -> None:

@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["select_variant", "require_variant", "ensure_variant", "load_mitsuba", "VariantError",
+import numpy as np
+
+__all__ = ["select_variant", "require_variant", "ensure_variant", "load_mitsuba", "jit_array", "VariantError",
            "DEFAULT_VARIANT"]
 
 DEFAULT_VARIANT = "llvm_ad_rgb"  # the project's default where no command chose: CPU, bit-identical everywhere
@@ -82,3 +84,29 @@ def ensure_variant(default: str = DEFAULT_VARIANT):
     if mi.variant() is None:
         select_variant(default)
     return mi
+
+
+JIT_ALIGN = 64
+"""Bytes: the alignment drjit's LLVM backend asks of a mapped buffer before it reads it in packets (the vector width
+times the element size, at most 64)."""
+
+
+def jit_array(array_type, values):
+    """`array_type` (e.g. `mi.Float`, `mi.UInt32`) holding a flat copy of `values` in JIT_ALIGN-byte-aligned memory.
+
+    On the LLVM backend drjit maps a numpy buffer instead of copying it, and compiles a gather from it as one packet
+    load when the buffer is 64-byte aligned but as separate loads when it is not. numpy's allocator aligns to 16
+    bytes only, so the same scene built twice could give two kernels, and a frame recompiled (~0.5 s a kernel) what
+    the previous frame had cached (bench/bench_generate.py, the "compiled / frame" column). Aligned here, every
+    frame builds the same kernel; the copy also stops a later write to `values` from reaching the scene.
+    """
+    import drjit as dr
+
+    dtype = np.dtype(str(dr.type_v(array_type)).split(".")[-1].lower())  # VarType.Float32 -> float32
+    flat = np.asarray(values, dtype=dtype).ravel()
+    step = JIT_ALIGN // flat.itemsize
+    buf = np.empty(flat.size + step, dtype)
+    start = (-buf.ctypes.data % JIT_ALIGN) // flat.itemsize
+    out = buf[start:start + flat.size]
+    out[...] = flat
+    return array_type(out)

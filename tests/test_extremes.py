@@ -201,6 +201,23 @@ def test_firefly_count_definition():
         count_fireflies(np.full((4, 4, 3), np.nan, np.float32))
 
 
+def test_firefly_count_equals_a_full_median_filter():
+    # count_fireflies takes medians only where the window's minimum lets a pixel count: the same count as the
+    # definition's median filter over the whole frame (scipy, edges reflected), on heavy-tailed noise and edges.
+    from scipy.ndimage import median_filter
+
+    rng = np.random.default_rng(3)
+    edge = np.zeros((40, 50, 3))
+    edge[:, 25:] = rng.gamma(0.5, 1.0, (40, 25, 3))
+    edge[0, 0] = edge[39, 49] = 2.0  # lone pixels in the corners: the reflected edges decide them
+    for img in (rng.pareto(1.1, (60, 70, 3)), rng.gamma(0.2, 1.0, (33, 47, 3)), edge):
+        for window in (3, 4, 5):
+            lum = img @ np.array([0.2126, 0.7152, 0.0722])
+            want = np.count_nonzero(lum > FIREFLY_K * np.maximum(median_filter(lum, size=window, mode="reflect"),
+                                                                  1e-4 * lum.mean()))
+            assert count_fireflies(img, window=window) == want > 0
+
+
 def test_the_writer_records_fireflies_and_never_clamps_them(tmp_path):
     img = np.full((12, 12, 3), 0.1, np.float32)
     img[3, 4] = 500.0

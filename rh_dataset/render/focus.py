@@ -12,7 +12,9 @@ the AOV pass missed: a pixel it wrongly left out only gets the noise of env_spp 
 (tests/test_focus.py checks it against a deep full-frame reference).
 
 The person's pixels are traced by `render_pixels`, the same ray generation and sampler seeding as Mitsuba's own
-`mi.render` (bit-identical on a full pixel list, tested), over a list of pixel indices instead of a film crop:
+`mi.render` (the same samples; bit-identical on a full pixel list at 4 spp, tested), over a list of pixel indices
+instead of a film crop, summing each pixel's samples in a fixed order so that a frame's bits repeat (the film's
+scatter-add does not guarantee that once a pixel's samples straddle two of drjit's work blocks):
 drjit compiles a kernel per film crop and per wavefront size, so the list is padded (inactive lanes) to one of a few
 sizes per octave and the kernels are reused from drjit's disk cache from the second frame on.
 """
@@ -69,10 +71,13 @@ def render_pixels(mi, scene, pixels: np.ndarray, spp: int, seed: int) -> np.ndar
     ray, weight = sensor.sample_ray_differential(time=sensor.shutter_open(), sample1=0.0, sample2=pos * scale,
                                                  sample3=mi.Vector2f(0.5), active=active)
     L = scene.integrator().sample(scene, sampler, ray, None, active)[0] * weight
-    acc = dr.zeros(mi.Float, n_pad * 3)
-    for c in range(3):
-        dr.scatter_reduce(dr.ReduceOp.Add, acc, L[c], lane * 3 + c, active)
-    return (np.array(acc, dtype=np.float64).reshape(n_pad, 3)[:n] / spp).astype(np.float32)
+    # Each pixel's samples are summed in a fixed order (drjit's block reduction of the evaluated samples), not by
+    # a scatter-add, which adds them in whatever order the threads reach them: a pixel whose samples straddle two of
+    # drjit's work blocks (16384 lanes) got different last bits from run to run at 99 spp.
+    L = dr.select(active, L, 0.0)
+    dr.eval(L)  # one kernel traces all three channels
+    acc = np.stack([np.array(dr.block_sum(L[c], int(spp)), dtype=np.float64) for c in range(3)], -1)
+    return (acc[:n] / spp).astype(np.float32)
 
 
 def render_focused(mi, scene, coverage: np.ndarray, spp_chunks: list[int], env_spp: int, seeds: list[int],

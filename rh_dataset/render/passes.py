@@ -5,8 +5,8 @@ the beauty image needs many, and RESEARCH.md measured the split arrangement ~2x 
 layers need is built and run: an AOV-only frame (pretraining data) never path-traces, and its scene has neither the
 path integrator nor the environment emitter (the AOV pass reads primary hits only, which no light changes); with
 `RenderSettings.cull` it also leaves out triangles outside the view frustum. `FrameRender.info` says what was built.
-Hair strands (`scene.is_strands`) are never culled; in the AOV pass they carry a diffuse stand-in BSDF whose
-reflectance is the fibre's albedo, so a frame with both passes and hair loads a second scene for the AOVs.
+Hair strands (`scene.is_strands`) are never culled; their BSDF gives the AOV pass the fibre's albedo and the beauty
+pass Mitsuba's hair, so one scene serves both passes.
 """
 from __future__ import annotations
 
@@ -39,10 +39,11 @@ class FrameRender:
     {hidden_under_clothes, outside_frustum}."""
 
 
-# The inner path integrator with max_depth 1 and hidden emitters only contributes the alpha channel (coverage);
-# the AOVs come after RGBA in the output.
-_AOV_INTEGRATOR = {"type": "aov", "aovs": "alb:albedo,nrm:sh_normal,pos:position",
-                   "inner": {"type": "path", "max_depth": 1, "hide_emitters": True}}
+# The inner integrator only contributes the alpha channel (coverage: whether the camera ray hit a surface); the AOVs
+# come after RGBA in the output. `depth` rather than a `path` of max_depth 1 with hidden emitters: the same coverage
+# bits, but it never looks at the emitter, so the AOV pass on the beauty scene (one scene per frame) does not pay for
+# the environment map's lookups where rays miss the person (half the pass's time, measured at 512x512).
+_AOV_INTEGRATOR = {"type": "aov", "aovs": "alb:albedo,nrm:sh_normal,pos:position", "inner": {"type": "depth"}}
 
 
 def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camera, settings: RenderSettings,
@@ -104,16 +105,10 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
     else:
         integrator = _AOV_INTEGRATOR
 
-    def load(stand_in: bool, lit: bool, integ: dict):
-        return mi.load_dict(scene_dict(meshes + strands, emitter if lit else None, camera, integ, settings.spp,
-                                       pixel_format="rgba", sampler=settings.sampler, hair_stand_in=stand_in))
-
-    # Hair needs two scenes when the image is path-traced: the AOV pass reads the strands' diffuse albedo stand-ins,
-    # the beauty pass the hair BSDF. Only one scene is alive at a time (a live scene makes the next load recompile
-    # its kernels), so the beauty scene is loaded after the AOV pass there.
-    separate = bool(strands) and path_traced
-    scene = None if separate else load(not path_traced, path_traced, integrator)
-    aov_scene = None
+    # One scene for both passes, hair included: the strands' BSDF answers the AOV pass's albedo query with the
+    # fibre's albedo and path-traces as Mitsuba's hair (strand_shape.HAIR_WITH_ALBEDO).
+    scene = mi.load_dict(scene_dict(meshes + strands, emitter if path_traced else None, camera, integrator,
+                                    settings.spp, pixel_format="rgba", sampler=settings.sampler))
     seconds["load"] = time.perf_counter() - t
     try:
         # The AOV pass first: the beauty pass may spend its samples where the AOV coverage says the person is.
@@ -121,17 +116,11 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
         aov = None
         if _AOV_LAYERS & set(layers) or denoise:
             t = time.perf_counter()
-            aov_scene = load(True, False, _AOV_INTEGRATOR) if separate else scene
-            aov = np.array(mi.render(aov_scene, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp,
+            aov = np.array(mi.render(scene, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp,
                                      seed=seed + 1), dtype=np.float32)
-            aov_scene = None
             seconds["aov"] = time.perf_counter() - t
             out.update(_postprocess_aovs(aov, camera, layers))
         if path_traced:
-            if scene is None:
-                t = time.perf_counter()
-                scene = load(False, True, integrator)
-                seconds["load"] += time.perf_counter() - t
             t = time.perf_counter()
             if settings.env_spp is not None and aov is not None:
                 chunks = _chunks(settings.spp)
@@ -144,7 +133,7 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
             out["image"] = np.ascontiguousarray(img[..., :3])
             seconds["beauty"] = time.perf_counter() - t
     finally:
-        scene = aov_scene = None  # a live scene makes the next load recompile its kernels
+        scene = None  # a live scene makes the next load recompile its kernels
     if denoise:  # opt-in (RenderSettings.denoise), recorded in the frame JSON; guided by this frame's AOVs
         t = time.perf_counter()
         aux = _postprocess_aovs(aov, camera, ("mask", "albedo", "normal"))
@@ -194,7 +183,7 @@ def count_fireflies(image: np.ndarray, k: float = FIREFLY_K, window: int = FIREF
     nothing is clamped. Legitimately tiny, very bright features (a sun disc seen directly, a specular glint of
     a pixel or two) count too; read it as "pixels the noise or the light made isolated outliers".
     """
-    from scipy.ndimage import median_filter
+    from scipy.ndimage import minimum_filter
 
     img = np.asarray(image, dtype=np.float64)
     if img.ndim != 3 or img.shape[-1] < 3:
@@ -202,9 +191,22 @@ def count_fireflies(image: np.ndarray, k: float = FIREFLY_K, window: int = FIREF
     if not np.all(np.isfinite(img)):
         raise ValueError("count_fireflies: image contains NaN or Inf")
     lum = img[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
-    local = median_filter(lum, size=int(window), mode="reflect")
     floor = 1e-4 * float(lum.mean())
-    return int(np.count_nonzero(lum > k * np.maximum(local, floor)))
+    w = int(window)
+    # The window's median is at least its minimum, so only pixels above k * max(minimum, floor) can count; the
+    # median (scipy's rank w*w // 2 of the reflected window) is taken for those alone: the same count as a median
+    # filter of the whole frame at a fraction of its time (bench/bench_writer.py).
+    cand = np.flatnonzero(lum > k * np.maximum(minimum_filter(lum, size=w, mode="reflect"), floor))
+    if len(cand) == 0:
+        return 0
+    r = w // 2
+    padded = np.pad(lum, ((r, w - 1 - r), (r, w - 1 - r)), mode="symmetric")  # scipy's "reflect"
+    yy, xx = np.divmod(cand, lum.shape[1])
+    dy, dx = np.divmod(np.arange(w * w), w)
+    neighbours = padded[yy[:, None] + dy[None, :], xx[:, None] + dx[None, :]]
+    rank = (w * w) // 2
+    local = np.partition(neighbours, rank, axis=1)[:, rank]
+    return int(np.count_nonzero(lum.ravel()[cand] > k * np.maximum(local, floor)))
 
 
 # One Mitsuba call traces width*height*spp paths as one wavefront; at 512x512 x 4096 spp that is 1e9 lanes and

@@ -2,7 +2,7 @@
 
 One plain function builds the dict (as Mitsuba's own `cornell_box()` does), so tests derive variants by editing it.
 Strands become one `bsplinecurve` shape per fibre (`rh_dataset.characters.strand_shape`) with Mitsuba's `hair`
-BSDF, or, for the AOV pass (`hair_stand_in=True`), a `diffuse` BSDF whose reflectance is the fibre's albedo.
+BSDF, wrapped so that the AOV pass reads the fibre's albedo from it.
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from rh_common.camera import Camera
 
 from .camera import mitsuba_sensor
 from .sampler import SAMPLERS
-from ..variant import load_mitsuba, require_variant
+from ..variant import jit_array, load_mitsuba, require_variant
 
 __all__ = ["MeshLike", "StrandsLike", "RenderSettings", "scene_dict", "mitsuba_mesh", "mitsuba_bsdf", "is_strands"]
 
@@ -155,18 +155,19 @@ def mitsuba_mesh(mesh: MeshLike) -> Any:
     props["bsdf"] = mitsuba_bsdf(mesh.material)
     m = mi.Mesh(mesh.name, len(V), len(F), props, has_vertex_normals=True, has_vertex_texcoords=True)
     params = mi.traverse(m)
-    params["vertex_positions"] = mi.Float(V.ravel())
-    params["vertex_normals"] = mi.Float(N.ravel())
-    params["vertex_texcoords"] = mi.Float(UV.ravel())
-    params["faces"] = mi.UInt32(F.ravel())
+    # Aligned copies (`jit_array`): a buffer's alignment decides the kernel drjit compiles for reading it.
+    params["vertex_positions"] = jit_array(mi.Float, V)
+    params["vertex_normals"] = jit_array(mi.Float, N)
+    params["vertex_texcoords"] = jit_array(mi.Float, UV)
+    params["faces"] = jit_array(mi.UInt32, F)
     params.update()
     return m
 
 
 def scene_dict(meshes: Sequence[MeshLike | StrandsLike], emitter: dict | None, camera: Camera, integrator: dict,
-               spp: int, *, pixel_format: str, sampler: str = "independent", hair_stand_in: bool = False) -> dict:
+               spp: int, *, pixel_format: str, sampler: str = "independent") -> dict:
     """The whole Mitsuba scene: one sensor, the environment emitter (None: no light at all, for passes that read
-    only primary hits), the character's meshes and hair strands (`hair_stand_in`: diffuse albedo stand-ins)."""
+    only primary hits), the character's meshes and hair strands."""
     d: dict[str, Any] = {
         "type": "scene",
         "integrator": integrator,
@@ -178,7 +179,7 @@ def scene_dict(meshes: Sequence[MeshLike | StrandsLike], emitter: dict | None, c
         if is_strands(mesh):
             from rh_dataset.characters.strand_shape import mitsuba_curves
 
-            d[f"curves_{i:02d}_{mesh.name}"] = mitsuba_curves(mesh, stand_in=hair_stand_in)
+            d[f"curves_{i:02d}_{mesh.name}"] = mitsuba_curves(mesh)
         else:
             d[f"mesh_{i:02d}_{mesh.name}"] = mitsuba_mesh(mesh)
     return d
