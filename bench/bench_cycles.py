@@ -21,10 +21,11 @@ Reported, per scene:
              the background (environment seen directly), the mask IoU (Cycles alpha vs Mitsuba coverage), and, as
              the noise baseline, an independent Mitsuba render at the same spp against the same reference;
   sweep      spp 1..--max-spp for both renderers, render time only (Mitsuba: the beauty pass with the standard
-             preset's sampler and focusing, plus the coverage pass focusing needs, scene load excluded; Cycles: first sample to 'Finished', scene sync/BVH excluded, both reported apart),
+             preset's sampler and focusing, plus the coverage pass focusing needs, scene load excluded; Cycles:
+             first sample to 'Finished', scene sync/BVH excluded, both reported apart),
              median of --repeats, relMSE averaged over the repeats' independent seeds;
   ratio      the equal-error time ratio t_Mitsuba / t_Cycles at stated relMSE levels (default: the errors Mitsuba
-             reaches at 16, 64 and 128 spp, our presets' sample counts), interpolated linearly in
+             reaches at draft's spp, 64 and standard's spp, which the sweep includes), interpolated linearly in
              log(time)-log(relMSE) between the measured points, and from power-law fits (spp >= 4);
   samples/s  pixels x spp / render time at the largest spp.
 Machine shared with other jobs: read absolute seconds as +-30 %, ratios from one run as the figure.
@@ -57,6 +58,7 @@ from rh_common.imageio import atomic_path, read_exr, write_json  # noqa: E402
 from rh_dataset.presets import load_presets  # noqa: E402
 
 STANDARD = load_presets()["standard"]  # our side renders with the standard preset's sampler and focusing
+PRESET_LEVEL_SPP = (load_presets()["draft"].spp, 64, STANDARD.spp)  # the equal-error levels' sample counts
 
 BLENDER_SCRIPT = HERE / "cycles_render_bpy.py"
 NEAR, FAR = 0.01, 1000.0  # rh_dataset.render.camera.mitsuba_sensor's clip planes
@@ -260,7 +262,11 @@ def run_scene(name: str, args, work: Path) -> dict:
               " / ".join(f"{v:.4f}" for v in diff_ratio)]]))
 
     # -- the sweep (Lambertian): repeats interleaved so both renderers see the same load drift
-    spps = [2 ** k for k in range(0, 16) if 2 ** k <= args.max_spp]
+    # Powers of 2, as the sampler takes them (multijitter renders 35 when asked for 32): both renderers at that count.
+    from rh_dataset.render.sampler import taken_spp
+
+    spps = sorted({taken_spp(args.sampler, 2 ** k) for k in range(0, 16) if 2 ** k <= args.max_spp} |
+                  {s for s in PRESET_LEVEL_SPP if s <= args.max_spp and taken_spp(args.sampler, s) == s})
     m_t = {s: [] for s in spps}
     m_e = {s: [] for s in spps}
     c_t = {s: [] for s in spps}
@@ -329,12 +335,11 @@ def run_scene(name: str, args, work: Path) -> dict:
 
 
 def _default_levels(sweep) -> list[float]:
-    """The relMSE our own presets' sample counts reach on Mitsuba (16 = `draft`, 64, 128 = `standard`), as
-    measured (rounding could push a level past the curve's end): "the time each renderer needs for the error our
-    presets accept". Falls back to the Mitsuba errors at
-    the three largest spp of a shorter sweep."""
+    """The relMSE our presets' sample counts reach on Mitsuba (`draft`'s, 64, `standard`'s; the sweep includes
+    them), as measured: "the time each renderer needs for the error our presets accept". Falls back to the Mitsuba
+    errors at the three largest spp of a shorter sweep."""
     by = {r["spp"]: r["mitsuba_relmse"] for r in sweep}
-    spps = [s for s in (16, 64, 128) if s in by] or sorted(by)[-3:]
+    spps = [s for s in PRESET_LEVEL_SPP if s in by] or sorted(by)[-3:]
     return [float(by[s]) for s in spps]
 
 
@@ -388,7 +393,7 @@ def main(argv=None) -> dict:
     p.add_argument("--max-spp", type=int, default=256, help="largest spp of the sweep (powers of 2 from 1)")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--levels", type=float, nargs="*", default=None, help="relMSE levels for the equal-error ratio "
-                   "(default: Mitsuba's relMSE at 16, 64 and 128 spp, the sample counts of our presets)")
+                   "(default: Mitsuba's relMSE at draft's spp, 64 and standard's spp, which the sweep includes)")
     p.add_argument("--threads", type=int, default=2, help="Cycles threads (Mitsuba's LLVM backend uses every core)")
     p.add_argument("--chunk-spp", type=int, default=256)
     p.add_argument("--sampler", default=STANDARD.sampler, help="Mitsuba's sampler for our renders (default: the "
