@@ -135,14 +135,15 @@ def _body_cylinder(feats: BodyFeatures, under: np.ndarray, centre: np.ndarray, z
 
 
 def hang_envelope(feats: BodyFeatures, under: np.ndarray, z_lo: float, z_hi: float, clear: float = 0.009,
-                  dz: float = 0.006) -> tuple[np.ndarray, np.ndarray]:
+                  dz: float = 0.006, lead: int = 7) -> tuple[np.ndarray, np.ndarray]:
     """Where hanging hair may fall: per (azimuth bin of 5 degrees from the front, height bin) the smallest horizontal
     distance from the skull's vertical axis that clears head, neck, trunk, shoulders and clothes by `clear` metres,
     widened as hair falls (the running maximum downwards: hair does not tuck back under a shoulder) and starting to
-    widen ~3 cm above an obstacle. Returns (grid (N_AZ, Z), z of the bins, top down)."""
+    widen ~2 cm (`lead` // 2 bins; `lead` 1: only at it) above an obstacle. Returns (grid (N_AZ, Z), z of the bins,
+    top down)."""
     centre, _ = hair_frame(feats)
     grid, zs = _body_cylinder(feats, under, centre, z_lo, z_hi, dz)
-    need = ndimage.maximum_filter1d(grid + clear, 7, axis=1, origin=-3, mode="nearest")
+    need = ndimage.maximum_filter1d(grid + clear, lead, axis=1, origin=-(lead // 2), mode="nearest")
     hang = np.maximum.accumulate(need, axis=1)
     smooth = ndimage.gaussian_filter(hang, (0.8, 1.5), mode=("wrap", "nearest"))
     return np.maximum(smooth, hang), zs
