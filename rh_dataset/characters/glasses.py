@@ -16,7 +16,7 @@ import numpy as np
 
 from .body import body_topology
 from .body_features import BodyFeatures
-from .geometry import closed_tube
+from .geometry import closed_tube, first_hit
 
 __all__ = ["glasses_frame", "LENS_HALF", "VERTEX_DISTANCE", "RIM_RADIUS"]
 
@@ -52,15 +52,6 @@ def _tube(path: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.n
     return v, f, np.stack([uu.ravel(), vv.ravel()], 1)
 
 
-def _first_hit(mesh, origins: np.ndarray, direction: np.ndarray) -> np.ndarray:
-    """Distance along `direction` to the first surface hit from each origin (inf where none)."""
-    dirs = np.broadcast_to(direction, origins.shape)
-    loc, ray, _ = mesh.ray.intersects_location(origins, dirs, multiple_hits=True)
-    out = np.full(len(origins), np.inf)
-    np.minimum.at(out, ray, ((loc - origins[ray]) * dirs[ray]).sum(1))
-    return out
-
-
 def _rotate(p: np.ndarray, centre: np.ndarray, axis: int, angle: float) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
     i, j = [(1, 2), (2, 0), (0, 1)][axis]
@@ -71,7 +62,7 @@ def _rotate(p: np.ndarray, centre: np.ndarray, axis: int, angle: float) -> np.nd
     return out + centre
 
 
-def _left_side(feats: BodyFeatures, mesh) -> list[tuple[np.ndarray, float]]:
+def _left_side(feats: BodyFeatures) -> list[tuple[np.ndarray, float]]:
     """Paths and radii of the left half (x > 0): rim, half the bridge, nose pad, temple."""
     from .drape import _closest
 
@@ -101,7 +92,7 @@ def _left_side(feats: BodyFeatures, mesh) -> list[tuple[np.ndarray, float]]:
     inner = rim[np.argmin(np.where(rim[:, 2] > centre[2] + 0.3 * b, rim[:, 0], np.inf))]
     z_mid = inner[2] + 0.005
     far = -0.5
-    y_nose = far + _first_hit(mesh, np.array([[0.0, far, z_mid]]), np.array([0.0, 1.0, 0.0]))[0]
+    y_nose = far + first_hit(v, faces, np.array([[0.0, far, z_mid]]), np.array([0.0, 1.0, 0.0]))[0]
     y_mid = min(inner[1], y_nose - RIM_RADIUS - CLEAR)
     s = np.linspace(0.0, 1.0, 10)
     ease = np.sin(0.5 * np.pi * s)
@@ -126,7 +117,7 @@ def _left_side(feats: BodyFeatures, mesh) -> list[tuple[np.ndarray, float]]:
     ys = np.concatenate([ys, y_back + 0.004 + 0.008 * drop])
     zs = np.concatenate([zs, z_over - 0.028 * drop ** 1.3])
     origin = np.stack([np.full(len(ys), 0.3), ys, zs], 1)
-    x_side = 0.3 - _first_hit(mesh, origin, np.array([-1.0, 0.0, 0.0]))
+    x_side = 0.3 - first_hit(v, faces, origin, np.array([-1.0, 0.0, 0.0]))
     x_side = np.where(np.isfinite(x_side), x_side, hinge[0])
     x = np.maximum(hinge[0] + np.zeros(len(ys)), x_side + TEMPLE_RADIUS + CLEAR)
     temple = np.stack([x, ys, zs], 1)
@@ -137,11 +128,8 @@ def _left_side(feats: BodyFeatures, mesh) -> list[tuple[np.ndarray, float]]:
 
 def glasses_frame(feats: BodyFeatures) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The frame's mesh, symmetric about x = 0 (left half designed, then mirrored)."""
-    import trimesh
-
-    mesh = trimesh.Trimesh(feats.rest_vertices, body_topology().faces, process=False)
     verts, faces, uvs = [], [], []
-    for path, radius in _left_side(feats, mesh):
+    for path, radius in _left_side(feats):
         for mirror in (1.0, -1.0):
             v, f, uv = _tube(path * np.array([mirror, 1.0, 1.0]), radius)
             faces.append((f if mirror > 0 else f[:, ::-1]) + sum(len(x) for x in verts))

@@ -37,7 +37,7 @@ from .geometry import drop_unreferenced
 from .recipe import Headwear
 from .scalp import Scalp, directions, hang_envelope, sample_envelope, scalp
 
-__all__ = ["HairCover", "HeadwearGeometry", "build_headwear", "press_hair", "rigid_binding", "covered",
+__all__ = ["HairCover", "HeadwearGeometry", "build_headwear", "press_hair", "rigid_binding", "covered", "depth_under",
            "CAP_GAP", "HAT_GAP", "SCARF_GAP", "FIT_CLEARANCE", "HEAD_BONE"]
 
 CAP_GAP = 0.008  # metres between the skull and a cap's crown (the pressed hair lies in it)
@@ -307,8 +307,9 @@ def build_headwear(items: tuple[Headwear, ...], feats: BodyFeatures, phenotype: 
     return out
 
 
-def covered(cover: HairCover, sc: Scalp, points: np.ndarray) -> np.ndarray:
-    """Which rest-pose points (N, 3) lie in directions a crown covers (above its band)."""
+def covered(cover: HairCover, sc: Scalp, points: np.ndarray, margin: float = 0.002) -> np.ndarray:
+    """Which rest-pose points (N, 3) lie in directions a crown covers: more than `margin` metres (along the skull)
+    above its band (the crown's edge is turned under there)."""
     rel = points - sc.centre
     r = np.linalg.norm(rel, axis=1)
     th = np.arctan2(rel[:, 0], -rel[:, 1])
@@ -316,7 +317,7 @@ def covered(cover: HairCover, sc: Scalp, points: np.ndarray) -> np.ndarray:
     n = len(cover.band)
     a = np.mod((np.degrees(th) + 180.0) / (360.0 / n), n)
     band = np.interp(a, np.arange(n + 1), np.concatenate([cover.band, cover.band[:1]]))
-    return el >= band
+    return el >= band + margin / sc.radius_at(th, el)
 
 
 def press_hair(points: np.ndarray, covers: list[HairCover], sc: Scalp) -> tuple[np.ndarray, np.ndarray]:
@@ -347,3 +348,15 @@ def press_hair(points: np.ndarray, covers: list[HairCover], sc: Scalp) -> tuple[
         pts = flat.reshape(pts.shape)
         keep &= ~(el >= band).reshape(pts.shape[:2]).all(1)
     return pts, keep
+
+
+def depth_under(vertices: np.ndarray, faces: np.ndarray, centre: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """How far (metres) each point lies under a headwear mesh, seen from the head's centre: the distance to the
+    first hit of the ray from `centre` through the point (trimesh) minus the point's own distance; > 0 means the
+    headwear is further out (the point is under it), -inf that the ray misses the headwear."""
+    from .geometry import first_hit
+
+    rel = np.asarray(points, np.float64) - centre
+    r = np.linalg.norm(rel, axis=1)
+    t = first_hit(vertices, faces, np.broadcast_to(centre, rel.shape), rel / np.maximum(r[:, None], 1e-12))
+    return np.where(np.isfinite(t), t - r, -np.inf)
