@@ -10,9 +10,9 @@ body; each part vertex sits at its anchor (a posed body vertex, or a blend of th
 anchor's normal. Nothing is simulated per frame, so shell garments fold only where the skin folds, but they follow
 every pose. Draped garments (drape.py) are simulated once in the rest pose and then skinned with the body's
 linear-blend weights transferred to them; headwear (headwear.py) is skinned the same way (caps, hats and glasses
-rigidly to the head bone, head scarves with the body's weights), and presses or hides the hair under it. Hair is strands (`hair.py`): every control point is anchored the same
-way as a shell vertex, and posing gives `PosedStrands` (control points and radii, one `HairFibre` per set of
-strands) beside the `PosedMesh`es.
+rigidly to the head bone, head scarves with the body's weights), and presses or hides the hair under it. Hair is
+strands (`hair.py`): every control point is anchored the same way as a shell vertex, and posing gives
+`PosedStrands` (control points and radii, one `HairFibre` per set of strands) beside the `PosedMesh`es.
 """
 from __future__ import annotations
 

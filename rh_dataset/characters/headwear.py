@@ -145,7 +145,8 @@ def _cap(feats: BodyFeatures, sc: Scalp):
     e_in = e_b + 0.004 / r0
     inner = sc.centre + (sc.radius_at(th, e_in) + CAP_GAP - 0.003)[:, None] * directions(th, e_in)
     grid = np.concatenate([inner[None], crown], 0)
-    top = sc.centre + (float(sc.radius_at(np.array(0.0), np.array(np.pi / 2))) + CAP_GAP + 0.004) * np.array([0, 0, 1.0])
+    r_top = float(sc.radius_at(np.array(0.0), np.array(np.pi / 2)))
+    top = sc.centre + (r_top + CAP_GAP + 0.004) * np.array([0.0, 0.0, 1.0])
     v_crown, f_crown = _with_pole(grid, top)
     uv_crown = _grid_uvs(*grid.shape[:2], extra=1)
     # Visor: cross-section loops (top sheet out, bottom sheet back) across azimuths within +-62 degrees.
