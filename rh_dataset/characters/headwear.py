@@ -240,23 +240,41 @@ def _scarf(feats: BodyFeatures, sc: Scalp, under: np.ndarray):
         rr[:, k], zz[:, k] = np.interp(u, s, rho), np.interp(u, s, z)
     # Fabric does not follow every bump of the envelope: smooth it (never inwards), the seam column kept a copy.
     core = rr[:, :-1]
-    core = np.maximum(ndimage.gaussian_filter(core, (1.2, 2.0), mode=("nearest", "wrap")), core)
+    core = np.maximum(ndimage.gaussian_filter(core, (2.0, 2.5), mode=("nearest", "wrap")), core)
     core = ndimage.gaussian_filter(core, (0.7, 1.0), mode=("nearest", "wrap"))
     rr = np.concatenate([core, core[:, :1]], 1)
-    grid = np.stack([c[0] + rr * np.sin(th), c[1] - rr * np.cos(th), zz], -1)[::-1]  # hem first, crown last
-    verts, faces = _with_pole(grid, np.array([c[0], c[1], z_top + 0.001]))
-    uvs = _grid_uvs(rows, len(th), extra=1)
-    # The face opening: an oval in (azimuth, height) from under the chin to above the brows.
+    # The face opening, an oval from under the chin to above the brows: the front column is split in two and every
+    # row in that height range spreads its columns apart, so the fabric's edge is a smooth curve at +-half(z).
     face = head & (feats.masks["face"] > 0.5)
     z_chin = float(v[face, 2].min()) + 0.012
     z_brow = z_eye + 0.045
-    rel = verts - c
-    tv = np.degrees(np.arctan2(rel[:, 0], -rel[:, 1]))
-    half = np.interp(verts[:, 2], [z_chin, z_eye - 0.045, z_eye, z_eye + 0.025, z_brow], [22, 48, 64, 58, 30])
-    inside = (np.abs(tv) < half) & (verts[:, 2] > z_chin) & (verts[:, 2] < z_brow)
-    faces = faces[~inside[faces].any(1)]
+    knots = [z_chin, z_chin + 0.01, z_eye - 0.045, z_eye, z_eye + 0.025, z_brow - 0.01, z_brow]
+    front = len(th) // 2  # theta = 0
+    cols = np.concatenate([np.arange(front + 1), np.arange(front, len(th))])  # the front column twice
+    side = np.where(np.arange(len(cols)) <= front, -1.0, 1.0)
+    zg = zz[:, cols]
+    half = np.radians(np.interp(zg, knots, [0.0, 25.0, 46.0, 62.0, 56.0, 32.0, 0.0], left=0.0, right=0.0))
+    t0 = np.abs(th[cols])[None, :]
+    tq = side * (half + (np.pi - half) * t0 / np.pi)  # the spread azimuths
+    rq = rr[:, cols].copy()
+    moved = np.argwhere(half > 0)
+    for i, j in moved:  # the envelope radius at the spread azimuth and the same height
+        f = (tq[i, j] + np.pi) / (2 * np.pi) * (len(th) - 1)
+        k0 = int(np.clip(np.floor(f), 0, len(th) - 2))
+        a = f - k0
+        r0 = np.interp(zg[i, j], zz[::-1, k0], rr[::-1, k0])
+        r1 = np.interp(zg[i, j], zz[::-1, k0 + 1], rr[::-1, k0 + 1])
+        rq[i, j] = (1 - a) * r0 + a * r1
+    grid = np.stack([c[0] + rq * np.sin(tq), c[1] - rq * np.cos(tq), zg], -1)[::-1]  # hem first, crown last
+    verts, faces = _with_pole(grid, np.array([c[0], c[1], z_top + 0.001]))
+    uvs = _grid_uvs(rows, len(cols), extra=1)
+    col_of = np.concatenate([np.tile(np.arange(len(cols)), rows), [-1]])
+    slit = np.isin(col_of[faces], [front, front + 1, -1]).all(1)
+    faces = faces[~slit]  # nothing joins the two copies of the front column
+    tv = np.degrees(np.concatenate([tq[::-1].ravel(), [0.0]]))
+    half = np.degrees(np.concatenate([half[::-1].ravel(), [0.0]]))
     # Pull the fabric round the opening onto the skin (a scarf's edge hugs the face and wraps under the chin).
-    d_side = np.radians(np.maximum(np.abs(tv) - half, 0.0)) * 0.09
+    d_side = np.radians(np.abs(tv) - half) * 0.09
     d_z = np.maximum.reduce([z_chin - verts[:, 2], verts[:, 2] - z_brow, np.zeros(len(verts))])
     w = _smoothstep(1.0 - np.hypot(d_side, d_z) / 0.035) * (np.abs(tv) < 110.0)
     near = np.flatnonzero(w > 0)
