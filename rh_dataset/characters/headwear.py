@@ -316,6 +316,7 @@ def build_headwear(items: tuple[Headwear, ...], feats: BodyFeatures, phenotype: 
         else:
             v, f, uv = glasses_frame(feats)
             mpu, cover = 0.3, None
+        v, f, uv = drop_unreferenced(np.asarray(v, np.float64), np.asarray(f, np.int64), np.asarray(uv))
         v = push_out(v, feats.rest_vertices, feats.rest_normals, faces_body, clearance=FIT_CLEARANCE)
         if item.kind == "headscarf":
             skin = bind_to_skeleton(v, phenotype, in_bind_space=True)
