@@ -227,7 +227,8 @@ def _scarf(feats: BodyFeatures, sc: Scalp, under: np.ndarray):
     z_sh = 0.5 * float(feats.bone_heads["shoulder01.L"][2] + feats.bone_heads["shoulder01.R"][2])
     th = np.concatenate([_thetas(120), [np.pi]])
     hem = z_sh - 0.075 + 0.045 * np.sin(th) ** 2  # shorter over the shoulders, where the arms begin
-    env, zs = hang_envelope(feats, under, float(hem.min()) - 0.02, z_top + 0.01, clear=SCARF_GAP, dz=0.004, lead=1)
+    env, zs = hang_envelope(feats, under, float(hem.min()) - 0.02, z_top + 0.01, clear=SCARF_GAP, dz=0.004, lead=1,
+                            arms=True)
     rows = 72
     rr, zz = np.empty((rows, len(th))), np.empty((rows, len(th)))
     az = np.degrees(th) % 360.0
@@ -281,7 +282,10 @@ def _scarf(feats: BodyFeatures, sc: Scalp, under: np.ndarray):
     from .body import body_topology
 
     _, q, n = _closest(v, body_topology().faces, verts[near], feats.rest_normals)
-    verts[near] += w[near, None] * (q + (FIT_CLEARANCE + 0.003) * n - verts[near])
+    from scipy.spatial import cKDTree
+
+    cloth = under[cKDTree(v).query(q)[1]]  # a collar under the edge: stay outside it too
+    verts[near] += w[near, None] * (q + (FIT_CLEARANCE + 0.003 + cloth)[:, None] * n - verts[near])
     verts, faces, uvs = drop_unreferenced(verts, faces, uvs)
     faces = _outward(verts, faces, c)
     return verts, faces, uvs, 1.2, HairCover(True)
