@@ -13,8 +13,8 @@ through the skull centre; the skull radius is the kernel-regressed one hair grow
   widest horizontal radius above the band plus `HAT_GAP`), a 7.5 cm brim 5 mm thick drooping at the front and back,
   a tapered crown 3 cm above the skull with a creased top, and the underside closing onto the skull. Rigid.
 - headscarf: fabric falling from the crown over head, ears, neck and shoulders outside `scalp.hang_envelope`
-  (so it clears head, neck, trunk, upper arms and clothes by `SCARF_GAP`), an oval opening for the face whose edge is pulled
-  onto the skin, wrapping under the chin. Skinned with the body's weights (`drape.bind_to_skeleton`), so it bends
+  (so it clears head, neck, trunk, upper arms and clothes by `SCARF_GAP`), an oval opening for the face whose
+  edge is pulled onto the skin, wrapping under the chin. Skinned with the body's weights (`drape.bind_to_skeleton`), so it bends
   with neck and shoulders.
 - glasses: frames as tubes (`glasses.py`), rigid with the head.
 Every vertex is then moved `FIT_CLEARANCE` clear of the rest-pose body (trimesh closest points, `drape.push_out`);

@@ -33,10 +33,11 @@ __all__ = [
     "derive_seed",
     "sample_recipe",
     "recipe_from_seed",
+    "sample_headwear",
     "skin_albedo_linear",
 ]
 
-RECIPE_FORMAT = "rh-character/1"
+RECIPE_FORMAT = "rh-character/1"  # headwear (optional key) kept the format: older recipes read back unchanged
 POOLS = ("benchmark", "pretrain")
 # draped_skirt: a loose skirt draped by newton's cloth solver (drape.py); never drawn by `recipe_from_seed` (off by
 # default, so generated datasets keep their bytes), chosen by editing a recipe.
@@ -260,7 +261,8 @@ class CharacterRecipe:
         if not all(isinstance(h, Headwear) for h in headwear):
             raise ValueError("headwear must be Headwear instances")
         hk = [h.kind for h in headwear]
-        if len(set(hk)) != len(hk) or sum(k in COVERINGS for k in hk) > 1 or hk != sorted(hk, key=HEADWEAR_KINDS.index):
+        ordered = sorted(hk, key=HEADWEAR_KINDS.index)
+        if len(set(hk)) != len(hk) or sum(k in COVERINGS for k in hk) > 1 or hk != ordered:
             raise ValueError(f"headwear: at most one of {COVERINGS}, then optionally glasses, got {hk}")
         _set(self, "headwear", headwear)
 
@@ -299,9 +301,9 @@ class CharacterRecipe:
         if d.get("format") != RECIPE_FORMAT:
             raise ValueError(f"format must be {RECIPE_FORMAT!r}, got {d.get('format')!r}")
         expected = {"format", "seed", "pool", "index", "phenotype", "skin", "hair", "garments"}
-        if set(d) - {"headwear"} != expected:
-            raise ValueError(f"recipe keys must be {sorted(expected)}, got unknown {sorted(set(d) - expected)} "
-                             f"missing {sorted(expected - set(d))}")
+        if set(d) - {"headwear"} != expected:  # headwear is optional (absent = none)
+            raise ValueError(f"recipe keys must be {sorted(expected)} (and optionally headwear), got unknown "
+                             f"{sorted(set(d) - expected - {'headwear'})} missing {sorted(expected - set(d))}")
         try:
             skin = SkinTone(**d["skin"])
         except TypeError as exc:
