@@ -232,13 +232,18 @@ def _scarf(feats: BodyFeatures, sc: Scalp, under: np.ndarray):
     rows = 72
     rr, zz = np.empty((rows, len(th))), np.empty((rows, len(th)))
     az = np.degrees(th) % 360.0
-    for k in range(len(th)):  # each azimuth's profile from the crown down, resampled evenly in arc length
-        z = np.arange(z_top, hem[k], -0.001)
+    face = head & (feats.masks["face"] > 0.5)
+    z_split = float(v[face, 2].min()) - 0.01  # below the chin: rows at common heights (no sheared triangles)
+    n_top = 44
+    for k in range(len(th)):  # each azimuth's profile from the crown down, evenly in arc length to z_split
+        z = np.arange(z_top, z_split, -0.001)
         rho = sample_envelope(env, zs, np.full(len(z), az[k]), z)
         rho[0] = 0.004
         s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(rho), np.diff(z)))])
-        u = np.linspace(0.0, s[-1], rows)
-        rr[:, k], zz[:, k] = np.interp(u, s, rho), np.interp(u, s, z)
+        u = np.linspace(0.0, s[-1], n_top)
+        zb = np.linspace(z_split, hem[k], rows - n_top + 1)[1:]
+        rr[:, k] = np.concatenate([np.interp(u, s, rho), sample_envelope(env, zs, np.full(len(zb), az[k]), zb)])
+        zz[:, k] = np.concatenate([np.interp(u, s, z), zb])
     # Fabric does not follow every bump of the envelope: smooth it (never inwards), the seam column kept a copy.
     core = rr[:, :-1]
     core = np.maximum(ndimage.gaussian_filter(core, (2.0, 2.5), mode=("nearest", "wrap")), core)
@@ -246,7 +251,6 @@ def _scarf(feats: BodyFeatures, sc: Scalp, under: np.ndarray):
     rr = np.concatenate([core, core[:, :1]], 1)
     # The face opening, an oval from under the chin to above the brows: the front column is split in two and every
     # row in that height range spreads its columns apart, so the fabric's edge is a smooth curve at +-half(z).
-    face = head & (feats.masks["face"] > 0.5)
     z_chin = float(v[face, 2].min()) + 0.012
     z_brow = z_eye + 0.045
     knots = [z_chin, z_chin + 0.01, z_eye - 0.045, z_eye, z_eye + 0.025, z_brow - 0.01, z_brow]
