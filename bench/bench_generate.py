@@ -3,6 +3,7 @@
     python bench/bench_generate.py [--resolution 512] [--presets draft standard reference] [--repeats 2]
     python bench/bench_generate.py --presets standard --also standard:independent:128::16   # before/after, one run
     python bench/bench_generate.py --presets draft standard --repeats 3 --distinct-frames   # new frames reuse kernels?
+    python bench/bench_generate.py --presets standard --headwear none cap brimmed_hat headscarf glasses
     python bench/bench_generate.py --protocol c --split test --resolution 128 --presets draft  # one frame, 6 views
 
 Renders frame 0 of subject 0's test split of protocol a (a random pose under a random bundled HDRI, every test
@@ -13,7 +14,9 @@ and writer as a dataset. Prints a Markdown table of each stage's median seconds.
 is a warm-up (JIT compilation, cached on disk afterwards) and is not timed; the timed ones render frame 0 again, or
 with `--distinct-frames` frames 1, 2, ... (other poses and lights); building the subject is timed once. The kernel
 columns (drjit's kernel history over the timed frames) say whether a frame after the first reuses its kernels:
-"compiled" counts kernels not found in drjit's caches, and their code generation + backend time.
+"compiled" counts kernels not found in drjit's caches, and their code generation + backend time. --headwear: the
+table again for subject 0 wearing each of the given headwear (KIND or KIND+glasses; "none" = bare-headed), same
+pose, light and camera, so with/without is a ratio within one run.
 """
 from __future__ import annotations
 
@@ -45,6 +48,8 @@ def main() -> None:
                    help="extra rows preset:sampler:spp[:env_spp[:aov_spp]] (a preset with those overrides; no or empty "
                         "env_spp: every pixel at spp), e.g. standard:independent:128::16 for the settings before "
                         "bench_sampler")
+    p.add_argument("--headwear", nargs="*", default=[],
+                   help="variants of subject 0's headwear, e.g. none cap brimmed_hat headscarf glasses cap+glasses")
     args = p.parse_args()
 
     from rh_dataset.cli import render_settings
@@ -87,30 +92,52 @@ def main() -> None:
             aov = int(rest[1]) if len(rest) > 1 else None
             rows.append((f"{pname} ({smp} {spp}{f' env {env}' if env else ''}{f' aov {aov}' if aov else ''})",
                          render_settings(pname, sampler=smp, spp=int(spp), env_spp=env, aov_spp=aov)))
-        for name, settings in rows:
-            plan = dataclasses.replace(plan, settings=settings)
-            render_frame_to_disk(plan, source, subject, split, 0)  # warm-up: compiles (or loads) its kernels
-            dr.kernel_history()  # clears it
-            runs, kernels = [], []
-            for r in range(args.repeats):
-                runs.append(render_frame_to_disk(plan, source, subject, split, r + 1 if args.distinct_frames else 0))
-                kernels += [k for k in dr.kernel_history() if k.get("type") == dr.KernelType.JIT]
-            compiled = [k for k in kernels if not k.get("cache_hit")]
-            compile_s = sum(k.get("codegen_time", 0.0) + k.get("backend_time", 0.0) for k in compiled) / 1000
-            med = {k: float(np.median([r.seconds.get(k, 0.0) for r in runs])) for k in STAGES}
-            total = float(np.median([sum(r.seconds.values()) for r in runs]))
-            print(f"| {name} | {settings.sampler} | {settings.spp} | {settings.env_spp or '-'} | {settings.aov_spp} | "
-                  f"{settings.for_split(split).max_depth} | "
-                  f"{med['pose'] + med['light']:.2f} | {med['load']:.2f} | {med['beauty']:.2f} | {med['aov']:.2f} | "
-                  f"{med['meta'] + med['write']:.2f} | {total:.2f} | "
-                  f"{n_views * px * settings.spp / med['beauty'] / 1e6:.1f} | "
-                  f"{len(kernels) / args.repeats:.0f} | {len(compiled) / args.repeats:.1f} | "
-                  f"{compile_s / args.repeats:.2f} |", flush=True)
+        variants = [(None, subject)] + [(v, _wearing(subject, v)) for v in args.headwear]
+        for variant, subj in variants:
+            if args.headwear:
+                worn = "+".join(h.kind for h in subj.character.recipe.headwear) or "none"
+                n_strands = sum(len(m.points) for m in source.meshes(subj, pose) if hasattr(m, "fibre"))
+                label = f"as drawn: {worn}" if variant is None else worn
+                print(f"| **headwear {label}** ({n_strands} strands) | | | | | | | | | | | | | | | |")
+            for name, settings in rows:
+                subject = subj
+                plan = dataclasses.replace(plan, settings=settings)
+                render_frame_to_disk(plan, source, subject, split, 0)  # warm-up: compiles (or loads) its kernels
+                dr.kernel_history()  # clears it
+                runs, kernels = [], []
+                for r in range(args.repeats):
+                    runs.append(render_frame_to_disk(plan, source, subject, split,
+                                                     r + 1 if args.distinct_frames else 0))
+                    kernels += [k for k in dr.kernel_history() if k.get("type") == dr.KernelType.JIT]
+                compiled = [k for k in kernels if not k.get("cache_hit")]
+                compile_s = sum(k.get("codegen_time", 0.0) + k.get("backend_time", 0.0) for k in compiled) / 1000
+                med = {k: float(np.median([r.seconds.get(k, 0.0) for r in runs])) for k in STAGES}
+                total = float(np.median([sum(r.seconds.values()) for r in runs]))
+                print(f"| {name} | {settings.sampler} | {settings.spp} | {settings.env_spp or '-'} | "
+                      f"{settings.aov_spp} | {settings.for_split(split).max_depth} | "
+                      f"{med['pose'] + med['light']:.2f} | {med['load']:.2f} | {med['beauty']:.2f} | "
+                      f"{med['aov']:.2f} | {med['meta'] + med['write']:.2f} | {total:.2f} | "
+                      f"{n_views * px * settings.spp / med['beauty'] / 1e6:.1f} | "
+                      f"{len(kernels) / args.repeats:.0f} | {len(compiled) / args.repeats:.1f} | "
+                      f"{compile_s / args.repeats:.2f} |", flush=True)
         from rh_common.imageio import read_png
 
         mask = read_png(runs[-1].json_path.with_name(runs[-1].json_path.stem + "_mask.png"))
         culled = runs[-1].scene_model
     print(f"\nperson coverage of the frame: {float(mask.mean()) / 255:.0%}; scene model: {culled}")
+
+
+def _wearing(subject, variant: str):
+    """Subject 0 with its recipe's headwear replaced ("none", "cap", "cap+glasses", ...)."""
+    from rh_dataset.characters import build_character
+    from rh_dataset.characters.recipe import Headwear
+
+    kinds = [] if variant == "none" else variant.split("+")
+    fabric = (0.55, 0.12, 0.1)
+    hw = tuple(Headwear(k, (0.05, 0.05, 0.05) if k == "glasses" else fabric, roughness=0.3 if k == "glasses" else 0.8)
+               for k in kinds)
+    recipe = dataclasses.replace(subject.character.recipe, headwear=hw)
+    return dataclasses.replace(subject, character=build_character(recipe), record=recipe.to_json())
 
 
 if __name__ == "__main__":

@@ -101,8 +101,9 @@ def test_aov_albedo_normal_and_coverage_on_a_strand():
 
 
 def _recipe(style: str, seed: int = 40):
+    """Seed 40's subject with the given style, bare-headed (it draws a hat; hair under headwear: test_headwear.py)."""
     r = recipe_from_seed(seed, "benchmark", 0)
-    return dataclasses.replace(r, hair=HairSpec(style, (0.3, 0.2, 0.1)))
+    return dataclasses.replace(r, hair=HairSpec(style, (0.3, 0.2, 0.1)), headwear=())
 
 
 def test_strands_are_deterministic_and_rigid_with_the_head():

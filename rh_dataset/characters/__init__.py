@@ -1,4 +1,5 @@
-"""Characters: anny bodies dressed in procedural garments and strand hair, with procedural skin and fabric textures.
+"""Characters: anny bodies dressed in procedural garments, headwear and strand hair, with procedural skin and fabric
+textures.
 
 Public API: recipes (`CharacterRecipe`, `sample_recipe`), `build_character`, `pose_character`, `body_bounds`.
 The body model itself is loaded by `rh_common.body_model` (shared with RANA).
@@ -19,11 +20,13 @@ from .recipe import (
     FABRICS,
     GARMENT_KINDS,
     HAIR_STYLES,
+    HEADWEAR_KINDS,
     PATTERNS,
     POOLS,
     CharacterRecipe,
     Garment,
     HairSpec,
+    Headwear,
     SkinTone,
     derive_seed,
     recipe_from_seed,
@@ -44,11 +47,13 @@ __all__ = [
     "FABRICS",
     "GARMENT_KINDS",
     "HAIR_STYLES",
+    "HEADWEAR_KINDS",
     "PATTERNS",
     "POOLS",
     "CharacterRecipe",
     "Garment",
     "HairSpec",
+    "Headwear",
     "SkinTone",
     "derive_seed",
     "recipe_from_seed",

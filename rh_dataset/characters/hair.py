@@ -331,9 +331,11 @@ def _bind(pts: np.ndarray, feats: BodyFeatures, region: np.ndarray, under: np.nd
 
 
 def build_hair(style: str, feats: BodyFeatures, rng: np.random.Generator, topology: str = ANNY_TOPOLOGY,
-               under: np.ndarray | None = None, density: float = 1.0) -> StrandGeometry:
+               under: np.ndarray | None = None, density: float = 1.0, press=None) -> StrandGeometry | None:
     """Grow and bind a style's strands (deterministic for a given `rng` state). `under` (V,) is the outermost
-    garment offset per body vertex (hair stays outside it); `density` scales the strand count."""
+    garment offset per body vertex (hair stays outside it); `density` scales the strand count. `press`, if given,
+    maps the grown rest-pose strands (S, K, 3) and the skull (`scalp.Scalp`) to (points, keep (S,) bool) before
+    they are bound (headwear pressing and hiding hair, `headwear.press_hair`); None when no strand is left."""
     if topology != ANNY_TOPOLOGY:
         raise ValueError(f"build_hair: only {ANNY_TOPOLOGY!r} is supported")
     if style not in STRAND_STYLES:
@@ -346,6 +348,11 @@ def build_hair(style: str, feats: BodyFeatures, rng: np.random.Generator, topolo
     pts = _clump_and_frizz(_resample(lines, st.points), st, rng, sc.centre)
     taper = 1.0 - 0.6 * np.linspace(0.0, 1.0, st.points) ** 2
     radius = st.radius * rng.uniform(0.8, 1.2, (n, 1)) * taper[None, :]
+    if press is not None:
+        pts, keep = press(pts, sc)
+        if not keep.any():
+            return None
+        pts, radius = pts[keep], radius[keep]
     short = style in ("buzz", "short", "bun")
     groups = ("head", "neck") if short else ("head", "neck", "torso", "shoulder", "upperarm")
     region = np.flatnonzero(feats.in_groups(*groups))

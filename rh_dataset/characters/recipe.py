@@ -27,17 +27,20 @@ __all__ = [
     "HAIR_STYLES",
     "HAIR_COLOUR_NAMES",
     "hair_colour_name",
+    "HEADWEAR_KINDS",
     "SkinTone",
     "HairSpec",
     "Garment",
+    "Headwear",
     "CharacterRecipe",
     "derive_seed",
     "sample_recipe",
     "recipe_from_seed",
+    "sample_headwear",
     "skin_albedo_linear",
 ]
 
-RECIPE_FORMAT = "rh-character/1"
+RECIPE_FORMAT = "rh-character/1"  # headwear (optional key) kept the format: older recipes read back unchanged
 POOLS = ("benchmark", "pretrain")
 # draped_skirt: a loose skirt draped by newton's cloth solver (drape.py); never drawn by `recipe_from_seed` (off by
 # default, so generated datasets keep their bytes), chosen by editing a recipe.
@@ -51,6 +54,9 @@ PATTERNS = ("solid", "stripes", "checks", "noise")
 # knit = a sweater's visible ribs, velvet = a cut pile (strong sheen).
 FABRICS = ("plain", "jersey", "knit", "velvet")
 HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
+# Headwear (headwear.py): at most one covering piece (cap, brimmed_hat, headscarf) plus, independently, glasses.
+HEADWEAR_KINDS = ("cap", "brimmed_hat", "headscarf", "glasses")
+COVERINGS = ("cap", "brimmed_hat", "headscarf")
 
 
 def _check_unit(name: str, value: Any) -> float:
@@ -184,12 +190,46 @@ class Garment:
         _set(self, "roughness", _check_unit("garment.roughness", self.roughness))
 
 
+@dataclasses.dataclass(frozen=True)
+class Headwear:
+    """One piece of headwear. kind: one of HEADWEAR_KINDS. colour / colour2, pattern, period_m, duty, vertical:
+    as `Garment`'s (the fabric texture is drawn the same way; glasses frames are a solid colour). roughness:
+    microfacet roughness in [0, 1] (fabric ~0.6-0.9, acetate frames ~0.2-0.35)."""
+
+    kind: str
+    colour: tuple[float, float, float]
+    colour2: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    pattern: str = "solid"
+    period_m: float = 0.04
+    duty: float = 0.5
+    vertical: bool = False
+    roughness: float = 0.8
+
+    def __post_init__(self) -> None:
+        if self.kind not in HEADWEAR_KINDS:
+            raise ValueError(f"headwear.kind must be one of {HEADWEAR_KINDS}, got {self.kind!r}")
+        if self.pattern not in PATTERNS:
+            raise ValueError(f"headwear.pattern must be one of {PATTERNS}, got {self.pattern!r}")
+        _set(self, "colour", _check_rgb("headwear.colour", self.colour))
+        _set(self, "colour2", _check_rgb("headwear.colour2", self.colour2))
+        p = self.period_m
+        if isinstance(p, bool) or not isinstance(p, (int, float)) or not (0.005 <= float(p) <= 0.5):
+            raise ValueError(f"headwear.period_m must be in [0.005, 0.5] metres, got {p!r}")
+        _set(self, "period_m", float(p))
+        _set(self, "duty", _check_unit("headwear.duty", self.duty))
+        if not isinstance(self.vertical, bool):
+            raise ValueError(f"headwear.vertical must be a bool, got {self.vertical!r}")
+        _set(self, "roughness", _check_unit("headwear.roughness", self.roughness))
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # The recipe
 # ---------------------------------------------------------------------------------------------------------------
 @dataclasses.dataclass(frozen=True)
 class CharacterRecipe:
-    """Everything that defines a character. `garments` is ordered from the innermost layer outwards."""
+    """Everything that defines a character. `garments` is ordered from the innermost layer outwards. `headwear`:
+    at most one of COVERINGS, then optionally glasses (empty = none; the JSON then has no "headwear" key, so
+    recipes written before headwear existed read back unchanged)."""
 
     seed: int
     pool: str
@@ -198,6 +238,7 @@ class CharacterRecipe:
     skin: SkinTone
     hair: HairSpec
     garments: tuple[Garment, ...]
+    headwear: tuple[Headwear, ...] = ()
 
     def __post_init__(self) -> None:
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not (0 <= self.seed < 2**63):
@@ -232,10 +273,18 @@ class CharacterRecipe:
         if kinds != layered:
             raise ValueError(f"garments must be listed innermost first, i.e. {layered}, got {kinds}")
         _set(self, "garments", garments)
+        headwear = tuple(self.headwear)
+        if not all(isinstance(h, Headwear) for h in headwear):
+            raise ValueError("headwear must be Headwear instances")
+        hk = [h.kind for h in headwear]
+        ordered = sorted(hk, key=HEADWEAR_KINDS.index)
+        if len(set(hk)) != len(hk) or sum(k in COVERINGS for k in hk) > 1 or hk != ordered:
+            raise ValueError(f"headwear: at most one of {COVERINGS}, then optionally glasses, got {hk}")
+        _set(self, "headwear", headwear)
 
     # JSON -------------------------------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
-        return {
+        d = {
             "format": RECIPE_FORMAT,
             "seed": self.seed,
             "pool": self.pool,
@@ -247,6 +296,10 @@ class CharacterRecipe:
                 {**dataclasses.asdict(g), "colour": list(g.colour), "colour2": list(g.colour2)} for g in self.garments
             ],
         }
+        if self.headwear:
+            d["headwear"] = [{**dataclasses.asdict(h), "colour": list(h.colour), "colour2": list(h.colour2)}
+                             for h in self.headwear]
+        return d
 
     def to_json(self) -> dict[str, Any]:
         """The recipe as a JSON-ready object (what `character.json` holds; `rh_common.imageio.write_json` writes it
@@ -264,9 +317,9 @@ class CharacterRecipe:
         if d.get("format") != RECIPE_FORMAT:
             raise ValueError(f"format must be {RECIPE_FORMAT!r}, got {d.get('format')!r}")
         expected = {"format", "seed", "pool", "index", "phenotype", "skin", "hair", "garments"}
-        if set(d) != expected:
-            raise ValueError(f"recipe keys must be {sorted(expected)}, got unknown {sorted(set(d) - expected)} "
-                             f"missing {sorted(expected - set(d))}")
+        if set(d) - {"headwear"} != expected:  # headwear is optional (absent = none)
+            raise ValueError(f"recipe keys must be {sorted(expected)} (and optionally headwear), got unknown "
+                             f"{sorted(set(d) - expected - {'headwear'})} missing {sorted(expected - set(d))}")
         try:
             skin = SkinTone(**d["skin"])
         except TypeError as exc:
@@ -284,8 +337,17 @@ class CharacterRecipe:
                 garments.append(Garment(**g))
             except (TypeError, KeyError) as exc:
                 raise ValueError(f"garments[{i}]: {exc}") from exc
+        headwear = []
+        for i, h in enumerate(d.get("headwear", [])):
+            try:
+                h = dict(h)
+                h["colour"] = tuple(h["colour"])
+                h["colour2"] = tuple(h["colour2"])
+                headwear.append(Headwear(**h))
+            except (TypeError, KeyError) as exc:
+                raise ValueError(f"headwear[{i}]: {exc}") from exc
         return cls(seed=d["seed"], pool=d["pool"], index=d["index"], phenotype=dict(d["phenotype"]), skin=skin,
-                   hair=hair, garments=tuple(garments))
+                   hair=hair, garments=tuple(garments), headwear=tuple(headwear))
 
     @classmethod
     def from_json(cls, data: str | dict[str, Any]) -> "CharacterRecipe":
@@ -418,8 +480,9 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
         kinds.add("jacket")
     garments = tuple(_sample_garment(rng, k) for k in sorted(kinds, key=_LAYER.index))
     skin, garments = _surface_detail(seed, skin, hair, garments)
+    headwear = sample_headwear(np.random.default_rng([int(seed), HEADWEAR_STREAM]), female, phenotype["age"])
     return CharacterRecipe(seed=int(seed), pool=pool, index=int(index), phenotype=phenotype, skin=skin, hair=hair,
-                           garments=garments)
+                           garments=garments, headwear=headwear)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -455,3 +518,32 @@ def _surface_detail(seed: int, skin: SkinTone, hair: HairSpec, garments: tuple[G
         names, p = _FABRIC_CHOICES.get(gm.kind, (("plain",), (1.0,)))
         out.append(dataclasses.replace(gm, fabric=str(names[int(rng.choice(len(names), p=p))])))
     return skin, tuple(out)
+
+
+# Headwear is drawn from its own stream, np.random.default_rng([seed, HEADWEAR_STREAM]), after everything else: the
+# main stream's draws (phenotype, skin, hair, garments) are those of recipes made before headwear existed.
+HEADWEAR_STREAM = 1000
+# P(covering) by gender: (none, cap, brimmed_hat, headscarf). Glasses, independently: 0.2, 0.4 from anny age 0.82 on
+# (~55 years). Our choice, not census figures: about a third of the subjects wear something on the head.
+HEADWEAR_P = {"female": (0.70, 0.07, 0.10, 0.13), "male": (0.76, 0.16, 0.08, 0.0)}
+GLASSES_P = (0.2, 0.4)
+# Acetate frame colours, sRGB 8-bit, picked by us: black, dark tortoise brown, honey, navy, dark grey, burgundy.
+_FRAME_PALETTE = np.array([[18, 18, 20], [70, 40, 24], [150, 100, 50], [30, 40, 80], [70, 70, 74], [100, 30, 40]],
+                          dtype=np.float64) / 255.0
+
+
+def sample_headwear(rng: np.random.Generator, female: bool, age: float) -> tuple[Headwear, ...]:
+    """The headwear distribution (HEADWEAR_P, GLASSES_P); fabric colours and patterns as a top's."""
+    p = HEADWEAR_P["female" if female else "male"]
+    covering = (None,) + COVERINGS
+    kind = covering[int(rng.choice(len(covering), p=p))]
+    out = []
+    if kind is not None:
+        g = _sample_garment(rng, "tshirt" if kind == "headscarf" else "jacket")
+        rough = float(rng.uniform(0.6, 0.9))
+        out.append(Headwear(kind, g.colour, g.colour2, g.pattern if kind == "headscarf" else "solid", g.period_m,
+                            g.duty, g.vertical, rough))
+    if rng.random() < GLASSES_P[int(age > 0.82)]:
+        c = _jitter(rng, _FRAME_PALETTE[rng.integers(len(_FRAME_PALETTE))], 0.05)
+        out.append(Headwear("glasses", c, roughness=float(rng.uniform(0.2, 0.35))))
+    return tuple(out)

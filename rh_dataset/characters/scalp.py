@@ -117,10 +117,10 @@ def scalp(style: str, feats: BodyFeatures) -> Scalp:
 
 
 def _body_cylinder(feats: BodyFeatures, under: np.ndarray, centre: np.ndarray, z_lo: float, z_hi: float,
-                   dz: float):
-    """Per (azimuth bin, height bin) the largest horizontal distance from the head's vertical axis of head, neck,
-    trunk and shoulders (clothes included)."""
-    m = feats.in_groups("head", "neck", "torso", "shoulder")
+                   dz: float, groups: tuple[str, ...] = ("head", "neck", "torso", "shoulder")):
+    """Per (azimuth bin, height bin) the largest horizontal distance from the head's vertical axis of the body's
+    `groups` (head, neck, trunk and shoulders; clothes included)."""
+    m = feats.in_groups(*groups)
     p = feats.rest_vertices[m] + under[m, None] * feats.rest_normals[m]
     rel = p[:, :2] - centre[:2]
     az = np.degrees(np.arctan2(rel[:, 0], -rel[:, 1])) % 360.0
@@ -135,14 +135,17 @@ def _body_cylinder(feats: BodyFeatures, under: np.ndarray, centre: np.ndarray, z
 
 
 def hang_envelope(feats: BodyFeatures, under: np.ndarray, z_lo: float, z_hi: float, clear: float = 0.009,
-                  dz: float = 0.006) -> tuple[np.ndarray, np.ndarray]:
+                  dz: float = 0.006, lead: int = 7, arms: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Where hanging hair may fall: per (azimuth bin of 5 degrees from the front, height bin) the smallest horizontal
     distance from the skull's vertical axis that clears head, neck, trunk, shoulders and clothes by `clear` metres,
     widened as hair falls (the running maximum downwards: hair does not tuck back under a shoulder) and starting to
-    widen ~3 cm above an obstacle. Returns (grid (N_AZ, Z), z of the bins, top down)."""
+    widen ~2 cm (`lead` // 2 bins; `lead` 1: only at it) above an obstacle. Returns (grid (N_AZ, Z), z of the bins,
+    top down). `arms`: the upper arms are obstacles too (a scarf over the shoulders; hair leaves them a sector).
+    """
     centre, _ = hair_frame(feats)
-    grid, zs = _body_cylinder(feats, under, centre, z_lo, z_hi, dz)
-    need = ndimage.maximum_filter1d(grid + clear, 7, axis=1, origin=-3, mode="nearest")
+    groups = ("head", "neck", "torso", "shoulder") + (("upperarm",) if arms else ())
+    grid, zs = _body_cylinder(feats, under, centre, z_lo, z_hi, dz, groups)
+    need = ndimage.maximum_filter1d(grid + clear, lead, axis=1, origin=-(lead // 2), mode="nearest")
     hang = np.maximum.accumulate(need, axis=1)
     smooth = ndimage.gaussian_filter(hang, (0.8, 1.5), mode=("wrap", "nearest"))
     return np.maximum(smooth, hang), zs
