@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -204,6 +204,8 @@ class Headwear:
     duty: float = 0.5
     vertical: bool = False
     roughness: float = 0.8
+    # Headwear fabric is woven (no sheen, no resolved knit): not drawn, so the headwear stream stays as it was.
+    fabric: ClassVar[str] = "plain"
 
     def __post_init__(self) -> None:
         if self.kind not in HEADWEAR_KINDS:
