@@ -26,7 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def _recipe(index: int):
     """A benchmark recipe that draws a skirt, with the skirt swapped for the draped one (same colour and pattern)."""
-    from rh_dataset.characters.recipe import CharacterRecipe, derive_seed, recipe_from_seed
+    from rh_dataset.characters.recipe import CharacterRecipe
+    from rh_dataset.characters.recipe_draws import derive_seed, recipe_from_seed
 
     i = index
     while True:

@@ -4,7 +4,7 @@ In: a scene (default protocol_a: 49 benchmark subjects) and the dataset seed (rh
 recipes are drawn exactly as rh-generate draws them (`sample_recipe(rng_for(seed, "character", s), ...)`); nothing
 is built or rendered, so it runs in seconds. Out (stdout):
 * sex (anny's gender > 0.5 is female, as the recipe draws hair from it) and body (anny phenotype quartiles);
-* hair styles and colours (`recipe.hair_colour_name`: the palette colour each was drawn from);
+* hair styles and colours (`recipe_draws.hair_colour_name`: the palette colour each was drawn from);
 * garments: how many subjects wear each kind, and the patterns and fabrics;
 * every other top-level recipe field (headwear, ...), counted generically by its `kind`/`style`/`type` or value;
 * skin: the Individual Typology Angle of each subject's mean skin albedo (`rh_common.colourspace.ita_degrees` of
@@ -22,7 +22,8 @@ import numpy as np
 
 from rh_common.colourspace import ITA_CATEGORIES, ita_category, ita_degrees
 from rh_dataset.characters import sample_recipe
-from rh_dataset.characters.recipe import hair_colour_name, skin_albedo_linear
+from rh_dataset.characters.recipe import skin_albedo_linear
+from rh_dataset.characters.recipe_draws import hair_colour_name
 from rh_dataset.generate.seeding import rng_for
 from rh_dataset.spec import load_protocol
 

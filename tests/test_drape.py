@@ -116,7 +116,8 @@ def test_drape_is_bit_identical_and_stays_outside_the_body(tmp_path, monkeypatch
 
 
 def test_draped_skirt_is_opt_in():
-    from rh_dataset.characters.recipe import BOTTOMS, CharacterRecipe, Garment, recipe_from_seed
+    from rh_dataset.characters.recipe import BOTTOMS, CharacterRecipe, Garment
+    from rh_dataset.characters.recipe_draws import recipe_from_seed
 
     assert "draped_skirt" in BOTTOMS
     kinds = {g.kind for i in range(40) for g in recipe_from_seed(2 * i, "benchmark", i).garments}
@@ -132,7 +133,8 @@ def test_draped_skirt_is_opt_in():
 def test_character_wears_the_draped_skirt_in_every_pose(tmp_path, monkeypatch):
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
-    from rh_dataset.characters.recipe import CharacterRecipe, Garment, recipe_from_seed
+    from rh_dataset.characters.recipe import CharacterRecipe, Garment
+    from rh_dataset.characters.recipe_draws import recipe_from_seed
     from rh_dataset.poses import sample_poses
 
     monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))

@@ -12,7 +12,8 @@ from rh_common.camera import Camera
 from rh_dataset.characters import build_character, pose_character
 from rh_dataset.characters.hair_fibre import (EUMELANIN_SIGMA_A, HairFibre, fibre_albedo, fibres_for_colour,
                                               sigma_a_for_albedo)
-from rh_dataset.characters.recipe import HairSpec, recipe_from_seed
+from rh_dataset.characters.recipe import HairSpec
+from rh_dataset.characters.recipe_draws import recipe_from_seed
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
 

@@ -12,8 +12,8 @@ from rh_dataset.characters.body import body_topology, run_anny
 from rh_dataset.characters.body_features import body_features
 from rh_dataset.characters.drape import penetration
 from rh_dataset.characters.headwear import FIT_CLEARANCE, build_headwear, covered, depth_under
-from rh_dataset.characters.recipe import (HEADWEAR_P, CharacterRecipe, HairSpec, Headwear, recipe_from_seed,
-                                          sample_headwear)
+from rh_dataset.characters.recipe import CharacterRecipe, HairSpec, Headwear
+from rh_dataset.characters.recipe_draws import HEADWEAR_P, recipe_from_seed, sample_headwear
 from rh_dataset.characters.scalp import scalp
 
 RED, BLACK = (0.6, 0.15, 0.1), (0.05, 0.05, 0.05)

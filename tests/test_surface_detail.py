@@ -190,7 +190,7 @@ def _diversity_module():
 
 
 def test_hair_colour_names_recover_the_palette():
-    from rh_dataset.characters.recipe import HAIR_COLOUR_NAMES, _HAIR_PALETTE, hair_colour_name
+    from rh_dataset.characters.recipe_draws import HAIR_COLOUR_NAMES, _HAIR_PALETTE, hair_colour_name
 
     for name, rgb in zip(HAIR_COLOUR_NAMES, _HAIR_PALETTE):
         assert hair_colour_name(tuple(rgb * 1.06)) == name  # a brightness jitter of 6% keeps the name

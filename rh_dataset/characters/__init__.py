@@ -28,10 +28,8 @@ from .recipe import (
     HairSpec,
     Headwear,
     SkinTone,
-    derive_seed,
-    recipe_from_seed,
-    sample_recipe,
 )
+from .recipe_draws import derive_seed, recipe_from_seed, sample_recipe
 
 __all__ = [
     "Character",

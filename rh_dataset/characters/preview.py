@@ -16,7 +16,8 @@ from rh_common.colourspace import quantize8, srgb_encode
 from rh_common.imageio import write_png
 
 from .character import PosedMesh, body_bounds, build_character, mitsuba_texcoords, pose_character
-from .recipe import POOLS, sample_recipe
+from .recipe import POOLS
+from .recipe_draws import sample_recipe
 
 __all__ = ["render_preview", "main"]
 

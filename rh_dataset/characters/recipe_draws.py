@@ -1,0 +1,205 @@
+"""The seeded distribution of character recipes: who the benchmark's and the pretraining pool's subjects are.
+
+In: a seed (or a generator to draw one from), a pool ("benchmark" or "pretrain") and an index. Out: a
+`CharacterRecipe` (recipe.py). Benchmark and pretraining characters are disjoint by construction: a recipe's seed
+is even for the benchmark pool and odd for the pretraining pool (`derive_seed`), and everything random in a
+character is drawn from its seed. Later fields (skin and cloth detail, headwear) draw from streams of their own, so
+adding one leaves the earlier draws of every seed unchanged.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+
+import numpy as np
+
+from .body import sample_phenotype
+from .recipe import (COVERINGS, GARMENT_LAYERS, HAIR_STYLES, PATTERNS, POOLS, CharacterRecipe, Garment, HairSpec,
+                     Headwear, SkinTone)
+
+__all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
+           "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM"]
+
+_SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
+
+
+def derive_seed(pool: str, index: int, base: int) -> int:
+    """A 63-bit seed from (pool, index, base): even for "benchmark", odd for "pretrain", so the two pools' seeds
+    (and hence their characters) never coincide whatever the base seeds."""
+    if pool not in POOLS:
+        raise ValueError(f"pool must be one of {POOLS}, got {pool!r}")
+    h = hashlib.sha256(f"rh-character/{pool}/{int(index)}/{int(base)}".encode()).digest()
+    return ((int.from_bytes(h[:8], "little") >> 2) << 1) | POOLS.index(pool)
+
+
+def sample_recipe(rng: np.random.Generator, pool: str, index: int) -> CharacterRecipe:
+    """Draw one base seed from `rng`, derive the character's seed from (pool, index, base) and build the recipe
+    from that seed alone (so a recipe is reproducible from its seed, pool and index)."""
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng must be a numpy Generator, got {type(rng).__name__}")
+    base = int(rng.integers(0, 2**62))
+    return recipe_from_seed(derive_seed(pool, index, base), pool, index)
+
+
+# Garment colour palette, sRGB 8-bit: common clothing colours picked by us (navy, black, white, heather grey, denim,
+# olive, khaki, burgundy, red, mustard, teal, pink, cream, brown, forest green, sky blue).
+_GARMENT_PALETTE = np.array(
+    [
+        [31, 40, 72], [25, 25, 28], [232, 232, 228], [150, 150, 152], [62, 84, 120], [90, 96, 58], [190, 170, 130],
+        [110, 28, 40], [178, 34, 40], [214, 160, 40], [20, 110, 118], [226, 150, 170], [236, 226, 200],
+        [100, 66, 40], [30, 80, 50], [130, 175, 215],
+    ],
+    dtype=np.float64,
+) / 255.0
+_BOTTOM_PALETTE = np.array(
+    [[45, 62, 96], [70, 92, 128], [28, 28, 30], [70, 70, 72], [180, 160, 120], [90, 78, 60], [40, 50, 40]],
+    dtype=np.float64,
+) / 255.0  # denim dark/mid, black, charcoal, khaki, brown, dark olive
+_SHOE_PALETTE = np.array(
+    [[20, 20, 20], [235, 235, 235], [90, 55, 30], [60, 60, 64], [150, 40, 40], [40, 50, 90]], dtype=np.float64
+) / 255.0
+# Hair colours, sRGB 8-bit, picked by us: black, dark brown, brown, light brown, dark blonde, blonde, auburn, grey.
+_HAIR_PALETTE = np.array(
+    [[20, 16, 14], [45, 30, 22], [80, 54, 36], [120, 86, 56], [160, 124, 80], [205, 170, 110], [130, 60, 32],
+     [170, 168, 165]],
+    dtype=np.float64,
+) / 255.0
+
+
+HAIR_COLOUR_NAMES = ("black", "dark brown", "brown", "light brown", "dark blonde", "blonde", "auburn", "grey")
+
+
+def hair_colour_name(rgb: tuple[float, float, float]) -> str:
+    """The palette colour (HAIR_COLOUR_NAMES) a hair colour was drawn from: the nearest in sRGB (the jitter is
+    mostly a brightness change of a few percent, smaller than the palette's steps)."""
+    d = np.linalg.norm(_HAIR_PALETTE - np.asarray(rgb, dtype=np.float64), axis=1)
+    return HAIR_COLOUR_NAMES[int(np.argmin(d))]
+
+
+def _jitter(rng: np.random.Generator, rgb: np.ndarray, amount: float) -> tuple[float, float, float]:
+    """Mostly a brightness change, a little hue change: independent per-channel jitter turns khaki into pink."""
+    factor = (1.0 + rng.normal(0.0, amount)) * (1.0 + rng.normal(0.0, 0.25 * amount, 3))
+    return tuple(float(c) for c in np.clip(rgb * factor, 0.0, 1.0))
+
+
+def _sample_garment(rng: np.random.Generator, kind: str) -> Garment:
+    if kind == "shoes":
+        return Garment(kind, _jitter(rng, _SHOE_PALETTE[rng.integers(len(_SHOE_PALETTE))], 0.05),
+                       roughness=float(rng.uniform(0.35, 0.7)))
+    palette = _BOTTOM_PALETTE if kind in ("trousers", "shorts") else _GARMENT_PALETTE
+    c1 = palette[rng.integers(len(palette))]
+    c2 = _GARMENT_PALETTE[rng.integers(len(_GARMENT_PALETTE))]
+    if kind in ("trousers", "shorts"):
+        pattern = rng.choice(["solid", "noise", "checks"], p=[0.75, 0.17, 0.08])
+    elif kind == "jacket":
+        pattern = rng.choice(["solid", "noise", "checks"], p=[0.75, 0.1, 0.15])
+    else:
+        pattern = rng.choice(list(PATTERNS), p=[0.4, 0.3, 0.15, 0.15])
+    period = {"solid": 0.05, "stripes": rng.uniform(0.015, 0.08), "checks": rng.uniform(0.02, 0.09),
+              "noise": rng.uniform(0.03, 0.15)}[str(pattern)]
+    return Garment(
+        kind=kind,
+        colour=_jitter(rng, c1, 0.08),
+        colour2=_jitter(rng, c2, 0.08),
+        pattern=str(pattern),
+        period_m=float(period),
+        duty=float(rng.uniform(0.25, 0.55)),
+        vertical=bool(rng.random() < 0.2),
+        roughness=float(rng.uniform(0.55, 0.95) if kind != "jacket" else rng.uniform(0.4, 0.85)),
+    )
+
+
+def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
+    """The recipe a seed stands for (deterministic)."""
+    rng = np.random.default_rng(int(seed))
+    phenotype = sample_phenotype(rng)
+    female = phenotype["gender"] > 0.5
+    skin = SkinTone(melanin=float(rng.uniform(0.0, 1.0)), redness=float(rng.uniform(0.2, 0.8)))
+
+    if female:
+        style = rng.choice(HAIR_STYLES, p=[0.02, 0.16, 0.2, 0.2, 0.12, 0.15, 0.15])
+    else:
+        style = rng.choice(HAIR_STYLES, p=[0.22, 0.58, 0.06, 0.04, 0.04, 0.02, 0.04])
+    # Darker skin makes dark hair more likely; older adults may be grey (anny age 0.82 ~ 55 years).
+    w = np.array([1.0, 1.5, 1.2, 0.8, 0.5, 0.4, 0.3, 0.0])
+    w[:2] += 3.0 * skin.melanin
+    w[4:6] *= 1.0 - skin.melanin
+    if phenotype["age"] > 0.82:
+        w[7] = 2.0
+    hair_rgb = _HAIR_PALETTE[rng.choice(len(w), p=w / w.sum())]
+    hair = HairSpec(style=str(style), colour=_jitter(rng, hair_rgb, 0.08))
+
+    top = "tshirt" if rng.random() < 0.5 else "longsleeve"
+    bottom = rng.choice(_SAMPLED_BOTTOMS, p=[0.45, 0.2, 0.35] if female else [0.72, 0.28, 0.0])
+    kinds = {"shoes", top, str(bottom)}
+    if rng.random() < 0.3:
+        kinds.add("jacket")
+    garments = tuple(_sample_garment(rng, k) for k in sorted(kinds, key=GARMENT_LAYERS.index))
+    skin, garments = _surface_detail(seed, skin, hair, garments)
+    headwear = sample_headwear(np.random.default_rng([int(seed), HEADWEAR_STREAM]), female, phenotype["age"])
+    return CharacterRecipe(seed=int(seed), pool=pool, index=int(index), phenotype=phenotype, skin=skin, hair=hair,
+                           garments=garments, headwear=headwear)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Skin and cloth detail (issue 17, part 4): drawn from their own stream after everything else, so the draws above
+# (and any later field's own stream) are untouched by it.
+# ---------------------------------------------------------------------------------------------------------------
+_STREAM_SURFACE_DETAIL = 1704
+# Which fabrics a garment kind is made of, with probabilities (shoes and everything unlisted: plain).
+_FABRIC_CHOICES = {
+    "tshirt": (("jersey", "plain"), (0.85, 0.15)),
+    "longsleeve": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),
+    "jacket": (("plain", "knit", "velvet"), (0.75, 0.15, 0.10)),
+    "trousers": (("plain", "velvet"), (0.92, 0.08)),  # denim / twill; velvet stands for corduroy and velour
+    "skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
+    "draped_skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
+}
+
+
+def _surface_detail(seed: int, skin: SkinTone, hair: HairSpec, garments: tuple[Garment, ...]
+                    ) -> tuple[SkinTone, tuple[Garment, ...]]:
+    """Freckles, blush and veins of the skin and each garment's fabric. Freckles are common on light skin and with
+    red hair, rare on dark skin; veins show through light skin only."""
+    rng = np.random.default_rng([int(seed), _STREAM_SURFACE_DETAIL])
+    r, g, b = hair.colour
+    red_hair = r > 0.3 and r > 1.8 * b and r > 1.3 * g
+    p_freckles = (0.6 if red_hair else 0.3) * (1.0 - skin.melanin) ** 2
+    freckles = float(rng.uniform(0.3, 1.0)) if rng.random() < p_freckles else 0.0
+    blush = float(rng.uniform(0.0, 1.0))
+    veins = float(rng.uniform(0.2, 1.0)) * (1.0 - skin.melanin)
+    skin = dataclasses.replace(skin, freckles=freckles, blush=blush, veins=veins)
+    out = []
+    for gm in garments:
+        names, p = _FABRIC_CHOICES.get(gm.kind, (("plain",), (1.0,)))
+        out.append(dataclasses.replace(gm, fabric=str(names[int(rng.choice(len(names), p=p))])))
+    return skin, tuple(out)
+
+
+# Headwear is drawn from its own stream, np.random.default_rng([seed, HEADWEAR_STREAM]), after everything else: the
+# main stream's draws (phenotype, skin, hair, garments) are those of recipes made before headwear existed.
+HEADWEAR_STREAM = 1000
+# P(covering) by gender: (none, cap, brimmed_hat, headscarf). Glasses, independently: 0.2, 0.4 from anny age 0.82 on
+# (~55 years). Our choice, not census figures: about a third of the subjects wear something on the head.
+HEADWEAR_P = {"female": (0.70, 0.07, 0.10, 0.13), "male": (0.76, 0.16, 0.08, 0.0)}
+GLASSES_P = (0.2, 0.4)
+# Acetate frame colours, sRGB 8-bit, picked by us: black, dark tortoise brown, honey, navy, dark grey, burgundy.
+_FRAME_PALETTE = np.array([[18, 18, 20], [70, 40, 24], [150, 100, 50], [30, 40, 80], [70, 70, 74], [100, 30, 40]],
+                          dtype=np.float64) / 255.0
+
+
+def sample_headwear(rng: np.random.Generator, female: bool, age: float) -> tuple[Headwear, ...]:
+    """The headwear distribution (HEADWEAR_P, GLASSES_P); fabric colours and patterns as a top's."""
+    p = HEADWEAR_P["female" if female else "male"]
+    covering = (None,) + COVERINGS
+    kind = covering[int(rng.choice(len(covering), p=p))]
+    out = []
+    if kind is not None:
+        g = _sample_garment(rng, "tshirt" if kind == "headscarf" else "jacket")
+        rough = float(rng.uniform(0.6, 0.9))
+        out.append(Headwear(kind, g.colour, g.colour2, g.pattern if kind == "headscarf" else "solid", g.period_m,
+                            g.duty, g.vertical, rough))
+    if rng.random() < GLASSES_P[int(age > 0.82)]:
+        c = _jitter(rng, _FRAME_PALETTE[rng.integers(len(_FRAME_PALETTE))], 0.05)
+        out.append(Headwear("glasses", c, roughness=float(rng.uniform(0.2, 0.35))))
+    return tuple(out)
