@@ -5,7 +5,8 @@
 #   bash bench/rana_leaderboard.sh                          # WORK=/tmp/rana_lb, OUT=leaderboards/small, a quick run
 #   WORK=/data/lb STEPS=2000 FREEZE=200 bash bench/rana_leaderboard.sh   # the full cpu-preset schedule
 #
-# The repository keeps only leaderboard.md and screenshot.png per protocol; index.html stays in $WORK/board_<p>.
+# The repository keeps leaderboard.md, screenshot.png (the tables) and pictures.png (the test split's image
+# strips) per protocol; index.html and its pictures stay in $WORK/board_<p>.
 # SKIP_DATA=1 reuses existing datasets as they are (rh-generate refuses to resume a folder made by another version
 # of the generator). Benchmark: 2 subjects x protocols a and b, 20 train + 20 test frames at 128 px, draft render preset.
 # Rows, as in the paper's Table 1 (the full method and its ablations, same schedule):
@@ -172,10 +173,16 @@ fi
 if has board && command -v chromium > /dev/null; then
   for p in a b; do
     [ -e "$WORK/board_$p/index.html" ] || continue
-    chromium --headless --no-sandbox --disable-gpu --no-first-run --disable-background-networking \
-      --disable-component-update --disable-sync --user-data-dir="$WORK/chromium" --window-size=1200,1150 \
-      --screenshot="$OUT/protocol_$p/screenshot.png" "file://$(cd "$WORK/board_$p" && pwd)/index.html" \
-      > /dev/null 2>&1 || echo "screenshot of protocol $p failed"
+    shot() {  # shot PAGE PNG WIDTH,HEIGHT
+      chromium --headless --no-sandbox --disable-gpu --no-first-run --disable-background-networking \
+        --disable-component-update --disable-sync --user-data-dir="$WORK/chromium" --window-size="$3" \
+        --virtual-time-budget=3000 --screenshot="$2" "file://$(cd "$WORK/board_$p" && pwd)/$1" > /dev/null 2>&1
+    }
+    shot index.html "$OUT/protocol_$p/screenshot.png" 1400,1250 || echo "screenshot of protocol $p failed"
+    # The test split's image strips alone (bench/page_section.py hides the rest of a copy of the page).
+    python bench/page_section.py "$WORK/board_$p/index.html" "$WORK/board_$p/_pictures.html" &&
+      shot _pictures.html "$OUT/protocol_$p/pictures.png" 1000,1150 || echo "pictures of protocol $p failed"
+    rm -f "$WORK/board_$p/_pictures.html"
   done
 fi
 stamp "done (exit $rc); leaderboard.md + screenshot.png in $OUT/protocol_{a,b}; full HTML in $WORK/board_{a,b}"
