@@ -144,6 +144,23 @@ class HairSpec:
         _set(self, "colour", _check_rgb("hair.colour", self.colour))
 
 
+def _check_fabric_fields(obj: Any, who: str) -> None:
+    """Validate and normalise the fabric-texture fields a Garment and a Headwear share (pattern, colour, colour2,
+    period_m, duty, vertical, roughness); `who` names the object in the errors."""
+    if obj.pattern not in PATTERNS:
+        raise ValueError(f"{who}.pattern must be one of {PATTERNS}, got {obj.pattern!r}")
+    _set(obj, "colour", _check_rgb(f"{who}.colour", obj.colour))
+    _set(obj, "colour2", _check_rgb(f"{who}.colour2", obj.colour2))
+    p = obj.period_m
+    if isinstance(p, bool) or not isinstance(p, (int, float)) or not (0.005 <= float(p) <= 0.5):
+        raise ValueError(f"{who}.period_m must be in [0.005, 0.5] metres, got {p!r}")
+    _set(obj, "period_m", float(p))
+    _set(obj, "duty", _check_unit(f"{who}.duty", obj.duty))
+    if not isinstance(obj.vertical, bool):
+        raise ValueError(f"{who}.vertical must be a bool, got {obj.vertical!r}")
+    _set(obj, "roughness", _check_unit(f"{who}.roughness", obj.roughness))
+
+
 @dataclasses.dataclass(frozen=True)
 class Garment:
     """One garment.
@@ -169,18 +186,7 @@ class Garment:
             raise ValueError(f"garment.fabric must be one of {FABRICS}, got {self.fabric!r}")
         if self.kind not in GARMENT_KINDS:
             raise ValueError(f"garment.kind must be one of {GARMENT_KINDS}, got {self.kind!r}")
-        if self.pattern not in PATTERNS:
-            raise ValueError(f"garment.pattern must be one of {PATTERNS}, got {self.pattern!r}")
-        _set(self, "colour", _check_rgb("garment.colour", self.colour))
-        _set(self, "colour2", _check_rgb("garment.colour2", self.colour2))
-        p = self.period_m
-        if isinstance(p, bool) or not isinstance(p, (int, float)) or not (0.005 <= float(p) <= 0.5):
-            raise ValueError(f"garment.period_m must be in [0.005, 0.5] metres, got {p!r}")
-        _set(self, "period_m", float(p))
-        _set(self, "duty", _check_unit("garment.duty", self.duty))
-        if not isinstance(self.vertical, bool):
-            raise ValueError(f"garment.vertical must be a bool, got {self.vertical!r}")
-        _set(self, "roughness", _check_unit("garment.roughness", self.roughness))
+        _check_fabric_fields(self, "garment")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -203,18 +209,7 @@ class Headwear:
     def __post_init__(self) -> None:
         if self.kind not in HEADWEAR_KINDS:
             raise ValueError(f"headwear.kind must be one of {HEADWEAR_KINDS}, got {self.kind!r}")
-        if self.pattern not in PATTERNS:
-            raise ValueError(f"headwear.pattern must be one of {PATTERNS}, got {self.pattern!r}")
-        _set(self, "colour", _check_rgb("headwear.colour", self.colour))
-        _set(self, "colour2", _check_rgb("headwear.colour2", self.colour2))
-        p = self.period_m
-        if isinstance(p, bool) or not isinstance(p, (int, float)) or not (0.005 <= float(p) <= 0.5):
-            raise ValueError(f"headwear.period_m must be in [0.005, 0.5] metres, got {p!r}")
-        _set(self, "period_m", float(p))
-        _set(self, "duty", _check_unit("headwear.duty", self.duty))
-        if not isinstance(self.vertical, bool):
-            raise ValueError(f"headwear.vertical must be a bool, got {self.vertical!r}")
-        _set(self, "roughness", _check_unit("headwear.roughness", self.roughness))
+        _check_fabric_fields(self, "headwear")
 
 
 # ---------------------------------------------------------------------------------------------------------------
