@@ -26,6 +26,8 @@ class Preset:
     """Mitsuba's sample generator for both passes (`rh_dataset.render.sampler`), chosen by bench/bench_sampler.py."""
     env_spp: int | None = None
     """Samples per pixel where no person is (`rh_dataset.render.focus`); None: every pixel gets spp."""
+    adaptive_tiers: tuple[int, ...] | None = None
+    """Counts a person's pixel may get in proportion to its noise, spp their mean (`rh_dataset.render.adaptive`)."""
     description: str = ""
 
     def depth_for(self, scene_class: str) -> int:
@@ -61,8 +63,8 @@ def load_presets(path: Path | None = None) -> dict[str, Preset]:
     data = json.loads(path.read_text())
     out = {}
     for name, p in data["presets"].items():
-        _check_keys(f"{path}: preset {name}", p, {"spp", "aov_spp", "max_depth", "sampler", "env_spp", "description"},
-                    {"spp", "aov_spp", "max_depth", "sampler"})
+        _check_keys(f"{path}: preset {name}", p, {"spp", "aov_spp", "max_depth", "sampler", "env_spp", "adaptive_tiers",
+                                                  "description"}, {"spp", "aov_spp", "max_depth", "sampler"})
         if p["sampler"] not in SAMPLERS:
             raise SpecError(f"{path}: preset {name}: unknown sampler {p['sampler']!r}; choose one of "
                             f"{', '.join(SAMPLERS)}")
@@ -70,6 +72,13 @@ def load_presets(path: Path | None = None) -> dict[str, Preset]:
         if env is not None and (not isinstance(env, int) or not 1 <= env <= p["spp"]):
             raise SpecError(f"{path}: preset {name}: env_spp must be an integer in [1, spp] or absent, got {env!r}")
         p = dict(p)
+        if p.get("adaptive_tiers") is not None:
+            from .render.adaptive import check_tiers
+
+            try:
+                p["adaptive_tiers"] = check_tiers(p["adaptive_tiers"], p["spp"], env)
+            except ValueError as e:
+                raise SpecError(f"{path}: preset {name}: {e}") from None
         if p["max_depth"] == "scene_class":
             p["max_depth"] = None
         elif not isinstance(p["max_depth"], int) or p["max_depth"] < 2:
