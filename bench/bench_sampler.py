@@ -3,6 +3,7 @@
     python bench/bench_sampler.py                                   # sweep at 128x128 + floors at 512x512
     python bench/bench_sampler.py --resolution 256 --ref-chunks 128 --skip-floor
     python bench/bench_sampler.py --skip-sweep --floor standard:multijitter:48 standard:independent:128
+    python bench/bench_sampler.py --skip-sweep --floor standard:multijitter:99:4 standard:multijitter:99:4:a16-36-64-100-169-256
 
 In: the two reference scenes of bench/bench_tradeoff.py (interior-apose, sunrise-random), each at the path depth of
 its scene class (rh_dataset/scenes/presets.json: what the presets render). Out: printed tables (and --out JSON).
@@ -48,15 +49,20 @@ RELMSE_EPS = 0.01
 
 
 def _render(scene, sampler: str, spp: int, depth: int, seed: int, layers=("image",), aov_spp: int = 4,
-            env_spp: int | None = None):
+            env_spp: int | None = None, tiers: tuple[int, ...] | None = None, cpu: bool = False):
+    """render_frame's layers and the beauty pass's wall seconds (with `cpu`: also the frame's process CPU seconds,
+    which move less with the shared machine's load than wall seconds; the AOV pass is in them)."""
     from rh_dataset.render.passes import render_frame
     from rh_dataset.render.scene import RenderSettings
 
-    st = RenderSettings(spp=spp, aov_spp=aov_spp, max_depth=depth, sampler=sampler, env_spp=env_spp)
+    st = RenderSettings(spp=spp, aov_spp=aov_spp, max_depth=depth, sampler=sampler, env_spp=env_spp,
+                        adaptive_tiers=tiers)
     if env_spp is not None:
         layers = tuple(layers) + ("mask",)  # the focused beauty pass takes its coverage from the AOV pass
-    out = render_frame(scene.meshes, scene.emitter, scene.camera, st, list(layers), seed)
-    return out.layers, out.seconds.get("beauty", 0.0)
+    c = time.process_time()
+    out = render_frame(scene.meshes, scene.emitter, scene.camera, st, list(layers), seed, exposure=scene.exposure)
+    c = time.process_time() - c
+    return (out.layers, out.seconds.get("beauty", 0.0)) + ((c, out.info) if cpu else ())
 
 
 def reference(scene, depth: int, args, cache: Path, sampler: str, chunks: int, tag: str):
@@ -116,14 +122,17 @@ def table(title: str, header: list[str], rows: list[list]) -> str:
 
 
 def pair_psnr(scene, sampler: str, spp: int, depth: int, seeds: tuple[int, int], mask: np.ndarray,
-              env_spp: int | None = None, aov_spp: int = 4):
-    """PSNR vs a converged reference estimated from two independent renders (+3.01 dB); and beauty seconds."""
+              env_spp: int | None = None, aov_spp: int = 4, tiers: tuple[int, ...] | None = None):
+    """PSNR vs a converged reference estimated from two independent renders (+3.01 dB); beauty seconds; the
+    frame's CPU seconds; the first render's image and render info."""
     from bench_tradeoff import Scorer
 
-    a, ta = _render(scene, sampler, spp, depth, seeds[0], env_spp=env_spp, aov_spp=aov_spp)
-    b, tb = _render(scene, sampler, spp, depth, seeds[1], env_spp=env_spp, aov_spp=aov_spp)
+    a, ta, ca, info = _render(scene, sampler, spp, depth, seeds[0], env_spp=env_spp, aov_spp=aov_spp, tiers=tiers,
+                              cpu=True)
+    b, tb, cb, _ = _render(scene, sampler, spp, depth, seeds[1], env_spp=env_spp, aov_spp=aov_spp, tiers=tiers,
+                           cpu=True)
     sc = Scorer({"image": b["image"], "mask": mask}, scene.exposure)
-    return sc.psnr(a["image"]) + 10 * math.log10(2.0), (ta + tb) / 2, a["image"]
+    return sc.psnr(a["image"]) + 10 * math.log10(2.0), (ta + tb) / 2, (ca + cb) / 2, a["image"], info
 
 
 def sweep(args, scene_name: str, results: dict, report: list) -> None:
@@ -228,19 +237,26 @@ def floors(args, results: dict, report: list) -> None:
         mask, _ = _render(scene, "ldsampler", 4, 2, seed=31, layers=("mask",), aov_spp=64)
         for item in args.floor:
             pname, smp, spp, *rest = item.split(":")
-            env_spp = int(rest[0]) if rest else None
+            env_spp = int(rest[0]) if rest and rest[0] else None
+            tiers = tuple(int(v) for v in rest[1][1:].split("-")) if len(rest) > 1 else None
             depth = presets[pname].depth_for(SCENE_CLASS[name])
             aov_spp = presets[pname].aov_spp if presets[pname].sampler == smp else 4
-            _render(scene, smp, int(spp), depth, 0, env_spp=env_spp, aov_spp=aov_spp)  # warm-up: compile, untimed
-            psnr, secs, _ = pair_psnr(scene, smp, int(spp), depth, (4242, 4243), mask["mask"], env_spp, aov_spp)
+            _render(scene, smp, int(spp), depth, 0, env_spp=env_spp, aov_spp=aov_spp, tiers=tiers)  # warm-up
+            psnr, secs, cpu, _, info = pair_psnr(scene, smp, int(spp), depth, (4242, 4243), mask["mask"], env_spp,
+                                                 aov_spp, tiers)
+            per_tier = info.get("focus", {}).get("pixels_per_tier")
             results["floors"].append({"scene": name, "preset": pname, "sampler": smp, "spp": int(spp),
-                                      "env_spp": env_spp, "depth": depth, "psnr": psnr, "beauty_seconds": secs,
+                                      "env_spp": env_spp, "adaptive_tiers": tiers, "pixels_per_tier": per_tier,
+                                      "depth": depth, "psnr": psnr, "beauty_seconds": secs, "frame_cpu_seconds": cpu,
                                       "resolution": args.floor_resolution})
-            rows.append([name, pname, smp, int(spp), env_spp or "-", depth, secs, psnr])
-            print(f"  {name} {pname} {smp} {spp} spp (env {env_spp}): {psnr:.2f} dB, beauty {secs:.2f} s", flush=True)
+            rows.append([name, pname, smp, int(spp), env_spp or "-", "-".join(map(str, tiers)) if tiers else "-",
+                         depth, secs, cpu, psnr])
+            print(f"  {name} {pname} {smp} {spp} spp (env {env_spp}, tiers {tiers} {per_tier}): {psnr:.2f} dB, "
+                  f"beauty {secs:.2f} s, frame CPU {cpu:.2f} s", flush=True)
     report.append(table(f"noise floor at {args.floor_resolution}x{args.floor_resolution}: PSNR vs a converged "
                         f"reference, estimated from two independent renders (+3.01 dB)",
-                        ["scene", "preset", "sampler", "spp", "env spp", "depth", "beauty s", "PSNR dB (person)"], rows))
+                        ["scene", "preset", "sampler", "spp", "env spp", "adaptive tiers", "depth", "beauty s",
+                         "frame CPU s", "PSNR dB (person)"], rows))
 
 
 def main(argv=None) -> dict:
@@ -261,8 +277,9 @@ def main(argv=None) -> dict:
     p.add_argument("--floor", nargs="*", default=["draft:independent:16", "draft:multijitter:16",
                                                   "standard:independent:128", "standard:multijitter:48",
                                                   "standard:multijitter:64"],
-                   help="preset:sampler:spp[:env_spp] whose noise floor is measured at --floor-resolution (env_spp: "
-                        "the focused beauty pass, rh_dataset.render.focus)")
+                   help="preset:sampler:spp[:env_spp[:aTIERS]] whose noise floor is measured at --floor-resolution "
+                        "(env_spp: the focused beauty pass, rh_dataset.render.focus; aTIERS, e.g. a16-36-64-100-169-256: "
+                        "samples by noise, rh_dataset.render.adaptive, spp their mean over the person)")
     p.add_argument("--floor-resolution", type=int, default=512)
     p.add_argument("--skip-sweep", action="store_true")
     p.add_argument("--skip-floor", action="store_true")
