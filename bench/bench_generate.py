@@ -45,9 +45,11 @@ def main() -> None:
                    help="time frames 1..repeats of the split (each its own pose and light, as a dataset renders them) "
                         "instead of frame 0 again: the kernel columns then say whether a new frame reuses kernels")
     p.add_argument("--also", nargs="*", default=[],
-                   help="extra rows preset:sampler:spp[:env_spp[:aov_spp]] (a preset with those overrides; no or empty "
-                        "env_spp: every pixel at spp), e.g. standard:independent:128::16 for the settings before "
-                        "bench_sampler")
+                   help="extra rows preset:sampler:spp[:env_spp[:aov_spp[:aTIERS][:dDEPTH]]] (a preset with those "
+                        "overrides; no or empty env_spp: every pixel at spp; aTIERS, e.g. a16-36-64-100-169-256: samples "
+                        "by noise, rh_dataset.render.adaptive; dDEPTH: a fixed path depth, no roulette, for every "
+                        "split), e.g. standard:independent:128::16 for the settings before bench_sampler, "
+                        "standard:multijitter:99:4:9::d4 for standard's test frames before the roulette")
     p.add_argument("--headwear", nargs="*", default=[],
                    help="variants of subject 0's headwear, e.g. none cap brimmed_hat headscarf glasses cap+glasses")
     args = p.parse_args()
@@ -89,9 +91,14 @@ def main() -> None:
         for item in args.also:
             pname, smp, spp, *rest = item.split(":")
             env = int(rest[0]) if rest and rest[0] else 0
-            aov = int(rest[1]) if len(rest) > 1 else None
-            rows.append((f"{pname} ({smp} {spp}{f' env {env}' if env else ''}{f' aov {aov}' if aov else ''})",
-                         render_settings(pname, sampler=smp, spp=int(spp), env_spp=env, aov_spp=aov)))
+            aov = int(rest[1]) if len(rest) > 1 and rest[1] else None
+            tiers = next((tuple(int(v) for v in t[1:].split("-")) for t in rest[2:] if t.startswith("a")), ())
+            depth = next((int(t[1:]) for t in rest[2:] if t.startswith("d")), None)
+            rows.append((f"{pname} ({smp} {spp}{f' env {env}' if env else ''}{f' aov {aov}' if aov else ''}"
+                         f"{' by noise ' + '-'.join(map(str, tiers)) if tiers else ''}"
+                         f"{f' depth {depth}' if depth else ''})",
+                         render_settings(pname, sampler=smp, spp=int(spp), env_spp=env, aov_spp=aov,
+                                         adaptive_tiers=tiers, max_depth=depth)))
         variants = [(None, subject)] + [(v, _wearing(subject, v)) for v in args.headwear]
         for variant, subj in variants:
             if args.headwear:

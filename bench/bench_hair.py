@@ -25,6 +25,7 @@ share of the pixels and of the pass's CPU time.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -101,7 +102,8 @@ def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
     from rh_dataset.render.scene import scene_dict
 
     s = mi.load_dict(scene_dict(scene.meshes, scene.emitter, scene.camera,
-                                {"type": "path", "max_depth": int(settings.max_depth), "hide_emitters": False},
+                                {"type": "path", "max_depth": int(settings.max_depth), "hide_emitters": False,
+                                 **({"rr_depth": settings.rr_depth} if settings.rr_depth else {})},
                                 settings.spp, pixel_format="rgba", sampler=settings.sampler))
     try:
         cov = np.array(mi.render(s, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp, seed=1))[..., 3]
@@ -159,10 +161,12 @@ def main(argv=None) -> None:
     for subject in args.subjects:
         for name in args.scenes:
             scene = bt.build_scene(name, args.resolution, subject=subject)
-            settings = render_settings("standard", max_depth=standard.depth_for(bt.SCENE_CLASS[name]))
+            cls = bt.SCENE_CLASS[name]
+            settings = dataclasses.replace(render_settings("standard", max_depth=standard.depth_for(cls)),
+                                           rr_depth=standard.roulette_for(cls))
             strands = sum(len(m.points) for m in scene.meshes if hasattr(m, "fibre"))
             title = f"{name}, subject {subject} ({strands} strands), standard ({settings.spp} / env {settings.env_spp} " \
-                    f"spp, depth {settings.max_depth})"
+                    f"spp, depth {settings.max_depth}, roulette from {settings.rr_depth or 'Mitsuba default 5'})"
             if not args.skip_ab:
                 bt.table(f"{title}: the strands' BSDF, medians of {args.repeats} interleaved frames",
                          ["strands", "scene load s", "beauty s", "frame CPU s", "CPU / wrapper", "ops of the 2 largest kernels",
