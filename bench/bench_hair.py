@@ -3,6 +3,7 @@
 
     python bench/bench_hair.py                                  # 512x512, both scenes, subject 0, 3 repeats
     python bench/bench_hair.py --scenes sunrise-random --subjects 0 8 --repeats 5
+    python bench/bench_hair.py --figure docs/hair_depth.png --subjects 44 --scenes interior-apose   # old cut vs now
 
 Variants (bench_tradeoff's scenes; `--subjects`: benchmark subjects in the scene's pose, light and camera fill):
   wrapper   the strands' BSDF as today: strand_shape.HAIR_WITH_ALBEDO, a Python BSDF whose scattering queries go to
@@ -21,6 +22,10 @@ Cost by first hit: an `aov` pass of `shape_index` at 1 spp labels each of the pe
 ray hits first (none: the environment); each label's pixels are traced at --cost-spp through `render_pixels` (the
 focused pass's own tracer, hair BSDF as today), and the CPU microseconds per sample are printed with each label's
 share of the pixels and of the pass's CPU time.
+
+--figure PATH: instead, the head of each --subjects in each --scenes (top: the standard preset with the plain cut it
+had before, depth 3 / 4 by class; bottom: as now, the class's Russian roulette up to its max depth), same seed, in
+display space (the frame's exposure, sRGB), 3x enlarged: what the truncated bounces took from the hair.
 """
 from __future__ import annotations
 
@@ -133,6 +138,45 @@ def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
         s = None
 
 
+def figure(path: Path, scenes, subjects, resolution: int) -> None:
+    """Head crops, old plain cut above the class's roulette, one column per subject and scene (see the docstring)."""
+    from PIL import Image
+
+    from rh_common.colourspace import to_display
+    from rh_dataset.cli import render_settings
+    from rh_dataset.presets import load_presets
+    from rh_dataset.render.passes import render_frame
+
+    standard = load_presets()["standard"]
+    columns = []
+    for subject in subjects:
+        for name in scenes:
+            scene = bt.build_scene(name, resolution, subject=subject)
+            cls = bt.SCENE_CLASS[name]
+            now = dataclasses.replace(render_settings("standard", max_depth=standard.depth_for(cls)),
+                                      rr_depth=standard.roulette_for(cls))
+            before = dataclasses.replace(now, max_depth=standard.roulette_for(cls), rr_depth=None)
+            rows = []
+            for st in (before, now):
+                out = render_frame(scene.meshes, scene.emitter, scene.camera, st, ["image", "mask"], 7,
+                                   exposure=scene.exposure)
+                rows.append(to_display(out.layers["image"], scene.exposure))
+            # the head: the top of the person's mask, a square as wide as a sixth of the frame
+            ys, xs = np.nonzero(out.layers["mask"] > 0.5)
+            top, side = int(ys.min()), resolution // 6
+            cx = int(np.median(xs[ys < top + side // 2]))
+            y0, x0 = max(top - side // 8, 0), min(max(cx - side // 2, 0), resolution - side)
+            crops = [r[y0:y0 + side, x0:x0 + side] for r in rows]
+            columns.append(np.concatenate(crops, axis=0))
+            print(f"  {name}, subject {subject}: depth {before.max_depth} (plain) above depth {now.max_depth} "
+                  f"(roulette from {now.rr_depth}); mean display value of the crop {crops[0].mean():.4f} -> "
+                  f"{crops[1].mean():.4f}", flush=True)
+    img = np.concatenate(columns, axis=1)
+    img = np.repeat(np.repeat(img, 3, axis=0), 3, axis=1)
+    Image.fromarray((np.clip(img, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)).save(path)
+    print(f"wrote {path}", flush=True)
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenes", nargs="+", default=list(bt.SCENES), choices=bt.SCENES)
@@ -141,6 +185,7 @@ def main(argv=None) -> None:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--cost-spp", type=int, default=64, help="samples per pixel of the cost-by-first-hit table")
     p.add_argument("--skip-ab", action="store_true")
+    p.add_argument("--figure", type=Path, default=None, help="write the head crops (old cut / now) here instead")
     args = p.parse_args(argv)
 
     import drjit as dr
@@ -157,6 +202,8 @@ def main(argv=None) -> None:
                 if line.startswith("model name")), "?") if Path("/proc/cpuinfo").exists() else "?"
     print(f"bench_hair: {cpu}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at the start; {variant}; "
           f"{args.resolution}x{args.resolution}", flush=True)
+    if args.figure is not None:
+        return figure(args.figure, args.scenes, args.subjects, args.resolution)
     standard = load_presets()["standard"]
     for subject in args.subjects:
         for name in args.scenes:
@@ -165,12 +212,13 @@ def main(argv=None) -> None:
             settings = dataclasses.replace(render_settings("standard", max_depth=standard.depth_for(cls)),
                                            rr_depth=standard.roulette_for(cls))
             strands = sum(len(m.points) for m in scene.meshes if hasattr(m, "fibre"))
-            title = f"{name}, subject {subject} ({strands} strands), standard ({settings.spp} / env {settings.env_spp} " \
-                    f"spp, depth {settings.max_depth}, roulette from {settings.rr_depth or 'Mitsuba default 5'})"
+            title = (f"{name}, subject {subject} ({strands} strands), standard ({settings.spp} / env "
+                     f"{settings.env_spp} spp, depth {settings.max_depth}, roulette from "
+                     f"{settings.rr_depth or 'Mitsuba default 5'})")
             if not args.skip_ab:
                 bt.table(f"{title}: the strands' BSDF, medians of {args.repeats} interleaved frames",
-                         ["strands", "scene load s", "beauty s", "frame CPU s", "CPU / wrapper", "ops of the 2 largest kernels",
-                          "image"], ab(scene, settings, args.repeats))
+                         ["strands", "scene load s", "beauty s", "frame CPU s", "CPU / wrapper",
+                          "ops of the 2 largest kernels", "image"], ab(scene, settings, args.repeats))
             bt.table(f"{title}: cost by first hit, {args.cost_spp} spp through render_pixels",
                      ["first hit", "pixels", "share of pixels", "CPU us / sample", "share of CPU"],
                      cost_by_first_hit(scene, settings, args.cost_spp))

@@ -3,7 +3,8 @@
     python bench/bench_sampler.py                                   # sweep at 128x128 + floors at 512x512
     python bench/bench_sampler.py --resolution 256 --ref-chunks 128 --skip-floor
     python bench/bench_sampler.py --skip-sweep --floor standard:multijitter:48 standard:independent:128
-    python bench/bench_sampler.py --skip-sweep --floor standard:multijitter:99:4 standard:multijitter:99:4:a16-36-64-100-169-256
+    python bench/bench_sampler.py --skip-sweep --floor standard:multijitter:99:4 \
+        standard:multijitter:99:4:a16-36-64-100-169-256
 
 In: the two reference scenes of bench/bench_tradeoff.py (interior-apose, sunrise-random), each at the path depth of
 its scene class (rh_dataset/scenes/presets.json: what the presets render). Out: printed tables (and --out JSON).
@@ -70,7 +71,8 @@ def reference(scene, depth: int, args, cache: Path, sampler: str, chunks: int, t
     """Mean of `chunks` renders of args.ref_chunk_spp spp, the per-pixel variance of that mean, and the mask."""
     import mitsuba
 
-    key = f"{scene.name}_{scene.subject}_{scene.camera.width}_d{depth}r{rr}_{sampler}_{chunks}x{args.ref_chunk_spp}_s{args.seed}_" \
+    key = f"{scene.name}_{scene.subject}_{scene.camera.width}_d{depth}r{rr}_{sampler}_{chunks}x{args.ref_chunk_spp}_" \
+          f"s{args.seed}_" \
           f"m{mitsuba.__version__}_t{scene.triangles}_v1"
     path = cache / f"sampler_ref_{key}.npz"
     if path.is_file():
@@ -78,8 +80,8 @@ def reference(scene, depth: int, args, cache: Path, sampler: str, chunks: int, t
             return z["mean"], z["var"], z["mask"], True
     s1 = s2 = None
     for k in range(chunks):
-        lay, _ = _render(scene, sampler, args.ref_chunk_spp, depth, seed=20_000_000 + 7919 * k + (0 if tag == "ld" else 1),
-                         rr=rr)
+        lay, _ = _render(scene, sampler, args.ref_chunk_spp, depth,
+                         seed=20_000_000 + 7919 * k + (0 if tag == "ld" else 1), rr=rr)
         x = lay["image"].astype(np.float64)
         s1 = x if s1 is None else s1 + x
         s2 = x * x if s2 is None else s2 + x * x
@@ -298,14 +300,16 @@ def main(argv=None) -> dict:
                                                   "standard:independent:128", "standard:multijitter:48",
                                                   "standard:multijitter:64"],
                    help="preset:sampler:spp[:env_spp[:aTIERS]] whose noise floor is measured at --floor-resolution "
-                        "(env_spp: the focused beauty pass, rh_dataset.render.focus; aTIERS, e.g. a16-36-64-100-169-256: "
-                        "samples by noise, rh_dataset.render.adaptive, spp their mean over the person)")
+                        "(env_spp: the focused beauty pass, rh_dataset.render.focus; aTIERS, e.g. "
+                        "a16-36-64-100-169-256: samples by noise, rh_dataset.render.adaptive, spp their mean over "
+                        "the person)")
     p.add_argument("--floor-resolution", type=int, default=512)
     p.add_argument("--floor-repeats", type=int, default=1, help="rounds of every --floor configuration, interleaved")
     p.add_argument("--skip-sweep", action="store_true")
     p.add_argument("--skip-floor", action="store_true")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--subject", type=int, default=0, help="benchmark subject in the scenes (bench_tradeoff.build_scene)")
+    p.add_argument("--subject", type=int, default=0,
+                   help="benchmark subject in the scenes (bench_tradeoff.build_scene)")
     p.add_argument("--cache", default="/tmp/rh_ref")
     p.add_argument("--out", default=None, help="write the results JSON here")
     args = p.parse_args(argv)

@@ -138,7 +138,8 @@ def main(argv=None) -> dict:
     p.add_argument("--deep", type=int, default=16, help="the deep reference depth of the depth check")
     p.add_argument("--out", default=None, help="write savings.json and savings.md here")
     p.add_argument("--only", choices=("all", "depth"), default="all", help="depth: the path-depth check alone")
-    p.add_argument("--subjects", type=int, nargs="+", default=[0], help="benchmark subjects (bench_tradeoff.build_scene)")
+    p.add_argument("--subjects", type=int, nargs="+", default=[0],
+                   help="benchmark subjects (bench_tradeoff.build_scene)")
     p.add_argument("--depths", type=int, nargs="+", default=[2, 3, 4], help="depths compared with --deep")
     p.add_argument("--rr", nargs="*", default=[], help="--only depth: also max_depth:rr_depth configurations (Russian "
                    "roulette from rr_depth), e.g. 16:4")

@@ -2,7 +2,8 @@
 
 In: presets.json (or a file of its format). Out: `Preset` (samples per pixel, sampler, path depth, focused-pass
 samples) by name, and `SceneClass` (the path depth a kind of scene needs, with the measurement it rests on). The
-protocol files (`spec.py`) name a scene class per split; a preset turns it into a depth (`Preset.depth_for`).
+protocol files (`spec.py`) name a scene class per split; a preset turns it into a depth (`Preset.depth_for`) and a
+Russian-roulette depth (`Preset.roulette_for`).
 """
 from __future__ import annotations
 
@@ -39,6 +40,13 @@ class Preset:
             raise SpecError(f"unknown scene class {scene_class!r}; known: {sorted(classes)}")
         return classes[scene_class].max_depth
 
+    def roulette_for(self, scene_class: str) -> int | None:
+        """The Russian-roulette depth this preset renders a scene of `scene_class` with (None: Mitsuba's default)."""
+        if self.max_depth is not None:
+            return None
+        self.depth_for(scene_class)  # the unknown-class error
+        return load_scene_classes()[scene_class].rr_depth
+
 
 @dataclass(frozen=True)
 class SceneClass:
@@ -51,6 +59,8 @@ class SceneClass:
     name: str
     max_depth: int
     tolerance_db: float
+    rr_depth: int | None = None
+    """Depth from which paths end by Russian roulette (unbiased: `RenderSettings.rr_depth`); None: Mitsuba's default."""
     description: str = ""
     measured: dict = field(default_factory=dict, compare=False)
 
@@ -93,9 +103,12 @@ def load_scene_classes() -> dict[str, SceneClass]:
     data = json.loads(path.read_text())
     out = {}
     for name, c in data.get("scene_classes", {}).items():
-        _check_keys(f"{path}: scene class {name}", c, {"max_depth", "tolerance_db", "description", "measured"},
-                    {"max_depth", "tolerance_db"})
+        _check_keys(f"{path}: scene class {name}", c, {"max_depth", "rr_depth", "tolerance_db", "description",
+                                                       "measured"}, {"max_depth", "tolerance_db"})
         if not isinstance(c["max_depth"], int) or c["max_depth"] < 2:
             raise SpecError(f"{path}: scene class {name}: max_depth must be an integer >= 2")
+        rr = c.get("rr_depth")
+        if rr is not None and (not isinstance(rr, int) or not 1 <= rr <= c["max_depth"]):
+            raise SpecError(f"{path}: scene class {name}: rr_depth must be an integer in [1, max_depth] or absent")
         out[name] = SceneClass(name=name, **c)
     return out

@@ -5,14 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analytic_scenes import uv_sphere
-from rh_common.camera import Camera
+from analytic_scenes import gradient_env, sphere_camera, uv_sphere
 from rh_common.colourspace import srgb_encode_reference
 from rh_dataset.render.adaptive import allocate, check_tiers, display_noise
 from rh_dataset.render.focus import person_pixels
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
-from rh_dataset.variant import load_mitsuba, select_variant
+from rh_dataset.variant import select_variant
 
 TIERS = (16, 36, 64, 100, 144, 256)
 
@@ -77,24 +76,12 @@ def test_tiers_are_checked_with_a_one_line_error():
     assert RenderSettings(spp=32, env_spp=4, adaptive_tiers=[16, 64]).adaptive_tiers == (16, 64)
 
 
-def _env() -> dict:
-    mi = load_mitsuba()
-    v = np.linspace(0.0, 1.0, 32, dtype=np.float32)[:, None, None]
-    img = np.broadcast_to(0.2 + 1.5 * v, (32, 64, 3)).copy()
-    img[:, 20:24] = 4.0
-    return {"type": "envmap", "bitmap": mi.Bitmap(img)}
-
-
-def _cam(n=24) -> Camera:
-    return Camera(width=n, height=n, fov_y_deg=50.0, origin=(0.0, -4.0, 0.3), target=(0.0, 0.0, 0.0))
-
-
 def test_adaptive_beauty_is_an_unbiased_estimate_of_the_full_frame_image():
     # As tests/test_focus.py: a deep full-frame reference (16 x 256 independent spp) and K adaptive frames, each an
     # independent estimate; if both estimate the same image, the mean squared difference of the adaptive mean to the
     # reference equals the sum of their variances (ratio ~1), a bias would add to the numerator only. The frames'
     # spread includes the allocation's own randomness (each frame's pilot differs), as it must.
-    env, cam, sphere = _env(), _cam(), [uv_sphere(albedo=(0.6, 0.5, 0.4))]
+    env, cam, sphere = gradient_env(), sphere_camera(), [uv_sphere(albedo=(0.6, 0.5, 0.4))]
     ref_chunks = [render_frame(sphere, env, cam, RenderSettings(spp=256, aov_spp=4, max_depth=3), ["image"],
                                seed=100 + k).layers["image"].astype(np.float64) for k in range(16)]
     r = np.mean(ref_chunks, axis=0)
@@ -120,4 +107,21 @@ def test_adaptive_beauty_is_an_unbiased_estimate_of_the_full_frame_image():
 def test_adaptive_needs_the_exposure():
     st = RenderSettings(spp=16, aov_spp=4, max_depth=3, env_spp=4, sampler="multijitter", adaptive_tiers=(4, 36))
     with pytest.raises(ValueError, match="exposure"):
-        render_frame([uv_sphere()], _env(), _cam(8), st, ["image", "mask"], seed=0)
+        render_frame([uv_sphere()], gradient_env(), sphere_camera(8), st, ["image", "mask"], seed=0)
+
+
+def test_a_presets_file_takes_adaptive_tiers_and_refuses_bad_ones(tmp_path):
+    import json
+
+    from rh_dataset.presets import load_presets
+    from rh_dataset.scene_files import SCENES_DIR, SpecError
+
+    data = json.loads((SCENES_DIR / "presets.json").read_text())
+    data["presets"]["standard"]["adaptive_tiers"] = [16, 64, 169]
+    path = tmp_path / "presets.json"
+    path.write_text(json.dumps(data))
+    assert load_presets(path)["standard"].adaptive_tiers == (16, 64, 169)
+    data["presets"]["standard"]["adaptive_tiers"] = [16, 64]
+    path.write_text(json.dumps(data))
+    with pytest.raises(SpecError, match=r"preset standard: render setting spp=\d+ is the mean count"):
+        load_presets(path)

@@ -40,7 +40,8 @@ def check_tiers(tiers, spp: int, env_spp: int | None) -> tuple[int, ...]:
     """`tiers` as a tuple, or ValueError naming the rule it breaks."""
     t = tuple(int(x) for x in tiers)
     if len(t) < 2 or any(b <= a for a, b in zip(t, t[1:])) or t[0] < 1 or any(x != y for x, y in zip(t, tiers)):
-        raise ValueError(f"render setting adaptive_tiers must be two or more increasing positive integers, got {tiers!r}")
+        raise ValueError(f"render setting adaptive_tiers must be two or more increasing positive integers, "
+                         f"got {tiers!r}")
     if not t[0] <= spp <= t[-1]:
         raise ValueError(f"render setting spp={spp} is the mean count over the person with adaptive_tiers {list(t)}: "
                          f"it must lie within [{t[0]}, {t[-1]}]")

@@ -117,10 +117,12 @@ class RenderSettings:
 
     def for_split(self, split) -> "RenderSettings":
         """These settings for one split of a scene description: an unset max_depth becomes the depth of the split's
-        scene class (`SplitSpec.max_depth`); a split that does not path-trace keeps None (it has no depth)."""
+        scene class (`SplitSpec.max_depth`), with its Russian-roulette depth unless rr_depth is set; a split that
+        does not path-trace keeps None (it has no depth)."""
         if self.max_depth is not None or not split.path_traced:
             return self
-        return dataclasses.replace(self, max_depth=int(split.max_depth))
+        rr = self.rr_depth if self.rr_depth is not None else getattr(split, "rr_depth", None)
+        return dataclasses.replace(self, max_depth=int(split.max_depth), rr_depth=rr)
 
 
 def mitsuba_bsdf(material: MaterialLike) -> Any:
