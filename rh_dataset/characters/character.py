@@ -27,6 +27,7 @@ from rh_common.colourspace import srgb_decode
 from .body import body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, shoe_height_map
 from .body_features import body_features
+from .cloth_pose import CLOTH_MODES, simulated_parts
 from .drape import SkinBinding, push_out, skin_points
 from .geometry import split_faces
 from .hair import build_hair
@@ -394,10 +395,13 @@ def pose_character(
     character: Character,
     bone_deltas: dict[str, np.ndarray] | None = None,
     root_transform: np.ndarray | None = None,
+    cloth: str = "skinned",
 ) -> list[PosedMesh | PosedStrands]:
     """Pose every part. `bone_deltas`: bone label -> 4x4 local-ref delta (None or identities = anny's rest A-pose).
     `root_transform`: a rigid world 4x4 applied after skinning (the turntable's rotation about +Z through the
     pelvis). anny's root stays where anny puts it (pelvis at the origin before the pose's root translation).
+    `cloth`: how draped garments reach the pose (`cloth_pose.CLOTH_MODES`): "skinned" (linear-blend skinning +
+    push_out) or "simulated" (newton's cloth solver while the body moves from the rest pose into this one).
     The meshes come first, in part order, then one `PosedStrands` per `character.strands`."""
     topo = body_topology()
     out = run_anny(character.phenotype, bone_deltas)
@@ -407,13 +411,21 @@ def pose_character(
         m = _check_transform("root_transform", root_transform)
         verts = verts @ m[:3, :3].T + m[:3, 3]
         normals = normals @ m[:3, :3].T
+    if cloth not in CLOTH_MODES:
+        raise ValueError(f"pose_character: cloth must be one of {CLOTH_MODES}, got {cloth!r}")
+    simulated = simulated_parts(character, bone_deltas) if cloth == "simulated" else {}
     posed = []
     for part in character.parts:
         if part.skinning is not None:
-            v = skin_points(part.skinning, out["bone_poses"], out["rest_bone_poses"])
-            if root_transform is not None:
-                v = v @ m[:3, :3].T + m[:3, 3]
-            v = push_out(v, verts, normals, topo.faces)
+            if part.name in simulated:
+                v = simulated[part.name]
+                if root_transform is not None:
+                    v = v @ m[:3, :3].T + m[:3, 3]
+            else:
+                v = skin_points(part.skinning, out["bone_poses"], out["rest_bone_poses"])
+                if root_transform is not None:
+                    v = v @ m[:3, :3].T + m[:3, 3]
+                v = push_out(v, verts, normals, topo.faces)
             n = _welded_normals(v, part.faces)
         elif part.blend_vertices is None:
             p = verts[part.body_vertex]
