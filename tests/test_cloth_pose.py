@@ -70,6 +70,30 @@ def test_simulated_waistband_follows_the_body_and_reruns_bit_identically():
     assert simulate_into_pose([g], PHENO, {}, st)[0].tobytes() == g.vertices.astype(np.float64).tobytes()
 
 
+def test_simulated_parts_land_on_the_rendered_part(monkeypatch):
+    """pose_character's simulated path: the rendered skirt (a seam column duplicated for its UVs) takes each
+    simulated vertex's position, the duplicate column its twin's."""
+    from types import SimpleNamespace
+
+    from rh_dataset.characters import cloth_pose, drape
+    from rh_dataset.characters.body_features import body_features
+
+    g = _tiny_skirt()
+    monkeypatch.setattr(drape, "drape_garment", lambda kind, ph, st=None, use_cache=True: g)
+    monkeypatch.setattr(cloth_pose, "drape_garment", lambda kind, ph, st=None, use_cache=True: g)
+    feats = body_features(PHENO)
+    part = drape.draped_part("draped_skirt", PHENO, feats, np.zeros(len(feats.rest_vertices)),
+                             DrapeSettings(n_around=16, n_rings=4))
+    character = SimpleNamespace(phenotype=PHENO, parts=[SimpleNamespace(name="body", skinning=None),
+                                                        SimpleNamespace(name="draped_skirt", skinning=part.skinning)])
+    st = ClothPoseSettings(iterations=2, max_move_steps=2, settle_steps=0, keyframes=3)
+    deltas = _bent_hip(-30.0)
+    out = cloth_pose.simulated_parts(character, deltas, st)
+    sim = simulate_into_pose([g], PHENO, deltas, st)[0]
+    src = (np.arange(4)[:, None] * 16 + np.r_[np.arange(16), 0][None, :]).ravel()  # render vertex -> cloth vertex
+    assert list(out) == ["draped_skirt"] and out["draped_skirt"].tobytes() == sim[src].tobytes()
+
+
 def test_settings_and_self_crossings_are_checked():
     with pytest.raises(ValueError, match="max_body_step"):
         ClothPoseSettings(max_body_step=0.0)
