@@ -11,10 +11,13 @@ and the first --poses test poses the generator draws for that subject (`sample_p
 subject, "test", j)`).
 
 Per (subject, pose), both ways of `pose_character(..., cloth=)`:
-  seconds   wall time of pose_character (the anny run, every part, the cloth) on this machine, drape cache warm;
+  seconds   wall time of pose_character (the anny run, every part, the cloth) on this machine, drape cache warm
+            (the simulated call also measures the cloth's depth before push_out, one closest-point query); steps:
+            the simulation's move + settle steps;
   geometry  the draped part's vertex distance skinned <-> simulated (mean, max) and the Hausdorff distance of the
             two surfaces (trimesh closest points from each one's vertices to the other's triangles, the larger);
-  body      cloth-vertex depth under the posed skin (`drape.penetration`, metres > 0 inside): worst, share inside;
+  body      cloth-vertex depth under the posed skin (`drape.penetration`, > 0 inside): worst (mm), share inside,
+            and the simulation's own worst before the final push_out (raw);
   self      cloth edges that pass through the cloth's own triangles (`cloth_pose.self_crossings`);
   image     512x512 renders at the standard preset (its sampler, spp, env_spp, the pose's scene-class depth, skin
             under clothes culled) under the bundled `interior` map (mean luminance 1), camera framed as the generator
@@ -129,16 +132,19 @@ def main(argv: list[str] | None = None) -> int:
               f"{ {k: round(v, 2) for k, v in recipe.phenotype.items()} }")
         for name, pose in poses:
             bones = dict(pose.bones)
-            out = {}
+            out, stats = {}, {}
             for mode in ("skinned", "simulated"):
                 t = time.perf_counter()
-                meshes = pose_character(character, bones, pose.root_transform, mode)
+                meshes = pose_character(character, bones, pose.root_transform, mode,
+                                        cloth_stats=stats if mode == "simulated" else None)
                 out[mode] = (meshes, time.perf_counter() - t, load())
             run = run_anny(character.phenotype, bones)
             m = pose.root_transform
             body = run["vertices"] @ m[:3, :3].T + m[:3, 3]
             row = {"subject": recipe.index, "pose": f"{name} ({pose.label})", "posed": name != "turntable",
-                   "t_skin": out["skinned"][1], "t_sim": out["simulated"][1], "load": out["simulated"][2]}
+                   "t_skin": out["skinned"][1], "t_sim": out["simulated"][1], "load": out["simulated"][2],
+                   "steps": stats.get("move_steps", 0) + stats.get("settle_steps", 0),
+                   "raw_mm": 1e3 * max(stats.get("depth_before_push_m", 0.0), 0.0)}
             for kind in kinds:
                 part = next(p for p in character.parts if p.name == kind)
                 a = next(x for x in out["skinned"][0] if x.name == kind).vertices.astype(np.float64)
@@ -169,14 +175,16 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-HEAD = ("subject pose                  skin s   sim s  mean mm  max mm  Haus mm | body mm skin/sim  inside % skin/sim"
-        "  self skin/sim | PSNR sim  noise  load")
+HEAD = ("subject pose                  skin s   sim s steps  mean mm  max mm  Haus mm | body mm skin/sim (sim raw)"
+        "  inside % skin/sim  self skin/sim | PSNR sim  noise  load")
 
 
 def _line(r: dict) -> str:
     img = (f" | {r['psnr_sim']:8.2f} {r['psnr_noise']:6.2f}" if "psnr_sim" in r else " |      -      -")
-    return (f"{r['subject']:7d} {r['pose']:20s} {r['t_skin']:7.2f} {r['t_sim']:7.1f} {r['mean_mm']:8.1f} "
-            f"{r['max_mm']:7.1f} {r['haus_mm']:8.1f} | {r['pen_skin_mm']:7.2f} {r['pen_sim_mm']:7.2f}   "
+    return (f"{r['subject']:7d} {r['pose']:20s} {r['t_skin']:7.2f} {r['t_sim']:7.1f} {r['steps']:5d} "
+            f"{r['mean_mm']:8.1f} "
+            f"{r['max_mm']:7.1f} {r['haus_mm']:8.1f} | {r['pen_skin_mm']:7.2f} {r['pen_sim_mm']:7.2f} "
+            f"({r['raw_mm']:5.2f})   "
             f"{r['in_skin_pct']:6.2f} {r['in_sim_pct']:6.2f}   {r['self_skin']:5d} {r['self_sim']:5d}{img}  "
             f"{r['load']}")
 
@@ -192,7 +200,8 @@ def _summary(rows: list[dict], presets: dict, standard) -> None:
     print(f"\nposed frames ({len(posed)}): median seconds skinned {med('t_skin'):.2f}, simulated {med('t_sim'):.1f}; "
           f"median Hausdorff {med('haus_mm'):.0f} mm (worst {max(r['haus_mm'] for r in posed):.0f}); worst cloth "
           f"depth in the body skinned {max(r['pen_skin_mm'] for r in posed):.2f} mm, simulated "
-          f"{max(r['pen_sim_mm'] for r in posed):.2f} mm; self-crossing edges skinned "
+          f"{max(r['pen_sim_mm'] for r in posed):.2f} mm (before push_out {max(r['raw_mm'] for r in posed):.2f} mm);"
+          f" self-crossing edges skinned "
           f"{sum(r['self_skin'] for r in posed)}, simulated {sum(r['self_sim'] for r in posed)}  (load {load()})")
     if "psnr_sim" not in posed[0]:
         return

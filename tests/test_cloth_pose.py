@@ -35,7 +35,7 @@ def _tiny_skirt() -> DrapedGarment:
     """The skirt's undraped pattern at a coarse resolution: a real cloth for the solver, in a fraction of a second."""
     st = DrapeSettings(n_around=16, n_rings=4)
     v, f, uv, pinned, mpu = skirt_pattern(PHENO, st)
-    return DrapedGarment("draped_skirt", v, f, uv, pinned, mpu)
+    return DrapedGarment("draped_skirt", v, f, uv, pinned, mpu, v)
 
 
 def test_body_motion_runs_from_the_rest_pose_into_the_frame_pose():
@@ -52,6 +52,17 @@ def test_body_motion_runs_from_the_rest_pose_into_the_frame_pose():
     half = body_motion(PHENO, _bent_hip(-30.0), keyframes=2)
     np.testing.assert_allclose(m.bone_poses[2], half.bone_poses[-1], atol=1e-9)
     assert m.collider_faces.max() == len(m.collider_vertices) - 1
+    np.testing.assert_array_equal(m.heading, np.eye(3))
+    # A turned, bent-forward, lowered root: the turn about +Z is the heading, applied after the motion; the
+    # motion itself keeps the bend and the translation.
+    root = np.eye(4)
+    root[:3, :3] = rotation_about(np.array([0.0, 0.0, 1.0]), 40.0) @ rotation_about(np.array([1.0, 0.0, 0.0]), 15.0)
+    root[:3, 3] = (0.02, -0.03, -0.1)
+    turned = {**deltas, "root": root}
+    m = body_motion(PHENO, turned, keyframes=3)
+    np.testing.assert_allclose(m.heading, rotation_about(np.array([0.0, 0.0, 1.0]), 40.0), atol=1e-9)
+    posed = run_anny(PHENO, turned)
+    np.testing.assert_allclose(m.collider[-1] @ m.heading.T, posed["vertices"][m.collider_vertices], atol=1e-9)
 
 
 def test_simulated_waistband_follows_the_body_and_reruns_bit_identically():
@@ -97,6 +108,8 @@ def test_simulated_parts_land_on_the_rendered_part(monkeypatch):
 def test_settings_and_self_crossings_are_checked():
     with pytest.raises(ValueError, match="max_body_step"):
         ClothPoseSettings(max_body_step=0.0)
+    with pytest.raises(ValueError, match="settle_damping"):
+        ClothPoseSettings(settle_damping=1.5)
     with pytest.raises(ValueError, match="max_move_steps"):
         ClothPoseSettings(keyframes=6, max_move_steps=4)
     with pytest.raises(ValueError, match="DrapedGarment"):

@@ -12,6 +12,8 @@ phenotype and the frame's anny bone deltas ('local-ref', as `pose_character` tak
                the root's translation lerped, eased in and out), the body a deforming triangle-mesh collider whose
                vertices (and velocities) are set every step, the pinned waistband kinematic on the skinned body;
                then the cloth settles with the body still, with the cloth self-contact it was draped with.
+               `pose_character` then applies `push_out` as for skinned cloth: newton's penalty contact can leave a
+               vertex a few millimetres inside a limb that pressed the cloth.
 
 Which preset uses which is decided by bench/bench_cloth_pose.py (docs/TRADEOFFS.md, "Skinned or simulated cloth").
 Determinism: Warp's CPU kernels run in a fixed order, so the same inputs give the same bits on one machine
@@ -40,7 +42,9 @@ class ClothPoseSettings:
     whole collider) and interpolated linearly between them; each `dt` step advances it as far as keeps the move of
     every collider vertex within `reach` metres of the cloth (and of the pinned waistband) at or below
     `max_body_step` metres (at 5 mm a thigh lifted into a skirt stays out of it, at 10 mm it passed through), in
-    at most `max_move_steps` steps; then `settle_steps` with the body still. `iterations`: VBD sweeps per step; `contact_gap`: newton's soft-contact detection distance (metres). The
+    at most `max_move_steps` steps; then `settle_steps` with the body still, the cloth's velocities multiplied by
+    `settle_damping` after each (a frame is a static pose: the skirt's swing is damped out rather than frozen
+    mid-swing; without it a standing pose's skirt still moved 26 mm on average between 30 and 120 settle steps). `iterations`: VBD sweeps per step; `contact_gap`: newton's soft-contact detection distance (metres). The
     cloth's material, body contact and self-contact are the ones it was draped with (`DrapeSettings`)."""
 
     dt: float = 0.01
@@ -49,6 +53,7 @@ class ClothPoseSettings:
     reach: float = 0.1
     max_move_steps: int = 600
     settle_steps: int = 30
+    settle_damping: float = 0.8
     keyframes: int = 17
     contact_gap: float = 0.015
 
@@ -61,6 +66,9 @@ class ClothPoseSettings:
         if self.max_move_steps < self.keyframes - 1:
             raise ValueError(f"ClothPoseSettings.max_move_steps must be >= keyframes - 1 (a step per keyframe "
                              f"interval), got {self.max_move_steps}")
+        if isinstance(self.settle_damping, bool) or not isinstance(self.settle_damping, (int, float)) \
+                or not 0.0 <= self.settle_damping <= 1.0:
+            raise ValueError(f"ClothPoseSettings.settle_damping must be in [0, 1], got {self.settle_damping!r}")
         for name in ("dt", "max_body_step", "reach", "contact_gap"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
@@ -69,10 +77,13 @@ class ClothPoseSettings:
 
 @dataclasses.dataclass(frozen=True)
 class BodyMotion:
-    """The body moving from the rest pose (t = 0) into the frame's pose (t = 1), sampled at K keyframes:
-    bone_poses (K, J, 4, 4) anny's posed bone poses, rest_bone_poses (J, 4, 4), and `collider` (K, C, 3) the posed
-    collider vertices `collider_vertices` (C,) of the body (its faces `collider_faces` (F, 3) index them)."""
+    """The body moving from the rest pose (t = 0) into the frame's pose without its heading (t = 1), sampled at K
+    keyframes: bone_poses (K, J, 4, 4) anny's posed bone poses, rest_bone_poses (J, 4, 4), and `collider`
+    (K, C, 3) the posed collider vertices `collider_vertices` (C,) of the body (its faces `collider_faces` (F, 3)
+    index them). `heading` (3, 3): the pose's turn about +Z through the origin (the root's rotation about the
+    vertical), applied rigidly afterwards: the frame's pose = heading @ the motion's last keyframe."""
 
+    heading: np.ndarray
     times: np.ndarray
     bone_poses: np.ndarray
     rest_bone_poses: np.ndarray
@@ -90,7 +101,10 @@ def body_motion(phenotype: Mapping[str, float], bone_deltas: Mapping[str, np.nda
                 keyframes: int = ClothPoseSettings.keyframes) -> BodyMotion:
     """Rest pose -> the frame's pose: at eased time s each bone's delta is the rotation by s times its rotation
     vector (the slerp from identity) and s times its translation (the root's), through anny's forward kinematics
-    and linear-blend skinning (`poses.rig`, anny's own maths in numpy)."""
+    and linear-blend skinning (`poses.rig`, anny's own maths in numpy). The root's turn about the vertical (the
+    twist about +Z of its world rotation; sampled poses put their heading there, up to 60 degrees) is not part of
+    the motion but `heading`: turning about the gravity axis changes nothing of a static drape, while a body that
+    turned in the simulation would twirl the skirt, which then swings long after it stops."""
     from scipy.spatial.transform import Rotation
 
     from rh_common.body_model import load_anny
@@ -98,8 +112,15 @@ def body_motion(phenotype: Mapping[str, float], bone_deltas: Mapping[str, np.nda
     from rh_dataset.poses.rig import rig_for
 
     target = BodyPose(bones=dict(bone_deltas or {})).deltas()  # validated: rigid, translation on the root only
-    rotvec = Rotation.from_matrix(target[:, :3, :3]).as_rotvec()
     rig = rig_for(load_anny(), phenotype)
+    # The root's world pose is [U0^T R U0 | U0^T d] (poses.rig); split its world rotation A = G B, G the twist
+    # about +Z (the quaternion's (w, z) part: the same angle in either order of the swing-twist split).
+    U0 = rig.reference_orientations[0]
+    x, y, z, w = Rotation.from_matrix(U0.T @ target[0, :3, :3] @ U0).as_quat()
+    heading = Rotation.from_rotvec([0.0, 0.0, 2.0 * np.arctan2(z, w)]).as_matrix()
+    target[0, :3, :3] = U0 @ heading.T @ U0.T @ target[0, :3, :3]
+    target[0, :3, 3] = U0 @ heading.T @ U0.T @ target[0, :3, 3]
+    rotvec = Rotation.from_matrix(target[:, :3, :3]).as_rotvec()
     faces = collider_faces(phenotype)
     used, compact = np.unique(faces, return_inverse=True)
     times = np.linspace(0.0, 1.0, int(keyframes))
@@ -111,17 +132,21 @@ def body_motion(phenotype: Mapping[str, float], bone_deltas: Mapping[str, np.nda
         W = rig.world_poses(D)
         poses.append(W)
         collider.append(rig.skin(W, used)[0])
-    return BodyMotion(times, np.stack(poses), rig.rest_poses, used, compact.reshape(faces.shape).astype(np.int32),
-                      np.stack(collider))
+    return BodyMotion(heading, times, np.stack(poses), rig.rest_poses, used,
+                      compact.reshape(faces.shape).astype(np.int32), np.stack(collider))
 
 
 def _is_rest(bone_deltas: Mapping[str, np.ndarray] | None) -> bool:
     return not bone_deltas or all(np.array_equal(np.asarray(m, np.float64), np.eye(4)) for m in bone_deltas.values())
 
 
-def _check_garments(garments: Sequence[DrapedGarment]) -> None:
+def _check_garments(garments: Sequence[DrapedGarment], simulated: bool = False) -> None:
     if not garments or not all(isinstance(g, DrapedGarment) for g in garments):
         raise ValueError("cloth_pose: garments must be a non-empty sequence of DrapedGarment (drape.drape_garment)")
+    for g in garments if simulated else ():
+        if g.pattern is None or np.shape(g.pattern) != np.shape(g.vertices):
+            raise ValueError(f"cloth_pose: DrapedGarment {g.kind!r} needs its pattern (the cloth's rest shape, "
+                             "as drape.drape_garment returns it) to be simulated further")
 
 
 def _next_time(x: float, collider: np.ndarray, cloth: np.ndarray, pin_keys: np.ndarray,
@@ -159,7 +184,7 @@ def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str
 
     import newton
 
-    _check_garments(garments)
+    _check_garments(garments, simulated=True)
     if _is_rest(bone_deltas):
         if stats is not None:
             stats.update(move_steps=0, settle_steps=0)
@@ -170,7 +195,8 @@ def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str
     rest = np.concatenate([g.vertices for g in garments]).astype(np.float64)
     pins = bind_to_skeleton(rest[pinned], phenotype)
     pin_keys = np.stack([skin_points(pins, W, motion.rest_bone_poses) for W in motion.bone_poses])
-    model, body = cloth_model([(g.vertices, g.faces, g.pinned) for g in garments], motion.collider[0],
+    # The cloth's rest shape is its pattern; it starts where the drape settled.
+    model, body = cloth_model([(g.pattern, g.faces, g.pinned) for g in garments], motion.collider[0],
                               motion.collider_faces, fabric)
     mesh = body.mesh  # the Warp mesh the model's shape queries; moved in place below
     # The shape's bounds are fixed when the model is built: widen them to the whole motion, or the contact
@@ -183,6 +209,8 @@ def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str
     pipe = newton.CollisionPipeline(model, soft_contact_gap=st.contact_gap, deterministic=True)
     contacts = pipe.contacts()
     s0, s1, ctrl = model.state(), model.state(), model.control()
+    s0.particle_q.assign(wp.array(rest.astype(np.float32), dtype=wp.vec3, device="cpu"))
+    s1.particle_q.assign(s0.particle_q)
     pin_idx = np.flatnonzero(pinned)
     prev = motion.collider[0]
     k = len(motion.times) - 1
@@ -208,13 +236,15 @@ def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str
         s0.clear_forces()
         solver.step(s0, s1, ctrl, contacts, st.dt)
         s0, s1 = s1, s0
+        if settled:  # the body is still: damp the cloth's swing towards the rest a static frame shows
+            s0.particle_qd.assign(s0.particle_qd.numpy() * np.float32(st.settle_damping))
     if stats is not None:
         stats.update(move_steps=moves, settle_steps=settled)
     q = s0.particle_q.numpy().astype(np.float64)
     if not np.all(np.isfinite(q)):
         raise RuntimeError("simulate_into_pose: newton's VBD solver diverged (non-finite particle positions); "
                            "lower ClothPoseSettings.dt or max_body_step")
-    return np.split(q, np.cumsum([len(g.vertices) for g in garments])[:-1])
+    return np.split(q @ motion.heading.T, np.cumsum([len(g.vertices) for g in garments])[:-1])
 
 
 def skin_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str, float],
@@ -244,11 +274,12 @@ def pose_garments(garments: Sequence[DrapedGarment], phenotype: Mapping[str, flo
 
 
 def simulated_parts(character, bone_deltas: Mapping[str, np.ndarray] | None,
-                    settings: ClothPoseSettings = ClothPoseSettings()) -> dict[str, np.ndarray]:
+                    settings: ClothPoseSettings = ClothPoseSettings(), stats: dict | None = None
+                    ) -> dict[str, np.ndarray]:
     """{part name: posed vertices (V, 3) float64} of a `Character`'s draped parts (kinds in `DRAPED_KINDS`), all
     simulated together by `simulate_into_pose` (anny's posed space, before a root_transform). A part's vertices are
     copies of its draped garment's (a seam column duplicated for its UVs): each takes the simulated position of the
-    garment vertex it sits on in the rest pose."""
+    garment vertex it sits on in the rest pose. `stats`: as `simulate_into_pose`'s."""
     from scipy.spatial import cKDTree
 
     from rh_common.body_model import load_anny
@@ -259,7 +290,7 @@ def simulated_parts(character, bone_deltas: Mapping[str, np.ndarray] | None,
         return {}
     phenotype = character.phenotype
     garments = [drape_garment(p.name, phenotype) for p in parts]
-    posed = simulate_into_pose(garments, phenotype, bone_deltas, settings)
+    posed = simulate_into_pose(garments, phenotype, bone_deltas, settings, stats=stats)
     rig = rig_for(load_anny(), phenotype)
     reference = rig.world_poses(np.tile(np.eye(4), (len(rig.bone_labels), 1, 1)))  # the rest (A-)pose
     out = {}

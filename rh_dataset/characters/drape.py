@@ -73,7 +73,10 @@ class DrapeSettings:
 @dataclasses.dataclass(frozen=True)
 class DrapedGarment:
     """Settled garment in the rest pose (anny's A-pose, metres, Z up): vertices (V, 3) float64, faces (F, 3) int32
-    (outward), uvs (V, 2) float32 in [0, 1], `pinned` (V,) bool (the waistband, held on the body)."""
+    (outward), uvs (V, 2) float32 in [0, 1], `pinned` (V,) bool (the waistband, held on the body). `pattern`
+    (V, 3): the undraped cloth it was simulated from, whose triangles and bends are the cloth's rest shape (a
+    simulation that goes on from `vertices` must keep them: taking the draped, gravity-stretched surface as the
+    rest shape would let the skirt sag further and keep its folds as memory)."""
 
     kind: str
     vertices: np.ndarray
@@ -81,6 +84,7 @@ class DrapedGarment:
     uvs: np.ndarray
     pinned: np.ndarray
     metres_per_uv: float
+    pattern: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,8 +150,8 @@ def skirt_pattern(phenotype: dict[str, float], settings: DrapeSettings = DrapeSe
 
 def cloth_model(cloths, body_v, body_f, st: DrapeSettings):
     """newton's model of cloth around the body: each of `cloths` ((vertices (V, 3), faces (F, 3), pinned (V,) bool),
-    inner first) as cloth particles of `st`'s fabric, its pinned particles kinematic (not ACTIVE: the caller places
-    them), the body (body_v, body_f) as one triangle-mesh shape, soft-contact stiffness and friction from `st`.
+    inner first) as cloth particles of `st`'s fabric whose rest shape (and start) is `vertices`, its pinned
+    particles kinematic (not ACTIVE: the caller places them), the body (body_v, body_f) as one triangle-mesh shape, soft-contact stiffness and friction from `st`.
     Returns (model, the body's `newton.Mesh`, whose Warp mesh a caller may move between steps). The drape and the
     per-frame simulation (cloth_pose.py) build the same cloth this way."""
     import warp as wp
@@ -268,7 +272,7 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
             with atomic_path(path) as tmp:
                 with open(tmp, "wb") as fh:
                     np.savez(fh, vertices=q)
-    return DrapedGarment(kind, q, faces, uvs, pinned, mpu)
+    return DrapedGarment(kind, q, faces, uvs, pinned, mpu, verts)
 
 
 def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones: int = 8,
