@@ -96,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--resolution", type=int, default=512, help="render size")
     ap.add_argument("--no-render", action="store_true", help="skip the renders and the image difference")
     ap.add_argument("--figure", type=Path, default=None,
-                    help="write skinned | simulated of the pose whose surfaces differ most (front, and its side)")
+                    help="write skinned | simulated of the pose whose surfaces differ most (front, then its left side)")
     args = ap.parse_args(argv)
 
     from bench_cloth import draped_recipe
@@ -166,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
                 row["psnr_sim"] = scorer.psnr(sim["image"])
                 row["psnr_noise"] = scorer.psnr(other["image"])
                 if figure_case is None or row["haus_mm"] > figure_case[0]:
-                    figure_case = (row["haus_mm"], character, bones, pose, ref["image"], sim["image"], scene, st)
+                    figure_case = (row["haus_mm"], character, bones, pose, ref, sim, scene, st)
             rows.append(row)
             print(_line(row), flush=True)
     _summary(rows, presets, standard)
@@ -227,7 +227,8 @@ def _summary(rows: list[dict], presets: dict, standard) -> None:
 
 
 def _figure(path: Path, case) -> None:
-    """Front (the two standard renders) and side (rendered here, same settings) of skinned | simulated."""
+    """Front (the two standard renders) and side (rendered here, same settings) of skinned | simulated, each row
+    cropped to the person (both renders' coverage, plus a margin)."""
     from rh_common.imageio import write_png
     from rh_dataset.characters import pose_character
     from rh_dataset.poses.pose import rotation_about_z
@@ -235,16 +236,21 @@ def _figure(path: Path, case) -> None:
     _, character, bones, pose, front_skin, front_sim, scene, st = case
     exposure = scene[2]
     turn = rotation_about_z(90.0) @ pose.root_transform
-    side = [render(pose_character(character, bones, turn, mode), scene, st, 1)[0]["image"]
-            for mode in ("skinned", "simulated")]
+    side = [render(pose_character(character, bones, turn, mode), scene, st, 1)[0] for mode in ("skinned", "simulated")]
     rows = []
     for pair in ((front_skin, front_sim), tuple(side)):
-        tiles = [display(x, exposure) for x in pair]
-        rows.append(np.concatenate(tiles, axis=1))
-    img = np.concatenate(rows, axis=0)
-    h, w = img.shape[:2]
+        cover = np.maximum(pair[0]["mask"], pair[1]["mask"]) > 0.01
+        ys, xs = np.nonzero(cover)
+        m = 12
+        y0, y1 = max(ys.min() - m, 0), min(ys.max() + m + 1, cover.shape[0])
+        x0, x1 = max(xs.min() - m, 0), min(xs.max() + m + 1, cover.shape[1])
+        rows.append([display(x["image"][y0:y1, x0:x1], exposure) for x in pair])
+    h = max(t.shape[0] for r in rows for t in r)
+    pad = lambda t: np.pad(t, ((0, h - t.shape[0]), (0, 0), (0, 0)), constant_values=255)  # noqa: E731
+    img = np.concatenate([pad(t) for r in rows for t in r], axis=1)
     write_png(path, img)
-    print(f"wrote {path} ({w}x{h}: skinned | simulated; front, then the left side; subject pose {pose.label})")
+    print(f"wrote {path} ({img.shape[1]}x{img.shape[0]}: front skinned | front simulated | side skinned | side "
+          f"simulated; subject pose {pose.label})")
 
 
 if __name__ == "__main__":
