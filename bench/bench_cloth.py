@@ -8,7 +8,8 @@ Figures: drape wall seconds (uncached, Warp kernels already compiled; the first 
 printed separately as `first drape`), the cached load, the skinning per frame against the shell skirt's posing
 (both after one anny run, which every frame pays anyway), and penetration = trimesh signed distance of the skinned
 cloth vertices into the posed body (metres, > 0 inside): the worst over all vertices, its 99th percentile, and the
-share of vertices inside, per pose label. The load average is printed with the times.
+share of vertices inside, per pose label; and how many of the drape's edges pass through the cloth itself
+(`cloth_pose.self_crossings`), with and without the drape's self-contact. The load average is printed with the times.
 """
 from __future__ import annotations
 
@@ -73,6 +74,11 @@ def main(argv: list[str] | None = None) -> int:
     t = time.perf_counter()
     drape_garment("draped_skirt", ph, st)
     print(f"cached drape load: {1e3 * (time.perf_counter() - t):.1f} ms")
+    from rh_dataset.characters.cloth_pose import self_crossings
+
+    plain = drape_garment("draped_skirt", ph, dataclasses.replace(st, self_contact=False), use_cache=False)
+    print(f"rest drape: {self_crossings(g.vertices, g.faces)} of its edges cross the cloth; draped without "
+          f"self-contact: {self_crossings(plain.vertices, plain.faces)}")
     t = time.perf_counter()
     b = bind_to_skeleton(g.vertices, ph)
     print(f"skinning transfer (once per character): {time.perf_counter() - t:.2f} s")

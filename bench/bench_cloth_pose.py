@@ -6,9 +6,9 @@ penetration and the image difference, and from them which preset poses cloth whi
     python bench/bench_cloth_pose.py --figure docs/cloth_pose.png     # also the picture of the most different pose
 
 Subjects: the first benchmark-pool recipes that draw a skirt (recipe_from_seed(derive_seed("benchmark", i, --seed)),
-as bench/bench_cloth.py draws them), the skirt swapped for the draped one (bench_cloth.draped_recipe). Poses per subject: protocol a's turntable frame at 90 degrees (the rest A-pose turned)
-and the first --poses test poses the generator draws for that subject (`sample_pose` from `rng_for(seed, "pose",
-subject, "test", j)`).
+as bench/bench_cloth.py draws them), the skirt swapped for the draped one (bench_cloth.draped_recipe). Poses per
+subject: protocol a's turntable frame at 90 degrees (the rest A-pose turned) and the first --poses test poses the
+generator draws for that subject (`sample_pose` from `rng_for(seed, "pose", subject, "test", j)`).
 
 Per (subject, pose), both ways of `pose_character(..., cloth=)`:
   seconds   wall time of pose_character (the anny run, every part, the cloth) on this machine, drape cache warm
@@ -64,7 +64,8 @@ def scene_for(character, resolution: int):
     from rh_dataset.characters import body_bounds, pose_character
     from rh_dataset.generate import exposure_for
     from rh_dataset.generate.subjects import CAMERA_FILL, framing_box
-    from rh_dataset.lights import LightSpec, build_light, bundled_hdris, load_hdri, mitsuba_emitter_dict, normalised_scale
+    from rh_dataset.lights import (LightSpec, build_light, bundled_hdris, load_hdri, mitsuba_emitter_dict,
+                                   normalised_scale)
     from rh_dataset.render.cull import hidden_faces
 
     lo, hi = framing_box(*body_bounds(pose_character(character, None, None)))

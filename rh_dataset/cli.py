@@ -151,8 +151,8 @@ def options_from_args(args: argparse.Namespace):
         subjects=subjects, frames=args.frames, resolution=args.resolution, hdri_folder=args.hdri_folder,
         motion=motion, character=character)
     settings = render_settings(args.preset, spp=args.spp, aov_spp=args.aov_spp, max_depth=args.max_depth,
-                               sampler=args.sampler, env_spp=args.env_spp, denoise=bool(args.denoise), cull=not args.no_cull,
-                               cloth=args.cloth)
+                               sampler=args.sampler, env_spp=args.env_spp, denoise=bool(args.denoise),
+                               cull=not args.no_cull, cloth=args.cloth)
     plan = DatasetPlan(out=args.out, spec=spec, settings=settings, seed=args.seed, variant=args.variant,
                        overwrite=args.overwrite, character_path=args.character)
     return plan, backend_from_args(args)

@@ -1,8 +1,9 @@
 """The render presets and scene classes of rh_dataset/scenes/presets.json, validated.
 
 In: presets.json (or a file of its format). Out: `Preset` (samples per pixel, sampler, path depth, focused-pass
-samples, how draped cloth is posed) by name, and `SceneClass` (the path depth a kind of scene needs, with the measurement it rests on). The
-protocol files (`spec.py`) name a scene class per split; a preset turns it into a depth (`Preset.depth_for`).
+samples, how draped cloth is posed) by name, and `SceneClass` (the path depth a kind of scene needs, with the
+measurement it rests on). The protocol files (`spec.py`) name a scene class per split; a preset turns it into a depth
+(`Preset.depth_for`).
 """
 from __future__ import annotations
 

@@ -44,8 +44,9 @@ class ClothPoseSettings:
     `max_body_step` metres (at 5 mm a thigh lifted into a skirt stays out of it, at 10 mm it passed through), in
     at most `max_move_steps` steps; then `settle_steps` with the body still, the cloth's velocities multiplied by
     `settle_damping` after each (a frame is a static pose: the skirt's swing is damped out rather than frozen
-    mid-swing; without it a standing pose's skirt still moved 26 mm on average between 30 and 120 settle steps). `iterations`: VBD sweeps per step; `contact_gap`: newton's soft-contact detection distance (metres). The
-    cloth's material, body contact and self-contact are the ones it was draped with (`DrapeSettings`)."""
+    mid-swing). `iterations`: VBD sweeps per step; `contact_gap`: newton's soft-contact detection distance
+    (metres). The cloth's material, body contact and self-contact are the ones it was draped with
+    (`DrapeSettings`)."""
 
     dt: float = 0.01
     iterations: int = 10

@@ -2,9 +2,10 @@
 
 In: a phenotype and a draped garment kind (`DRAPED_KINDS`). Out: `DrapedGarment`, the garment's settled rest-pose
 surface (vertices, faces, UVs) after `DrapeSettings.steps` steps of newton's `SolverVBD` with gravity, cloth
-self-contact and the body mesh (arms and hands left out) as a static collider, plus the skinning that moves it per frame (`SkinBinding`:
-the body's linear-blend weights transferred from the closest body point, the garment expressed in anny's bind
-space) and `push_out`, which puts skinned cloth that a limb swung into back on the skin. `penetration` measures.
+self-contact and the body mesh (arms and hands left out) as a static collider, plus the skinning that moves it per
+frame (`SkinBinding`: the body's linear-blend weights transferred from the closest body point, the garment
+expressed in anny's bind space) and `push_out`, which puts skinned cloth that a limb swung into back on the skin.
+`penetration` measures.
 
 Why a solver, not a shell: a skirt's hem is longer than the body it hangs around, so it folds; only a cloth
 simulation finds where. The drape runs once per (phenotype, kind, settings) and is cached in a content-hashed
@@ -151,9 +152,10 @@ def skirt_pattern(phenotype: dict[str, float], settings: DrapeSettings = DrapeSe
 def cloth_model(cloths, body_v, body_f, st: DrapeSettings):
     """newton's model of cloth around the body: each of `cloths` ((vertices (V, 3), faces (F, 3), pinned (V,) bool),
     inner first) as cloth particles of `st`'s fabric whose rest shape (and start) is `vertices`, its pinned
-    particles kinematic (not ACTIVE: the caller places them), the body (body_v, body_f) as one triangle-mesh shape, soft-contact stiffness and friction from `st`.
-    Returns (model, the body's `newton.Mesh`, whose Warp mesh a caller may move between steps). The drape and the
-    per-frame simulation (cloth_pose.py) build the same cloth this way."""
+    particles kinematic (not ACTIVE: the caller places them), the body (body_v, body_f) as one triangle-mesh shape,
+    soft-contact stiffness and friction from `st`. Returns (model, the body's `newton.Mesh`, whose Warp mesh a
+    caller may move between steps). The drape and the per-frame simulation (cloth_pose.py) build the same cloth
+    this way."""
     import warp as wp
 
     import newton
