@@ -81,6 +81,22 @@ def test_simulated_waistband_follows_the_body_and_reruns_bit_identically():
     assert simulate_into_pose([g], PHENO, {}, st)[0].tobytes() == g.vertices.astype(np.float64).tobytes()
 
 
+def test_several_garments_are_simulated_together():
+    """Two garments (inner first), one model: each comes back with its own vertices, each waistband on the body."""
+    inner = _tiny_skirt()
+    v, f, uv, pinned, mpu = skirt_pattern(PHENO, DrapeSettings(n_around=12, n_rings=3, clearance=0.02))
+    outer = DrapedGarment("draped_skirt", v, f, uv, pinned, mpu, v)
+    st = ClothPoseSettings(iterations=2, max_move_steps=2, settle_steps=1, keyframes=3)
+    deltas = _bent_hip(-30.0)
+    a, b = simulate_into_pose([inner, outer], PHENO, deltas, st)
+    assert a.shape == inner.vertices.shape and b.shape == outer.vertices.shape
+    posed = run_anny(PHENO, deltas)
+    for g, x in ((inner, a), (outer, b)):
+        ring = skin_points(bind_to_skeleton(g.vertices[g.pinned], PHENO), posed["bone_poses"],
+                           posed["rest_bone_poses"])
+        np.testing.assert_allclose(x[g.pinned], ring, atol=1e-6)
+
+
 def test_simulated_parts_land_on_the_rendered_part(monkeypatch):
     """pose_character's simulated path: the rendered skirt (a seam column duplicated for its UVs) takes each
     simulated vertex's position, the duplicate column its twin's."""
