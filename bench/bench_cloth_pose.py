@@ -4,6 +4,7 @@ penetration and the image difference, and from them which preset poses cloth whi
     python bench/bench_cloth_pose.py                                  # 2 subjects x (1 turntable + 3 prior poses)
     python bench/bench_cloth_pose.py --no-render                      # seconds, geometry, penetration only
     python bench/bench_cloth_pose.py --figure docs/cloth_pose.png     # also the picture of the most different pose
+    python bench/bench_cloth_pose.py --subjects 1 --no-render --max-body-step 0.01   # another simulation setting
 
 Subjects: the first benchmark-pool recipes that draw a skirt (recipe_from_seed(derive_seed("benchmark", i, --seed)),
 as bench/bench_cloth.py draws them), the skirt swapped for the draped one (bench_cloth.draped_recipe). Poses per
@@ -96,6 +97,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="dataset seed the recipes and poses come from")
     ap.add_argument("--resolution", type=int, default=512, help="render size")
     ap.add_argument("--no-render", action="store_true", help="skip the renders and the image difference")
+    ap.add_argument("--max-body-step", type=float, default=None,
+                    help="ClothPoseSettings.max_body_step in metres (default: the setting's)")
+    ap.add_argument("--iterations", type=int, default=None,
+                    help="ClothPoseSettings.iterations (default: the setting's)")
     ap.add_argument("--figure", type=Path, default=None,
                     help="write skinned | simulated of the pose whose surfaces differ most (front, then its left side)")
     args = ap.parse_args(argv)
@@ -113,12 +118,17 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.poses import sample_pose, turntable
     from rh_dataset.presets import load_presets
 
+    from rh_dataset.characters.cloth_pose import ClothPoseSettings
+
+    changed = {k: v for k, v in (("max_body_step", args.max_body_step), ("iterations", args.iterations))
+               if v is not None}
+    cloth_settings = ClothPoseSettings(**changed)
     presets = load_presets()
     standard = render_settings("standard")
     faces = body_topology().faces
     rows, figure_case = [], None
     index = 0
-    print(f"load average at start: {load()}")
+    print(f"load average at start: {load()}; simulation settings {cloth_settings}")
     for _ in range(args.subjects):
         recipe = draped_recipe(index, args.seed)
         index = recipe.index + 1
@@ -137,7 +147,8 @@ def main(argv: list[str] | None = None) -> int:
             for mode in ("skinned", "simulated"):
                 t = time.perf_counter()
                 meshes = pose_character(character, bones, pose.root_transform, mode,
-                                        cloth_stats=stats if mode == "simulated" else None)
+                                        cloth_stats=stats if mode == "simulated" else None,
+                                        cloth_settings=cloth_settings)
                 out[mode] = (meshes, time.perf_counter() - t, load())
             run = run_anny(character.phenotype, bones)
             m = pose.root_transform
@@ -172,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
             print(_line(row), flush=True)
     _summary(rows, presets, standard)
     if args.figure is not None and figure_case is not None:
-        _figure(args.figure, figure_case)
+        _figure(args.figure, figure_case, cloth_settings)
     return 0
 
 
@@ -227,7 +238,7 @@ def _summary(rows: list[dict], presets: dict, standard) -> None:
               f"{'<=' if extra <= t else '>'} its render -> {mode}  (presets.json says {p.cloth})")
 
 
-def _figure(path: Path, case) -> None:
+def _figure(path: Path, case, cloth_settings) -> None:
     """Front (the two standard renders) and side (rendered here, same settings) of skinned | simulated, each row
     cropped to the person (both renders' coverage, plus a margin)."""
     from rh_common.imageio import write_png
@@ -237,7 +248,8 @@ def _figure(path: Path, case) -> None:
     _, character, bones, pose, front_skin, front_sim, scene, st = case
     exposure = scene[2]
     turn = rotation_about_z(90.0) @ pose.root_transform
-    side = [render(pose_character(character, bones, turn, mode), scene, st, 1)[0] for mode in ("skinned", "simulated")]
+    side = [render(pose_character(character, bones, turn, mode, cloth_settings=cloth_settings), scene, st, 1)[0]
+            for mode in ("skinned", "simulated")]
     rows = []
     for pair in ((front_skin, front_sim), tuple(side)):
         cover = np.maximum(pair[0]["mask"], pair[1]["mask"]) > 0.01

@@ -28,7 +28,7 @@ from rh_common.colourspace import srgb_decode
 from .body import body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, shoe_height_map
 from .body_features import body_features
-from .cloth_pose import CLOTH_MODES, simulated_parts
+from .cloth_pose import CLOTH_MODES, ClothPoseSettings, simulated_parts
 from .drape import SkinBinding, penetration, push_out, skin_points
 from .geometry import split_faces
 from .hair import build_hair
@@ -398,6 +398,7 @@ def pose_character(
     root_transform: np.ndarray | None = None,
     cloth: str = "skinned",
     cloth_stats: dict | None = None,
+    cloth_settings: ClothPoseSettings = ClothPoseSettings(),
 ) -> list[PosedMesh | PosedStrands]:
     """Pose every part. `bone_deltas`: bone label -> 4x4 local-ref delta (None or identities = anny's rest A-pose).
     `root_transform`: a rigid world 4x4 applied after skinning (the turntable's rotation about +Z through the
@@ -405,9 +406,10 @@ def pose_character(
     `cloth`: how draped garments reach the pose (`cloth_pose.CLOTH_MODES`): "skinned" (linear-blend skinning +
     push_out) or "simulated" (newton's cloth solver while the body moves from the rest pose into this one; its
     penalty contact can leave a vertex pressed a few millimetres into a limb, which push_out then puts back on the
-    skin as it does for skinned cloth). `cloth_stats`, if given, receives the simulation's step counts and
-    `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin (benches; costs a closest-point
-    query). The meshes come first, in part order, then one `PosedStrands` per `character.strands`."""
+    skin as it does for skinned cloth; `cloth_settings` are its settings). `cloth_stats`, if given, receives the
+    simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
+    (benches; costs a closest-point query). The meshes come first, in part order, then one `PosedStrands` per
+    `character.strands`."""
     topo = body_topology()
     out = run_anny(character.phenotype, bone_deltas)
     verts = out["vertices"]
@@ -418,7 +420,8 @@ def pose_character(
         normals = normals @ m[:3, :3].T
     if cloth not in CLOTH_MODES:
         raise ValueError(f"pose_character: cloth must be one of {CLOTH_MODES}, got {cloth!r}")
-    simulated = simulated_parts(character, bone_deltas, stats=cloth_stats) if cloth == "simulated" else {}
+    simulated = (simulated_parts(character, bone_deltas, cloth_settings, stats=cloth_stats) if cloth == "simulated"
+                 else {})
     posed = []
     for part in character.parts:
         if part.skinning is not None:
