@@ -31,7 +31,7 @@ from .drape import (DRAPED_KINDS, DrapedGarment, DrapeSettings, bind_to_skeleton
                     collider_faces, drape_garment, push_out, skin_points)
 
 __all__ = ["CLOTH_MODES", "ClothPoseSettings", "BodyMotion", "body_motion", "simulate_into_pose", "skin_into_pose",
-           "pose_garments", "simulated_parts", "self_crossings"]
+           "simulated_parts", "self_crossings"]
 
 CLOTH_MODES = ("skinned", "simulated")
 
@@ -261,17 +261,6 @@ def skin_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str, fl
         v = skin_points(bind_to_skeleton(g.vertices, phenotype), run["bone_poses"], run["rest_bone_poses"])
         out.append(push_out(v, run["vertices"], normals, faces))
     return out
-
-
-def pose_garments(garments: Sequence[DrapedGarment], phenotype: Mapping[str, float],
-                  bone_deltas: Mapping[str, np.ndarray] | None, mode: str,
-                  settings: ClothPoseSettings = ClothPoseSettings()) -> list[np.ndarray]:
-    """The garments posed by `mode` (one of `CLOTH_MODES`)."""
-    if mode == "skinned":
-        return skin_into_pose(garments, phenotype, bone_deltas)
-    if mode == "simulated":
-        return simulate_into_pose(garments, phenotype, bone_deltas, settings)
-    raise ValueError(f"cloth mode must be one of {CLOTH_MODES}, got {mode!r}")
 
 
 def simulated_parts(character, bone_deltas: Mapping[str, np.ndarray] | None,
