@@ -12,7 +12,6 @@ import hashlib
 import json
 import os
 import shutil
-import signal
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -40,8 +39,6 @@ __all__ = [
 ]
 
 
-_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
-
 
 class ImageFileError(ValueError):
     """A file that cannot be read as the image the caller expects; the message names the file."""
@@ -53,21 +50,25 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
 
     The temporary name ends in `.tmp` so that a leftover from a killed process is recognisable and never taken for
     a finished file. The finished file gets the mode a plain `open()` would give it (0666 less the umask):
-    `mkstemp` creates its file 0600 and a rename keeps the mode, which would leave a dataset unreadable to the
+    the temporary file is created 0600 and a rename keeps the mode, which would leave a dataset unreadable to the
     rest of a group on a shared filesystem.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    # SIGINT/SIGTERM are held while the temporary file is created and named, so that an interruption
-    # (rh_common.interrupt) always lands where the `finally` below knows the file and removes it.
-    held = signal.pthread_sigmask(signal.SIG_BLOCK, ())  # the mask as it is (nothing blocked yet), to restore
+    # The temporary file's name is known (`tmp_path` set) before the file exists, and it is created by one
+    # exclusive open: an interruption (rh_common.interrupt raises at any bytecode, including for a signal that
+    # arrived just before) then lands either before the file exists or where the `finally` below knows it and
+    # removes it. (tempfile.mkstemp creates the file inside a Python loop and returns its name only after: a Ctrl-C
+    # delivered in between left a `.tmp` file behind, seen under load in tests/test_interrupt.py.)
     tmp_path = None
     try:
-        signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
-        tmp_path = Path(tmp)
-        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        while True:
+            tmp_path = path.parent / f".{path.name}.{os.urandom(6).hex()}.tmp"
+            try:
+                os.close(os.open(tmp_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+                break
+            except FileExistsError:  # another writer's name (a 48-bit random collision): never ours to remove
+                tmp_path = None
         yield tmp_path
         with open(tmp_path, "rb+") as f:
             os.fchmod(f.fileno(), 0o666 & ~_umask())
@@ -82,7 +83,6 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     finally:
         if tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
-        signal.pthread_sigmask(signal.SIG_SETMASK, held)  # after the unlink: a signal it releases cannot skip it
 
 
 @contextmanager

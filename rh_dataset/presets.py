@@ -1,9 +1,9 @@
 """The render presets and scene classes of rh_dataset/scenes/presets.json, validated.
 
 In: presets.json (or a file of its format). Out: `Preset` (samples per pixel, sampler, path depth, focused-pass
-samples) by name, and `SceneClass` (the path depth a kind of scene needs, with the measurement it rests on). The
-protocol files (`spec.py`) name a scene class per split; a preset turns it into a depth (`Preset.depth_for`) and a
-Russian-roulette depth (`Preset.roulette_for`).
+samples, how draped cloth is posed) by name, and `SceneClass` (the path depth a kind of scene needs, with the
+measurement it rests on). The protocol files (`spec.py`) name a scene class per split; a preset turns it into a depth
+(`Preset.depth_for`) and a Russian-roulette depth (`Preset.roulette_for`).
 """
 from __future__ import annotations
 
@@ -29,6 +29,8 @@ class Preset:
     """Samples per pixel where no person is (`rh_dataset.render.focus`); None: every pixel gets spp."""
     adaptive_tiers: tuple[int, ...] | None = None
     """Counts a person's pixel may get in proportion to its noise, spp their mean (`rh_dataset.render.adaptive`)."""
+    cloth: str = "skinned"
+    """How draped garments reach each frame's pose (`RenderSettings.cloth`), chosen by bench/bench_cloth_pose.py."""
     description: str = ""
 
     def depth_for(self, scene_class: str) -> int:
@@ -73,11 +75,17 @@ def load_presets(path: Path | None = None) -> dict[str, Preset]:
     data = json.loads(path.read_text())
     out = {}
     for name, p in data["presets"].items():
-        _check_keys(f"{path}: preset {name}", p, {"spp", "aov_spp", "max_depth", "sampler", "env_spp", "adaptive_tiers",
-                                                  "description"}, {"spp", "aov_spp", "max_depth", "sampler"})
+        _check_keys(f"{path}: preset {name}", p, {"spp", "aov_spp", "max_depth", "sampler", "env_spp", "cloth",
+                                                   "adaptive_tiers", "description"},
+                    {"spp", "aov_spp", "max_depth", "sampler"})
         if p["sampler"] not in SAMPLERS:
             raise SpecError(f"{path}: preset {name}: unknown sampler {p['sampler']!r}; choose one of "
                             f"{', '.join(SAMPLERS)}")
+        from .characters.cloth_pose import CLOTH_MODES
+
+        if p.get("cloth", "skinned") not in CLOTH_MODES:
+            raise SpecError(f"{path}: preset {name}: cloth must be one of {', '.join(CLOTH_MODES)}, got "
+                            f"{p['cloth']!r}")
         env = p.get("env_spp")
         if env is not None and (not isinstance(env, int) or not 1 <= env <= p["spp"]):
             raise SpecError(f"{path}: preset {name}: env_spp must be an integer in [1, spp] or absent, got {env!r}")

@@ -182,7 +182,11 @@ class Evaluator:
             for i in todo:
                 found[keys[i]] = _take(feats, i)
                 self.cache.put(keys[i], found[keys[i]])
-            if len(todo) == len(items):  # in batch order: the batched tensors as they are
+            # Every key computed in this batch (repeated ground truths included, e.g. a frame's albedo and aligned
+            # albedo): the batch as computed, each item its own position's features. oneDNN's kernels can give two
+            # positions of one batch different last bits for the same input (seen on AVX2, not on AVX-512), so
+            # reusing the first copy would make rh-eval differ from score_frame.
+            if len(todo) == len(found):
                 return feats
         return _cat([found[k] for k in keys])
 

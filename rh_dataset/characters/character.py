@@ -8,8 +8,9 @@ Mitsuba mesh must be given texcoords (u, 1 - v) — or the albedo flipped vertic
 Posing: the body is run through anny with the phenotype and the pose; vertex normals are recomputed on the posed
 body; each part vertex sits at its anchor (a posed body vertex, or a blend of them) plus `offset` metres along the
 anchor's normal. Nothing is simulated per frame, so shell garments fold only where the skin folds, but they follow
-every pose. Draped garments (drape.py) are simulated once in the rest pose and then skinned with the body's
-linear-blend weights transferred to them; headwear (headwear.py) is skinned the same way (caps, hats and glasses
+every pose. Draped garments (drape.py) are simulated once in the rest pose and then, per frame, either skinned with
+the body's linear-blend weights transferred to them or simulated from the rest pose into the frame's
+(cloth_pose.py, the `cloth` argument); headwear (headwear.py) is skinned the same way (caps, hats and glasses
 rigidly to the head bone, head scarves with the body's weights), and presses or hides the hair under it. Hair is
 strands (`hair.py`): every control point is anchored the same way as a shell vertex, and posing gives
 `PosedStrands` (control points and radii, one `HairFibre` per set of strands) beside the `PosedMesh`es.
@@ -27,7 +28,8 @@ from rh_common.colourspace import srgb_decode
 from .body import body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, shoe_height_map
 from .body_features import body_features
-from .drape import SkinBinding, push_out, skin_points
+from .cloth_pose import CLOTH_MODES, ClothPoseSettings, simulated_parts
+from .drape import SkinBinding, penetration, push_out, skin_points
 from .geometry import split_faces
 from .hair import build_hair
 from .headwear import build_headwear, press_hair
@@ -394,11 +396,20 @@ def pose_character(
     character: Character,
     bone_deltas: dict[str, np.ndarray] | None = None,
     root_transform: np.ndarray | None = None,
+    cloth: str = "skinned",
+    cloth_stats: dict | None = None,
+    cloth_settings: ClothPoseSettings = ClothPoseSettings(),
 ) -> list[PosedMesh | PosedStrands]:
     """Pose every part. `bone_deltas`: bone label -> 4x4 local-ref delta (None or identities = anny's rest A-pose).
     `root_transform`: a rigid world 4x4 applied after skinning (the turntable's rotation about +Z through the
     pelvis). anny's root stays where anny puts it (pelvis at the origin before the pose's root translation).
-    The meshes come first, in part order, then one `PosedStrands` per `character.strands`."""
+    `cloth`: how draped garments reach the pose (`cloth_pose.CLOTH_MODES`): "skinned" (linear-blend skinning +
+    push_out) or "simulated" (newton's cloth solver while the body moves from the rest pose into this one; its
+    penalty contact can leave a vertex pressed a few millimetres into a limb, which push_out then puts back on the
+    skin as it does for skinned cloth; `cloth_settings` are its settings). `cloth_stats`, if given, receives the
+    simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
+    (benches; costs a closest-point query). The meshes come first, in part order, then one `PosedStrands` per
+    `character.strands`."""
     topo = body_topology()
     out = run_anny(character.phenotype, bone_deltas)
     verts = out["vertices"]
@@ -407,12 +418,22 @@ def pose_character(
         m = _check_transform("root_transform", root_transform)
         verts = verts @ m[:3, :3].T + m[:3, 3]
         normals = normals @ m[:3, :3].T
+    if cloth not in CLOTH_MODES:
+        raise ValueError(f"pose_character: cloth must be one of {CLOTH_MODES}, got {cloth!r}")
+    simulated = (simulated_parts(character, bone_deltas, cloth_settings, stats=cloth_stats) if cloth == "simulated"
+                 else {})
     posed = []
     for part in character.parts:
         if part.skinning is not None:
-            v = skin_points(part.skinning, out["bone_poses"], out["rest_bone_poses"])
+            if part.name in simulated:
+                v = simulated[part.name]
+            else:
+                v = skin_points(part.skinning, out["bone_poses"], out["rest_bone_poses"])
             if root_transform is not None:
                 v = v @ m[:3, :3].T + m[:3, 3]
+            if part.name in simulated and cloth_stats is not None:
+                depth = float(penetration(verts, topo.faces, v).max())
+                cloth_stats["depth_before_push_m"] = max(cloth_stats.get("depth_before_push_m", -np.inf), depth)
             v = push_out(v, verts, normals, topo.faces)
             n = _welded_normals(v, part.faces)
         elif part.blend_vertices is None:

@@ -1,10 +1,11 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
 In: a phenotype and a draped garment kind (`DRAPED_KINDS`). Out: `DrapedGarment`, the garment's settled rest-pose
-surface (vertices, faces, UVs) after `DrapeSettings.steps` steps of newton's `SolverVBD` with gravity and the body
-mesh (arms and hands left out) as a static collider, plus the skinning that moves it per frame (`SkinBinding`:
-the body's linear-blend weights transferred from the closest body point, the garment expressed in anny's bind
-space) and `push_out`, which puts skinned cloth that a limb swung into back on the skin. `penetration` measures.
+surface (vertices, faces, UVs) after `DrapeSettings.steps` steps of newton's `SolverVBD` with gravity, cloth
+self-contact and the body mesh (arms and hands left out) as a static collider, plus the skinning that moves it per
+frame (`SkinBinding`: the body's linear-blend weights transferred from the closest body point, the garment
+expressed in anny's bind space) and `push_out`, which puts skinned cloth that a limb swung into back on the skin.
+`penetration` measures.
 
 Why a solver, not a shell: a skirt's hem is longer than the body it hangs around, so it folds; only a cloth
 simulation finds where. The drape runs once per (phenotype, kind, settings) and is cached in a content-hashed
@@ -31,10 +32,10 @@ from .geometry import hull_anchors
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "skirt_pattern",
            "bind_to_skeleton", "skin_points", "drape_cache_dir", "DRAPE_VERSION", "draped_part",
-           "penetration", "push_out", "collider_faces"]
+           "penetration", "push_out", "collider_faces", "cloth_model", "cloth_solver"]
 
 DRAPED_KINDS = ("draped_skirt",)
-DRAPE_VERSION = 2  # bump when the pattern or the simulation changes: it is part of the cache key
+DRAPE_VERSION = 3  # bump when the pattern or the simulation changes: it is part of the cache key
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
 
@@ -43,7 +44,9 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 class DrapeSettings:
     """The simulation: `steps` VBD steps of `dt` seconds (collision detection every `collide_every` steps),
     `iterations` VBD sweeps per step. Stiffnesses are newton's (tri: membrane, edge: bending), for a light woven
-    fabric of `density` kg/m^2. `clearance`: particle radius, the gap newton keeps between cloth and body."""
+    fabric of `density` kg/m^2. `clearance`: particle radius, the gap newton keeps between cloth and body.
+    `self_contact`: VBD's cloth-cloth contact (vertex-triangle and edge-edge, interacting within
+    `self_contact_margin`, detected within margin + `self_contact_gap`), so folds do not pass through each other."""
 
     steps: int = 300
     dt: float = 0.01
@@ -60,6 +63,9 @@ class DrapeSettings:
     contact_ke: float = 1.0e4
     contact_kd: float = 1.0e-2
     friction: float = 0.5
+    self_contact: bool = True
+    self_contact_margin: float = 0.003
+    self_contact_gap: float = 0.0015
     flare: float = 0.6  # radians: the pattern's cone half-angle (a circle skirt is pi/2)
     n_around: int = 72
     n_rings: int = 24
@@ -68,7 +74,10 @@ class DrapeSettings:
 @dataclasses.dataclass(frozen=True)
 class DrapedGarment:
     """Settled garment in the rest pose (anny's A-pose, metres, Z up): vertices (V, 3) float64, faces (F, 3) int32
-    (outward), uvs (V, 2) float32 in [0, 1], `pinned` (V,) bool (the waistband, held on the body)."""
+    (outward), uvs (V, 2) float32 in [0, 1], `pinned` (V,) bool (the waistband, held on the body). `pattern`
+    (V, 3): the undraped cloth it was simulated from, whose triangles and bends are the cloth's rest shape (a
+    simulation that goes on from `vertices` must keep them: taking the draped, gravity-stretched surface as the
+    rest shape would let the skirt sag further and keep its folds as memory)."""
 
     kind: str
     vertices: np.ndarray
@@ -76,6 +85,7 @@ class DrapedGarment:
     uvs: np.ndarray
     pinned: np.ndarray
     metres_per_uv: float
+    pattern: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -139,29 +149,54 @@ def skirt_pattern(phenotype: dict[str, float], settings: DrapeSettings = DrapeSe
     return verts, faces.astype(np.int32), np.clip(uvs.reshape(-1, 2), 0, 1).astype(np.float32), pinned, circ
 
 
-def _simulate(verts, faces, pinned, body_v, body_f, st: DrapeSettings) -> np.ndarray:
-    """newton: the garment as cloth particles, the body as a static triangle mesh, gravity -Z; the settled
-    particle positions (V, 3) float64."""
+def cloth_model(cloths, body_v, body_f, st: DrapeSettings):
+    """newton's model of cloth around the body: each of `cloths` ((vertices (V, 3), faces (F, 3), pinned (V,) bool),
+    inner first) as cloth particles of `st`'s fabric whose rest shape (and start) is `vertices`, its pinned
+    particles kinematic (not ACTIVE: the caller places them), the body (body_v, body_f) as one triangle-mesh shape,
+    soft-contact stiffness and friction from `st`. Returns (model, the body's `newton.Mesh`, whose Warp mesh a
+    caller may move between steps). The drape and the per-frame simulation (cloth_pose.py) build the same cloth
+    this way."""
     import warp as wp
 
     import newton
 
     builder = newton.ModelBuilder(up_axis=newton.Axis.Z, gravity=(0.0, 0.0, -9.81))
-    builder.add_cloth_mesh(
-        pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0, vel=wp.vec3(0.0, 0.0, 0.0),
-        vertices=[wp.vec3(*p) for p in np.asarray(verts, np.float64)], indices=faces.ravel().tolist(),
-        density=st.density, tri_ke=st.tri_ke, tri_ka=st.tri_ka, tri_kd=st.tri_kd, edge_ke=st.edge_ke,
-        edge_kd=st.edge_kd, particle_radius=st.clearance)
+    for verts, faces, _ in cloths:
+        builder.add_cloth_mesh(
+            pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0, vel=wp.vec3(0.0, 0.0, 0.0),
+            vertices=[wp.vec3(*p) for p in np.asarray(verts, np.float64)], indices=np.asarray(faces).ravel().tolist(),
+            density=st.density, tri_ke=st.tri_ke, tri_ka=st.tri_ka, tri_kd=st.tri_kd, edge_ke=st.edge_ke,
+            edge_kd=st.edge_kd, particle_radius=st.clearance)
     cfg = newton.ModelBuilder.ShapeConfig(mu=st.friction)
-    builder.add_shape_mesh(body=-1, mesh=newton.Mesh(body_v.astype(np.float32), body_f.ravel().astype(np.int32)),
-                           cfg=cfg)
+    body = newton.Mesh(np.asarray(body_v).astype(np.float32), np.asarray(body_f).ravel().astype(np.int32))
+    builder.add_shape_mesh(body=-1, mesh=body, cfg=cfg)
     builder.color(include_bending=True)
     model = builder.finalize(device="cpu")
+    pinned = np.concatenate([np.asarray(p, bool) for _, _, p in cloths])
     flags = model.particle_flags.numpy()
     flags[pinned] = flags[pinned] & ~int(newton.ParticleFlags.ACTIVE)
     model.particle_flags = wp.array(flags, device="cpu")
     model.soft_contact_ke, model.soft_contact_kd, model.soft_contact_mu = st.contact_ke, st.contact_kd, st.friction
-    solver = newton.solvers.SolverVBD(model, iterations=st.iterations)
+    return model, body
+
+
+def cloth_solver(model, st: DrapeSettings, iterations: int | None = None):
+    """newton's VBD solver for a `cloth_model`, with `st`'s self-contact (`iterations`: VBD sweeps per step, default
+    `st.iterations`)."""
+    import newton
+
+    extra = (dict(particle_enable_self_contact=True, particle_self_contact_margin=st.self_contact_margin,
+                  particle_self_contact_gap=st.self_contact_gap) if st.self_contact else {})
+    return newton.solvers.SolverVBD(model, iterations=st.iterations if iterations is None else iterations, **extra)
+
+
+def _simulate(verts, faces, pinned, body_v, body_f, st: DrapeSettings) -> np.ndarray:
+    """newton: the garment as cloth particles, the body as a static triangle mesh, gravity -Z; the settled
+    particle positions (V, 3) float64."""
+    import newton
+
+    model, _ = cloth_model([(verts, faces, pinned)], body_v, body_f, st)
+    solver = cloth_solver(model, st)
     pipe = newton.CollisionPipeline(model, soft_contact_gap=st.contact_gap, deterministic=True)
     contacts = pipe.contacts()
     s0, s1, ctrl = model.state(), model.state(), model.control()
@@ -239,7 +274,7 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
             with atomic_path(path) as tmp:
                 with open(tmp, "wb") as fh:
                     np.savez(fh, vertices=q)
-    return DrapedGarment(kind, q, faces, uvs, pinned, mpu)
+    return DrapedGarment(kind, q, faces, uvs, pinned, mpu, verts)
 
 
 def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones: int = 8,

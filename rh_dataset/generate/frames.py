@@ -173,7 +173,7 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
     seconds: dict[str, float] = {}
     t = time.perf_counter()
     pose = source.pose(subject, split, index)
-    meshes = source.meshes(subject, pose)
+    meshes = source.meshes(subject, pose, plan.settings.cloth)
     seconds["pose"] = time.perf_counter() - t
     t = time.perf_counter()
     light = light_for(plan, split, s, index, light_library(plan.spec))

@@ -92,6 +92,10 @@ class RenderSettings:
     """Leave out geometry the camera cannot see (skin hidden under clothes; for AOV-only frames also triangles outside
     the view frustum): `rh_dataset.render.cull`. Changes the beauty image by far less than its noise (measured,
     docs/TRADEOFFS.md); the frame JSON records what was left out. False renders every triangle."""
+    cloth: str = "skinned"
+    """How draped garments reach each frame's pose (`rh_dataset.characters.cloth_pose.CLOTH_MODES`): "skinned"
+    (linear-blend skinning, then pushed out of the skin) or "simulated" (newton's cloth solver while the body moves
+    from the rest pose into the frame's). Which preset takes which: bench/bench_cloth_pose.py, docs/TRADEOFFS.md."""
 
     def __post_init__(self) -> None:
         for name in ("denoise", "cull"):
@@ -114,6 +118,10 @@ class RenderSettings:
             raise ValueError(f"render setting rr_depth must be None or an integer >= 1, got {self.rr_depth!r}")
         if self.max_depth is not None and (not isinstance(self.max_depth, int) or self.max_depth < 2):
             raise ValueError(f"render setting max_depth must be an integer >= 2 or None, got {self.max_depth!r}")
+        from rh_dataset.characters.cloth_pose import CLOTH_MODES
+
+        if self.cloth not in CLOTH_MODES:
+            raise ValueError(f"render setting cloth must be one of {', '.join(CLOTH_MODES)}, got {self.cloth!r}")
 
     def for_split(self, split) -> "RenderSettings":
         """These settings for one split of a scene description: an unset max_depth becomes the depth of the split's

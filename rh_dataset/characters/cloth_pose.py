@@ -1,0 +1,317 @@
+"""Draped garments in a frame's pose: skinned to the body (cheap) or simulated from the rest pose into the pose.
+
+In: the character's draped garments (`drape.DrapedGarment`, inner first, each settled on the rest-pose body), its
+phenotype and the frame's anny bone deltas ('local-ref', as `pose_character` takes them). Out: the posed vertices
+(V, 3) float64 of each garment, in anny's posed space (before a pose's `root_transform`), by one of `CLOTH_MODES`:
+
+  "skinned"    each cloth vertex follows the body's linear-blend skinning (`drape.bind_to_skeleton`), then
+               `drape.push_out` moves what a limb swung into back onto the skin. The fold pattern of the rest drape
+               is carried into every pose: a thigh lifted into a skirt stretches the cloth with it.
+  "simulated"  `simulate_into_pose`: newton's VBD cloth solver runs from the draped rest state while the body
+               moves from the rest pose into the frame's pose (every bone's delta rotation slerped from identity,
+               the root's translation lerped, eased in and out), the body a deforming triangle-mesh collider whose
+               vertices (and velocities) are set every step, the pinned waistband kinematic on the skinned body;
+               then the cloth settles with the body still, with the cloth self-contact it was draped with.
+               `pose_character` then applies `push_out` as for skinned cloth: newton's penalty contact can leave a
+               vertex a few millimetres inside a limb that pressed the cloth.
+
+Which preset uses which is decided by bench/bench_cloth_pose.py (docs/TRADEOFFS.md, "Skinned or simulated cloth").
+Determinism: Warp's CPU kernels run in a fixed order, so the same inputs give the same bits on one machine
+(tests/test_cloth_pose.py); other machines and Warp/newton versions are not promised the same bits.
+"""
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from .body import body_topology, run_anny, vertex_normals
+from .drape import (DRAPED_KINDS, DrapedGarment, DrapeSettings, bind_to_skeleton, cloth_model, cloth_solver,
+                    collider_faces, drape_garment, push_out, skin_points)
+
+__all__ = ["CLOTH_MODES", "ClothPoseSettings", "BodyMotion", "body_motion", "simulate_into_pose", "skin_into_pose",
+           "simulated_parts", "self_crossings"]
+
+CLOTH_MODES = ("skinned", "simulated")
+
+
+@dataclasses.dataclass(frozen=True)
+class ClothPoseSettings:
+    """The per-frame simulation. The motion is sampled at `keyframes` poses (forward kinematics and skinning of the
+    whole collider) and interpolated linearly between them; each `dt` step advances it as far as keeps the move of
+    every collider vertex within `reach` metres of the cloth (and of the pinned waistband) at or below
+    `max_body_step` metres (at 5 mm a thigh lifted into a skirt stays out of it, at 10 mm it passed through), in
+    at most `max_move_steps` steps; then `settle_steps` with the body still, the cloth's velocities multiplied by
+    `settle_damping` after each (a frame is a static pose: the skirt's swing is damped out rather than frozen
+    mid-swing). `iterations`: VBD sweeps per step; `contact_gap`: newton's soft-contact detection distance
+    (metres). The cloth's material, body contact and self-contact are the ones it was draped with
+    (`DrapeSettings`)."""
+
+    dt: float = 0.01
+    iterations: int = 10
+    max_body_step: float = 0.005
+    reach: float = 0.1
+    max_move_steps: int = 600
+    settle_steps: int = 30
+    settle_damping: float = 0.8
+    keyframes: int = 17
+    contact_gap: float = 0.015
+
+    def __post_init__(self) -> None:
+        for name in ("iterations", "max_move_steps", "settle_steps", "keyframes"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < (2 if name == "keyframes" else 0):
+                raise ValueError(f"ClothPoseSettings.{name} must be an integer >= {2 if name == 'keyframes' else 0},"
+                                 f" got {v!r}")
+        if self.max_move_steps < self.keyframes - 1:
+            raise ValueError(f"ClothPoseSettings.max_move_steps must be >= keyframes - 1 (a step per keyframe "
+                             f"interval), got {self.max_move_steps}")
+        if isinstance(self.settle_damping, bool) or not isinstance(self.settle_damping, (int, float)) \
+                or not 0.0 <= self.settle_damping <= 1.0:
+            raise ValueError(f"ClothPoseSettings.settle_damping must be in [0, 1], got {self.settle_damping!r}")
+        for name in ("dt", "max_body_step", "reach", "contact_gap"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
+                raise ValueError(f"ClothPoseSettings.{name} must be a positive number, got {v!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class BodyMotion:
+    """The body moving from the rest pose (t = 0) into the frame's pose without its heading (t = 1), sampled at K
+    keyframes: bone_poses (K, J, 4, 4) anny's posed bone poses, rest_bone_poses (J, 4, 4), and `collider`
+    (K, C, 3) the posed collider vertices `collider_vertices` (C,) of the body (its faces `collider_faces` (F, 3)
+    index them). `heading` (3, 3): the pose's turn about +Z through the origin (the root's rotation about the
+    vertical), applied rigidly afterwards: the frame's pose = heading @ the motion's last keyframe."""
+
+    heading: np.ndarray
+    times: np.ndarray
+    bone_poses: np.ndarray
+    rest_bone_poses: np.ndarray
+    collider_vertices: np.ndarray
+    collider_faces: np.ndarray
+    collider: np.ndarray
+
+
+def _ease(t: np.ndarray) -> np.ndarray:
+    """Smoothstep: the body starts and stops at rest (zero velocity), so the cloth is not jerked."""
+    return t * t * (3.0 - 2.0 * t)
+
+
+def body_motion(phenotype: Mapping[str, float], bone_deltas: Mapping[str, np.ndarray] | None,
+                keyframes: int = ClothPoseSettings.keyframes) -> BodyMotion:
+    """Rest pose -> the frame's pose: at eased time s each bone's delta is the rotation by s times its rotation
+    vector (the slerp from identity) and s times its translation (the root's), through anny's forward kinematics
+    and linear-blend skinning (`poses.rig`, anny's own maths in numpy). The root's turn about the vertical (the
+    twist about +Z of its world rotation; sampled poses put their heading there, up to 60 degrees) is not part of
+    the motion but `heading`: turning about the gravity axis changes nothing of a static drape, while a body that
+    turned in the simulation would twirl the skirt, which then swings long after it stops."""
+    from scipy.spatial.transform import Rotation
+
+    from rh_common.body_model import load_anny
+    from rh_dataset.poses.pose import BodyPose
+    from rh_dataset.poses.rig import rig_for
+
+    target = BodyPose(bones=dict(bone_deltas or {})).deltas()  # validated: rigid, translation on the root only
+    rig = rig_for(load_anny(), phenotype)
+    # The root's world pose is [U0^T R U0 | U0^T d] (poses.rig); split its world rotation A = G B, G the twist
+    # about +Z (the quaternion's (w, z) part: the same angle in either order of the swing-twist split).
+    U0 = rig.reference_orientations[0]
+    x, y, z, w = Rotation.from_matrix(U0.T @ target[0, :3, :3] @ U0).as_quat()
+    heading = Rotation.from_rotvec([0.0, 0.0, 2.0 * np.arctan2(z, w)]).as_matrix()
+    target[0, :3, :3] = U0 @ heading.T @ U0.T @ target[0, :3, :3]
+    target[0, :3, 3] = U0 @ heading.T @ U0.T @ target[0, :3, 3]
+    rotvec = Rotation.from_matrix(target[:, :3, :3]).as_rotvec()
+    faces = collider_faces(phenotype)
+    used, compact = np.unique(faces, return_inverse=True)
+    times = np.linspace(0.0, 1.0, int(keyframes))
+    poses, collider = [], []
+    for s in _ease(times):
+        D = np.tile(np.eye(4), (len(target), 1, 1))
+        D[:, :3, :3] = Rotation.from_rotvec(rotvec * s).as_matrix()
+        D[:, :3, 3] = target[:, :3, 3] * s
+        W = rig.world_poses(D)
+        poses.append(W)
+        collider.append(rig.skin(W, used)[0])
+    return BodyMotion(heading, times, np.stack(poses), rig.rest_poses, used,
+                      compact.reshape(faces.shape).astype(np.int32), np.stack(collider))
+
+
+def _is_rest(bone_deltas: Mapping[str, np.ndarray] | None) -> bool:
+    return not bone_deltas or all(np.array_equal(np.asarray(m, np.float64), np.eye(4)) for m in bone_deltas.values())
+
+
+def _check_garments(garments: Sequence[DrapedGarment], simulated: bool = False) -> None:
+    if not garments or not all(isinstance(g, DrapedGarment) for g in garments):
+        raise ValueError("cloth_pose: garments must be a non-empty sequence of DrapedGarment (drape.drape_garment)")
+    for g in garments if simulated else ():
+        if g.pattern is None or np.shape(g.pattern) != np.shape(g.vertices):
+            raise ValueError(f"cloth_pose: DrapedGarment {g.kind!r} needs its pattern (the cloth's rest shape, "
+                             "as drape.drape_garment returns it) to be simulated further")
+
+
+def _next_time(x: float, collider: np.ndarray, cloth: np.ndarray, pin_keys: np.ndarray,
+               st: ClothPoseSettings) -> float:
+    """The motion time (in keyframe intervals, 0..K-1) of the next step after `x`: as far as keeps the move of every
+    collider vertex now within `st.reach` of the cloth, and of every pinned vertex, at or below
+    `st.max_body_step` (the rates of the current keyframe interval and of the next, whichever is faster); a foot far
+    below a skirt does not slow its simulation down, a shin swinging into its hem does."""
+    from scipy.spatial import cKDTree
+
+    k = len(collider) - 1
+    i = min(int(x), k - 1)
+    f = x - i
+    now = collider[i] * (1.0 - f) + collider[i + 1] * f
+    near = cKDTree(cloth).query(now, distance_upper_bound=st.reach)[0] <= st.reach
+    rate = 0.0
+    for j in (i, min(i + 1, k - 1)):
+        if near.any():
+            rate = max(rate, float(np.linalg.norm(collider[j + 1][near] - collider[j][near], axis=1).max()))
+        if pin_keys.shape[1]:
+            rate = max(rate, float(np.linalg.norm(pin_keys[j + 1] - pin_keys[j], axis=1).max()))
+    step = st.max_body_step / rate if rate > 0.0 else float(k)
+    return min(float(k), x + max(step, k / st.max_move_steps))
+
+
+def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str, float],
+                       bone_deltas: Mapping[str, np.ndarray] | None,
+                       settings: ClothPoseSettings = ClothPoseSettings(),
+                       fabric: DrapeSettings = DrapeSettings(), stats: dict | None = None) -> list[np.ndarray]:
+    """Posed vertices of each garment (list of (V_i, 3) float64, anny's posed space), simulated from the draped
+    rest state while the body moves into the pose (module docstring). `fabric`: the cloth's material and contact
+    parameters, those it was draped with. The rest pose (no delta, e.g. a turntable frame) has nothing to move:
+    the drape is returned as it is. `stats`, if given, receives the step counts (`move_steps`, `settle_steps`)."""
+    import warp as wp
+
+    import newton
+
+    _check_garments(garments, simulated=True)
+    if _is_rest(bone_deltas):
+        if stats is not None:
+            stats.update(move_steps=0, settle_steps=0)
+        return [np.array(g.vertices, np.float64) for g in garments]
+    st = settings
+    motion = body_motion(phenotype, bone_deltas, st.keyframes)
+    pinned = np.concatenate([g.pinned for g in garments])
+    rest = np.concatenate([g.vertices for g in garments]).astype(np.float64)
+    pins = bind_to_skeleton(rest[pinned], phenotype)
+    pin_keys = np.stack([skin_points(pins, W, motion.rest_bone_poses) for W in motion.bone_poses])
+    # The cloth's rest shape is its pattern; it starts where the drape settled.
+    model, body = cloth_model([(g.pattern, g.faces, g.pinned) for g in garments], motion.collider[0],
+                              motion.collider_faces, fabric)
+    mesh = body.mesh  # the Warp mesh the model's shape queries; moved in place below
+    # The shape's bounds are fixed when the model is built: widen them to the whole motion, or the contact
+    # broad phase would skip particles where the body has moved beyond its rest-pose box.
+    lo = motion.collider.reshape(-1, 3).min(0) - st.contact_gap
+    hi = motion.collider.reshape(-1, 3).max(0) + st.contact_gap
+    model.shape_collision_aabb_lower.assign(lo[None].astype(np.float32))
+    model.shape_collision_aabb_upper.assign(hi[None].astype(np.float32))
+    solver = cloth_solver(model, fabric, st.iterations)
+    pipe = newton.CollisionPipeline(model, soft_contact_gap=st.contact_gap, deterministic=True)
+    contacts = pipe.contacts()
+    s0, s1, ctrl = model.state(), model.state(), model.control()
+    s0.particle_q.assign(wp.array(rest.astype(np.float32), dtype=wp.vec3, device="cpu"))
+    s1.particle_q.assign(s0.particle_q)
+    pin_idx = np.flatnonzero(pinned)
+    prev = motion.collider[0]
+    k = len(motion.times) - 1
+    x, moves, settled = 0.0, 0, 0
+    while x < k or settled < st.settle_steps:
+        if x < k:
+            x = _next_time(x, motion.collider, s0.particle_q.numpy(), pin_keys, st)
+            moves += 1
+        else:
+            settled += 1
+        i = min(int(x), k - 1)
+        f = x - i
+        cur = motion.collider[i] * (1.0 - f) + motion.collider[i + 1] * f
+        mesh.points.assign(cur.astype(np.float32))
+        mesh.velocities.assign(((cur - prev) / st.dt).astype(np.float32))  # the contact's surface velocity
+        mesh.refit()
+        prev = cur
+        q = s0.particle_q.numpy().copy()
+        q[pin_idx] = pin_keys[i] * (1.0 - f) + pin_keys[i + 1] * f
+        s0.particle_q.assign(wp.array(q, dtype=wp.vec3, device="cpu"))
+        s1.particle_q.assign(s0.particle_q)
+        pipe.collide(s0, contacts)
+        s0.clear_forces()
+        solver.step(s0, s1, ctrl, contacts, st.dt)
+        s0, s1 = s1, s0
+        if settled:  # the body is still: damp the cloth's swing towards the rest a static frame shows
+            s0.particle_qd.assign(s0.particle_qd.numpy() * np.float32(st.settle_damping))
+    if stats is not None:
+        stats.update(move_steps=moves, settle_steps=settled)
+    q = s0.particle_q.numpy().astype(np.float64)
+    if not np.all(np.isfinite(q)):
+        raise RuntimeError("simulate_into_pose: newton's VBD solver diverged (non-finite particle positions); "
+                           "lower ClothPoseSettings.dt or max_body_step")
+    return np.split(q @ motion.heading.T, np.cumsum([len(g.vertices) for g in garments])[:-1])
+
+
+def skin_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str, float],
+                   bone_deltas: Mapping[str, np.ndarray] | None) -> list[np.ndarray]:
+    """Posed vertices of each garment by the skinned path: linear-blend skinning then `push_out` on the posed body
+    (what `pose_character` does for a draped part)."""
+    _check_garments(garments)
+    run = run_anny(phenotype, dict(bone_deltas or {}))
+    faces = body_topology().faces
+    normals = vertex_normals(run["vertices"], faces)
+    out = []
+    for g in garments:
+        v = skin_points(bind_to_skeleton(g.vertices, phenotype), run["bone_poses"], run["rest_bone_poses"])
+        out.append(push_out(v, run["vertices"], normals, faces))
+    return out
+
+
+def simulated_parts(character, bone_deltas: Mapping[str, np.ndarray] | None,
+                    settings: ClothPoseSettings = ClothPoseSettings(), stats: dict | None = None
+                    ) -> dict[str, np.ndarray]:
+    """{part name: posed vertices (V, 3) float64} of a `Character`'s draped parts (kinds in `DRAPED_KINDS`), all
+    simulated together by `simulate_into_pose` (anny's posed space, before a root_transform). A part's vertices are
+    copies of its draped garment's (a seam column duplicated for its UVs): each takes the simulated position of the
+    garment vertex it sits on in the rest pose. `stats`: as `simulate_into_pose`'s."""
+    from scipy.spatial import cKDTree
+
+    from rh_common.body_model import load_anny
+    from rh_dataset.poses.rig import rig_for
+
+    parts = [p for p in character.parts if p.name in DRAPED_KINDS]
+    if not parts:
+        return {}
+    phenotype = character.phenotype
+    garments = [drape_garment(p.name, phenotype) for p in parts]
+    posed = simulate_into_pose(garments, phenotype, bone_deltas, settings, stats=stats)
+    rig = rig_for(load_anny(), phenotype)
+    reference = rig.world_poses(np.tile(np.eye(4), (len(rig.bone_labels), 1, 1)))  # the rest (A-)pose
+    out = {}
+    for part, g, v in zip(parts, garments, posed):
+        dist, idx = cKDTree(g.vertices).query(skin_points(part.skinning, reference, rig.rest_poses))
+        if dist.max() > 1e-6:
+            raise ValueError(f"cloth_pose: part {part.name!r} is not a copy of its draped garment's vertices "
+                             f"({1e3 * dist.max():.3f} mm off in the rest pose); rebuild the character")
+        out[part.name] = v[idx]
+    return out
+
+
+def self_crossings(vertices: np.ndarray, faces: np.ndarray) -> int:
+    """How many edges of a cloth mesh pass through one of its own triangles (one not sharing a corner with the
+    edge): trimesh rays along each edge, hits strictly inside the edge. 0 for cloth that does not pass through
+    itself; a fold pushed through another fold crosses it along a line of edges."""
+    import trimesh
+
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces)
+    e = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    origin = v[e[:, 0]]
+    d = v[e[:, 1]] - origin
+    length = np.linalg.norm(d, axis=1)
+    d = d / length[:, None]
+    tri, ray, loc = trimesh.Trimesh(v, f, process=False).ray.intersects_id(origin, d, multiple_hits=True,
+                                                                           return_locations=True)
+    if len(ray) == 0:
+        return 0
+    t = ((np.asarray(loc) - origin[ray]) * d[ray]).sum(1)
+    corners = f[tri]
+    shares = (corners == e[ray, :1]).any(1) | (corners == e[ray, 1:]).any(1)
+    inside = ~shares & (t > 1e-9) & (t < length[ray] - 1e-9)
+    return int(len(np.unique(ray[inside])))
