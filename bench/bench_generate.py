@@ -3,6 +3,8 @@
     python bench/bench_generate.py [--resolution 512] [--presets draft standard reference] [--repeats 2]
     python bench/bench_generate.py --presets standard --also standard:independent:128::16   # before/after, one run
     python bench/bench_generate.py --presets draft standard --repeats 3 --distinct-frames   # new frames reuse kernels?
+    python bench/bench_generate.py --presets standard --also standard:multijitter:99:4:9::d4 --repeats 3 \
+        --distinct-frames --interleave                          # before / after, frames in turn (a shared machine)
     python bench/bench_generate.py --presets standard --headwear none cap brimmed_hat headscarf glasses
     python bench/bench_generate.py --protocol c --split test --resolution 128 --presets draft  # one frame, 6 views
 
@@ -11,8 +13,9 @@ layer: beauty pass + AOV pass) with `rh_dataset.generate.render_frame_to_disk`, 
 backends call, into a temporary folder (`--split` another split; a multi-view split's frame is every camera of it,
 `protocol c`: the seconds are the frame's, all views together): the same camera fill, culling, per-split path depth
 and writer as a dataset. Prints a Markdown table of each stage's median seconds. The first render of each preset
-is a warm-up (JIT compilation, cached on disk afterwards) and is not timed; the timed ones render frame 0 again, or
-with `--distinct-frames` frames 1, 2, ... (other poses and lights); building the subject is timed once. The kernel
+is a warm-up (JIT compilation, cached on disk afterwards) and is not timed (every row's warm-up comes before the
+timed frames); the timed ones render frame 0 again, or with `--distinct-frames` frames 1, 2, ... (other poses and
+lights), row by row or, with `--interleave`, in turn; building the subject is timed once. The kernel
 columns (drjit's kernel history over the timed frames) say whether a frame after the first reuses its kernels:
 "compiled" counts kernels not found in drjit's caches, and their code generation + backend time. --headwear: the
 table again for subject 0 wearing each of the given headwear (KIND or KIND+glasses; "none" = bare-headed), same
@@ -45,9 +48,15 @@ def main() -> None:
                    help="time frames 1..repeats of the split (each its own pose and light, as a dataset renders them) "
                         "instead of frame 0 again: the kernel columns then say whether a new frame reuses kernels")
     p.add_argument("--also", nargs="*", default=[],
-                   help="extra rows preset:sampler:spp[:env_spp[:aov_spp]] (a preset with those overrides; no or empty "
-                        "env_spp: every pixel at spp), e.g. standard:independent:128::16 for the settings before "
-                        "bench_sampler")
+                   help="extra rows preset:sampler:spp[:env_spp[:aov_spp[:aTIERS][:dDEPTH]]] (a preset with those "
+                        "overrides; no or empty env_spp: every pixel at spp; aTIERS, e.g. "
+                        "a16-36-64-100-169-256: samples by noise, rh_dataset.render.adaptive; dDEPTH: a fixed path "
+                        "depth, no roulette, for every split), e.g. standard:independent:128::16 for the settings "
+                        "before bench_sampler, standard:multijitter:99:4:9::d4 for standard's test frames before the "
+                        "roulette")
+    p.add_argument("--interleave", action="store_true",
+                   help="time the rows' frames in turn (frame 1 of every row, then frame 2, ...) rather than row by "
+                        "row, so that a load that drifts during the run falls on every row alike")
     p.add_argument("--headwear", nargs="*", default=[],
                    help="variants of subject 0's headwear, e.g. none cap brimmed_hat headscarf glasses cap+glasses")
     args = p.parse_args()
@@ -89,9 +98,14 @@ def main() -> None:
         for item in args.also:
             pname, smp, spp, *rest = item.split(":")
             env = int(rest[0]) if rest and rest[0] else 0
-            aov = int(rest[1]) if len(rest) > 1 else None
-            rows.append((f"{pname} ({smp} {spp}{f' env {env}' if env else ''}{f' aov {aov}' if aov else ''})",
-                         render_settings(pname, sampler=smp, spp=int(spp), env_spp=env, aov_spp=aov)))
+            aov = int(rest[1]) if len(rest) > 1 and rest[1] else None
+            tiers = next((tuple(int(v) for v in t[1:].split("-")) for t in rest[2:] if t.startswith("a")), ())
+            depth = next((int(t[1:]) for t in rest[2:] if t.startswith("d")), None)
+            rows.append((f"{pname} ({smp} {spp}{f' env {env}' if env else ''}{f' aov {aov}' if aov else ''}"
+                         f"{' by noise ' + '-'.join(map(str, tiers)) if tiers else ''}"
+                         f"{f' depth {depth}' if depth else ''})",
+                         render_settings(pname, sampler=smp, spp=int(spp), env_spp=env, aov_spp=aov,
+                                         adaptive_tiers=tiers, max_depth=depth)))
         variants = [(None, subject)] + [(v, _wearing(subject, v)) for v in args.headwear]
         for variant, subj in variants:
             if args.headwear:
@@ -99,27 +113,31 @@ def main() -> None:
                 n_strands = sum(len(m.points) for m in source.meshes(subj, pose) if hasattr(m, "fibre"))
                 label = f"as drawn: {worn}" if variant is None else worn
                 print(f"| **headwear {label}** ({n_strands} strands) | | | | | | | | | | | | | | | |")
+            subject = subj
+            for name, settings in rows:  # warm-ups: each row compiles (or loads) its kernels, untimed
+                render_frame_to_disk(dataclasses.replace(plan, settings=settings), source, subject, split, 0)
+            dr.kernel_history()  # clears it
+            runs = {name: [] for name, _ in rows}
+            kernels = {name: [] for name, _ in rows}
+            order = [(r, row) for r in range(args.repeats) for row in rows] if args.interleave else \
+                [(r, row) for row in rows for r in range(args.repeats)]
+            for r, (name, settings) in order:
+                runs[name].append(render_frame_to_disk(dataclasses.replace(plan, settings=settings), source, subject,
+                                                       split, r + 1 if args.distinct_frames else 0))
+                kernels[name] += [k for k in dr.kernel_history() if k.get("type") == dr.KernelType.JIT]
             for name, settings in rows:
-                subject = subj
-                plan = dataclasses.replace(plan, settings=settings)
-                render_frame_to_disk(plan, source, subject, split, 0)  # warm-up: compiles (or loads) its kernels
-                dr.kernel_history()  # clears it
-                runs, kernels = [], []
-                for r in range(args.repeats):
-                    runs.append(render_frame_to_disk(plan, source, subject, split,
-                                                     r + 1 if args.distinct_frames else 0))
-                    kernels += [k for k in dr.kernel_history() if k.get("type") == dr.KernelType.JIT]
-                compiled = [k for k in kernels if not k.get("cache_hit")]
+                compiled = [k for k in kernels[name] if not k.get("cache_hit")]
                 compile_s = sum(k.get("codegen_time", 0.0) + k.get("backend_time", 0.0) for k in compiled) / 1000
-                med = {k: float(np.median([r.seconds.get(k, 0.0) for r in runs])) for k in STAGES}
-                total = float(np.median([sum(r.seconds.values()) for r in runs]))
+                med = {k: float(np.median([r.seconds.get(k, 0.0) for r in runs[name]])) for k in STAGES}
+                total = float(np.median([sum(r.seconds.values()) for r in runs[name]]))
                 print(f"| {name} | {settings.sampler} | {settings.spp} | {settings.env_spp or '-'} | "
                       f"{settings.aov_spp} | {settings.for_split(split).max_depth} | "
                       f"{med['pose'] + med['light']:.2f} | {med['load']:.2f} | {med['beauty']:.2f} | "
                       f"{med['aov']:.2f} | {med['meta'] + med['write']:.2f} | {total:.2f} | "
                       f"{n_views * px * settings.spp / med['beauty'] / 1e6:.1f} | "
-                      f"{len(kernels) / args.repeats:.0f} | {len(compiled) / args.repeats:.1f} | "
+                      f"{len(kernels[name]) / args.repeats:.0f} | {len(compiled) / args.repeats:.1f} | "
                       f"{compile_s / args.repeats:.2f} |", flush=True)
+            runs = runs[rows[-1][0]]
         from rh_common.imageio import read_png
 
         mask = read_png(runs[-1].json_path.with_name(runs[-1].json_path.stem + "_mask.png"))

@@ -3,6 +3,8 @@
     python bench/bench_sampler.py                                   # sweep at 128x128 + floors at 512x512
     python bench/bench_sampler.py --resolution 256 --ref-chunks 128 --skip-floor
     python bench/bench_sampler.py --skip-sweep --floor standard:multijitter:48 standard:independent:128
+    python bench/bench_sampler.py --skip-sweep --floor standard:multijitter:99:4 \
+        standard:multijitter:99:4:a16-36-64-100-169-256
 
 In: the two reference scenes of bench/bench_tradeoff.py (interior-apose, sunrise-random), each at the path depth of
 its scene class (rh_dataset/scenes/presets.json: what the presets render). Out: printed tables (and --out JSON).
@@ -48,22 +50,29 @@ RELMSE_EPS = 0.01
 
 
 def _render(scene, sampler: str, spp: int, depth: int, seed: int, layers=("image",), aov_spp: int = 4,
-            env_spp: int | None = None):
+            env_spp: int | None = None, tiers: tuple[int, ...] | None = None, cpu: bool = False,
+            rr: int | None = None):
+    """render_frame's layers and the beauty pass's wall seconds (with `cpu`: also the frame's process CPU seconds,
+    which move less with the shared machine's load than wall seconds; the AOV pass is in them)."""
     from rh_dataset.render.passes import render_frame
     from rh_dataset.render.scene import RenderSettings
 
-    st = RenderSettings(spp=spp, aov_spp=aov_spp, max_depth=depth, sampler=sampler, env_spp=env_spp)
+    st = RenderSettings(spp=spp, aov_spp=aov_spp, max_depth=depth, sampler=sampler, env_spp=env_spp,
+                        adaptive_tiers=tiers, rr_depth=rr)
     if env_spp is not None:
         layers = tuple(layers) + ("mask",)  # the focused beauty pass takes its coverage from the AOV pass
-    out = render_frame(scene.meshes, scene.emitter, scene.camera, st, list(layers), seed)
-    return out.layers, out.seconds.get("beauty", 0.0)
+    c = time.process_time()
+    out = render_frame(scene.meshes, scene.emitter, scene.camera, st, list(layers), seed, exposure=scene.exposure)
+    c = time.process_time() - c
+    return (out.layers, out.seconds.get("beauty", 0.0)) + ((c, out.info) if cpu else ())
 
 
-def reference(scene, depth: int, args, cache: Path, sampler: str, chunks: int, tag: str):
+def reference(scene, depth: int, args, cache: Path, sampler: str, chunks: int, tag: str, rr: int | None = None):
     """Mean of `chunks` renders of args.ref_chunk_spp spp, the per-pixel variance of that mean, and the mask."""
     import mitsuba
 
-    key = f"{scene.name}_{scene.camera.width}_d{depth}_{sampler}_{chunks}x{args.ref_chunk_spp}_s{args.seed}_" \
+    key = f"{scene.name}_{scene.subject}_{scene.camera.width}_d{depth}r{rr}_{sampler}_{chunks}x{args.ref_chunk_spp}_" \
+          f"s{args.seed}_" \
           f"m{mitsuba.__version__}_t{scene.triangles}_v1"
     path = cache / f"sampler_ref_{key}.npz"
     if path.is_file():
@@ -71,7 +80,8 @@ def reference(scene, depth: int, args, cache: Path, sampler: str, chunks: int, t
             return z["mean"], z["var"], z["mask"], True
     s1 = s2 = None
     for k in range(chunks):
-        lay, _ = _render(scene, sampler, args.ref_chunk_spp, depth, seed=20_000_000 + 7919 * k + (0 if tag == "ld" else 1))
+        lay, _ = _render(scene, sampler, args.ref_chunk_spp, depth,
+                         seed=20_000_000 + 7919 * k + (0 if tag == "ld" else 1), rr=rr)
         x = lay["image"].astype(np.float64)
         s1 = x if s1 is None else s1 + x
         s2 = x * x if s2 is None else s2 + x * x
@@ -116,14 +126,18 @@ def table(title: str, header: list[str], rows: list[list]) -> str:
 
 
 def pair_psnr(scene, sampler: str, spp: int, depth: int, seeds: tuple[int, int], mask: np.ndarray,
-              env_spp: int | None = None, aov_spp: int = 4):
-    """PSNR vs a converged reference estimated from two independent renders (+3.01 dB); and beauty seconds."""
+              env_spp: int | None = None, aov_spp: int = 4, tiers: tuple[int, ...] | None = None,
+              rr: int | None = None):
+    """PSNR vs a converged reference estimated from two independent renders (+3.01 dB); beauty seconds; the
+    frame's CPU seconds; the first render's image and render info."""
     from bench_tradeoff import Scorer
 
-    a, ta = _render(scene, sampler, spp, depth, seeds[0], env_spp=env_spp, aov_spp=aov_spp)
-    b, tb = _render(scene, sampler, spp, depth, seeds[1], env_spp=env_spp, aov_spp=aov_spp)
+    a, ta, ca, info = _render(scene, sampler, spp, depth, seeds[0], env_spp=env_spp, aov_spp=aov_spp, tiers=tiers,
+                              cpu=True, rr=rr)
+    b, tb, cb, _ = _render(scene, sampler, spp, depth, seeds[1], env_spp=env_spp, aov_spp=aov_spp, tiers=tiers,
+                           cpu=True, rr=rr)
     sc = Scorer({"image": b["image"], "mask": mask}, scene.exposure)
-    return sc.psnr(a["image"]) + 10 * math.log10(2.0), (ta + tb) / 2, a["image"]
+    return sc.psnr(a["image"]) + 10 * math.log10(2.0), (ta + tb) / 2, (ca + cb) / 2, a["image"], info
 
 
 def sweep(args, scene_name: str, results: dict, report: list) -> None:
@@ -132,11 +146,12 @@ def sweep(args, scene_name: str, results: dict, report: list) -> None:
     from rh_dataset.presets import load_presets
 
     depth = load_presets()["standard"].depth_for(SCENE_CLASS[scene_name])
-    scene = build_scene(scene_name, args.resolution, args.seed)
+    rr = load_presets()["standard"].roulette_for(SCENE_CLASS[scene_name])
+    scene = build_scene(scene_name, args.resolution, args.seed, subject=args.subject)
     _render(scene, "independent", 1, depth, 0)  # warm-up: kernels compile once (disk cache), not timed
     t = time.perf_counter()
-    mean, var, mask, cached = reference(scene, depth, args, Path(args.cache), "ldsampler", args.ref_chunks, "ld")
-    mi_, vi_, _, _ = reference(scene, depth, args, Path(args.cache), "independent", args.check_chunks, "ind")
+    mean, var, mask, cached = reference(scene, depth, args, Path(args.cache), "ldsampler", args.ref_chunks, "ld", rr)
+    mi_, vi_, _, _ = reference(scene, depth, args, Path(args.cache), "independent", args.check_chunks, "ind", rr)
     box = Box(mean, var, mask, scene.exposure)
     sl = box.sl
     # a ratio of box means: a per-pixel ratio would divide by noisy variance estimates (biased high at few chunks)
@@ -180,12 +195,12 @@ def sweep(args, scene_name: str, results: dict, report: list) -> None:
         counts = sorted({taken_spp(smp, t) for t in args.targets})
         counts = [n for n in counts if n <= args.max_spp]
         pts = []
-        _render(scene, smp, counts[0], depth, 1)  # warm-up: each sampler is its own kernel
+        _render(scene, smp, counts[0], depth, 1, rr=rr)  # warm-up: each sampler is its own kernel
         for n in counts:
             errs, secs, pairs = [], [], []
             imgs = []
             for k in range(args.seeds):
-                lay, b = _render(scene, smp, n, depth, seed=1000 + 31 * n + k)
+                lay, b = _render(scene, smp, n, depth, seed=1000 + 31 * n + k, rr=rr)
                 errs.append(box.relmse(lay["image"]))
                 secs.append(b)
                 imgs.append(lay["image"])
@@ -218,29 +233,52 @@ def sweep(args, scene_name: str, results: dict, report: list) -> None:
 
 
 def floors(args, results: dict, report: list) -> None:
+    """Each --floor configuration's noise floor (pair estimate) and time on each scene. With --floor-repeats R the
+    configurations are rendered in turn, R rounds (every round a pair of fresh seeds per configuration): the PSNR is
+    the mean over the rounds, the seconds their medians, so a load that drifts during the run falls on every
+    configuration alike."""
     from bench_tradeoff import build_scene, SCENE_CLASS
     from rh_dataset.presets import load_presets
 
     presets = load_presets()
     rows = []
     for name in args.scenes:
-        scene = build_scene(name, args.floor_resolution, args.seed)
+        scene = build_scene(name, args.floor_resolution, args.seed, subject=args.subject)
         mask, _ = _render(scene, "ldsampler", 4, 2, seed=31, layers=("mask",), aov_spp=64)
+        configs = []
         for item in args.floor:
             pname, smp, spp, *rest = item.split(":")
-            env_spp = int(rest[0]) if rest else None
+            env_spp = int(rest[0]) if rest and rest[0] else None
+            tiers = tuple(int(v) for v in rest[1][1:].split("-")) if len(rest) > 1 else None
             depth = presets[pname].depth_for(SCENE_CLASS[name])
+            rr = presets[pname].roulette_for(SCENE_CLASS[name])
             aov_spp = presets[pname].aov_spp if presets[pname].sampler == smp else 4
-            _render(scene, smp, int(spp), depth, 0, env_spp=env_spp, aov_spp=aov_spp)  # warm-up: compile, untimed
-            psnr, secs, _ = pair_psnr(scene, smp, int(spp), depth, (4242, 4243), mask["mask"], env_spp, aov_spp)
-            results["floors"].append({"scene": name, "preset": pname, "sampler": smp, "spp": int(spp),
-                                      "env_spp": env_spp, "depth": depth, "psnr": psnr, "beauty_seconds": secs,
-                                      "resolution": args.floor_resolution})
-            rows.append([name, pname, smp, int(spp), env_spp or "-", depth, secs, psnr])
-            print(f"  {name} {pname} {smp} {spp} spp (env {env_spp}): {psnr:.2f} dB, beauty {secs:.2f} s", flush=True)
+            configs.append((pname, smp, int(spp), env_spp, tiers, depth, aov_spp, rr))
+            _render(scene, smp, int(spp), depth, 0, env_spp=env_spp, aov_spp=aov_spp, tiers=tiers, rr=rr)  # warm-up
+        runs: list[list] = [[] for _ in configs]
+        for r in range(args.floor_repeats):
+            for i, (pname, smp, spp, env_spp, tiers, depth, aov_spp, rr) in enumerate(configs):
+                seeds = (4242 + 2 * r, 4243 + 2 * r)
+                psnr, secs, cpu, _, info = pair_psnr(scene, smp, spp, depth, seeds, mask["mask"], env_spp, aov_spp,
+                                                     tiers, rr)
+                runs[i].append((psnr, secs, cpu, info.get("focus", {}).get("pixels_per_tier")))
+                print(f"  {name} round {r}: {pname} {smp} {spp} spp (env {env_spp}, tiers {tiers} {runs[i][-1][3]}): "
+                      f"{psnr:.2f} dB, beauty {secs:.2f} s, frame CPU {cpu:.2f} s", flush=True)
+        for (pname, smp, spp, env_spp, tiers, depth, aov_spp, roulette), rr in zip(configs, runs):
+            psnr = float(np.mean([x[0] for x in rr]))
+            secs, cpu = float(np.median([x[1] for x in rr])), float(np.median([x[2] for x in rr]))
+            results["floors"].append({"scene": name, "preset": pname, "sampler": smp, "spp": spp, "env_spp": env_spp,
+                                      "adaptive_tiers": tiers, "pixels_per_tier": rr[0][3], "depth": depth,
+                                      "rr_depth": roulette,
+                                      "psnr": psnr, "psnr_rounds": [x[0] for x in rr], "beauty_seconds": secs,
+                                      "frame_cpu_seconds": cpu, "resolution": args.floor_resolution})
+            rows.append([name, pname, smp, spp, env_spp or "-", "-".join(map(str, tiers)) if tiers else "-",
+                         f"{depth}" + (f" (roulette from {roulette})" if roulette else ""), secs, cpu, psnr])
     report.append(table(f"noise floor at {args.floor_resolution}x{args.floor_resolution}: PSNR vs a converged "
-                        f"reference, estimated from two independent renders (+3.01 dB)",
-                        ["scene", "preset", "sampler", "spp", "env spp", "depth", "beauty s", "PSNR dB (person)"], rows))
+                        f"reference, estimated from two independent renders (+3.01 dB), mean of "
+                        f"{args.floor_repeats} round(s); seconds: medians",
+                        ["scene", "preset", "sampler", "spp", "env spp", "adaptive tiers", "depth", "beauty s",
+                         "frame CPU s", "PSNR dB (person)"], rows))
 
 
 def main(argv=None) -> dict:
@@ -261,12 +299,17 @@ def main(argv=None) -> dict:
     p.add_argument("--floor", nargs="*", default=["draft:independent:16", "draft:multijitter:16",
                                                   "standard:independent:128", "standard:multijitter:48",
                                                   "standard:multijitter:64"],
-                   help="preset:sampler:spp[:env_spp] whose noise floor is measured at --floor-resolution (env_spp: "
-                        "the focused beauty pass, rh_dataset.render.focus)")
+                   help="preset:sampler:spp[:env_spp[:aTIERS]] whose noise floor is measured at --floor-resolution "
+                        "(env_spp: the focused beauty pass, rh_dataset.render.focus; aTIERS, e.g. "
+                        "a16-36-64-100-169-256: samples by noise, rh_dataset.render.adaptive, spp their mean over "
+                        "the person)")
     p.add_argument("--floor-resolution", type=int, default=512)
+    p.add_argument("--floor-repeats", type=int, default=1, help="rounds of every --floor configuration, interleaved")
     p.add_argument("--skip-sweep", action="store_true")
     p.add_argument("--skip-floor", action="store_true")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--subject", type=int, default=0,
+                   help="benchmark subject in the scenes (bench_tradeoff.build_scene)")
     p.add_argument("--cache", default="/tmp/rh_ref")
     p.add_argument("--out", default=None, help="write the results JSON here")
     args = p.parse_args(argv)

@@ -3,6 +3,8 @@ difference, on the fixed scenes of bench_tradeoff.py.
 
     python bench/bench_savings.py                     # 256x256, 3 repeats, both scenes (~10 min on a busy 2-core box)
     python bench/bench_savings.py --resolution 128 --repeats 1 --check-spp 0   # a quick look
+    python bench/bench_savings.py --only depth --resolution 512 --subjects 8 44 18 --depths 3 4 5 6 --rr 16:3 16:4
+                                                      # the class depths on other subjects (long hair, headwear)
 
 Savings (each timed against the code path it replaces, same seed, same frame):
   aov-only    an AOV-only frame (RANA pretraining) built without the path integrator and the environment emitter,
@@ -15,6 +17,8 @@ Savings (each timed against the code path it replaces, same seed, same frame):
   depth       the beauty pass at the scene class's depth (3) instead of the previous `standard` depth (4); every
               depth with the same seed, so depth d and depth 16 trace the same paths and differ only by the
               truncated bounces. Tolerance: the class's `tolerance_db` (rh_dataset/scenes/presets.json).
+              `--only depth` runs this alone, for every --subjects (benchmark subjects in the scene's pose, light
+              and camera fill: strand hair of other styles and colours, headwear) and every --depths.
   hidden      a full frame (beauty + every AOV) without the skin hidden under clothes; compared with the same
               frame rendered with every triangle, same seed (a path that never meets the hidden skin is traced
               identically), at the standard spp and at --check-spp.
@@ -133,6 +137,12 @@ def main(argv=None) -> dict:
                    help="also compare culled vs unculled beauty at this spp (0: skip)")
     p.add_argument("--deep", type=int, default=16, help="the deep reference depth of the depth check")
     p.add_argument("--out", default=None, help="write savings.json and savings.md here")
+    p.add_argument("--only", choices=("all", "depth"), default="all", help="depth: the path-depth check alone")
+    p.add_argument("--subjects", type=int, nargs="+", default=[0],
+                   help="benchmark subjects (bench_tradeoff.build_scene)")
+    p.add_argument("--depths", type=int, nargs="+", default=[2, 3, 4], help="depths compared with --deep")
+    p.add_argument("--rr", nargs="*", default=[], help="--only depth: also max_depth:rr_depth configurations (Russian "
+                   "roulette from rr_depth), e.g. 16:4")
     args = p.parse_args(argv)
 
     from rh_dataset.characters import build_character, sample_recipe
@@ -150,16 +160,22 @@ def main(argv=None) -> dict:
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average {load0[0]:.1f} {load0[1]:.1f} "
           f"{load0[2]:.1f}; Mitsuba {variant}; {args.resolution}x{args.resolution}; preset {pr.name} ({pr.spp} spp, "
           f"AOV {pr.aov_spp} spp); {args.repeats} repeats, medians", flush=True)
+    results: dict = {"args": vars(args), "variant": variant, "load_before": load0, "scenes": {}}
+    report: list[str] = []
+    res = args.resolution
+    if args.only == "depth":
+        for subject in args.subjects:
+            for name in args.scenes:
+                depth_only(bt.build_scene(name, res, subject=subject), classes[CLASS_OF[name]], pr, args, results,
+                           report)
+        return _finish(args, results, report)
     character = build_character(sample_recipe(rng_for(0, "character", 0), pool="benchmark", index=0))
     t = time.perf_counter()
     hidden = {"body": _hidden_faces(character, HIDDEN_MARGIN_M)["body"]}  # uncached: timed
     t_hidden = time.perf_counter() - t
     print(f"hidden skin: {int(hidden['body'].sum())} of {len(hidden['body'])} body faces (margin "
           f"{HIDDEN_MARGIN_M * 100:.0f} cm), found in {t_hidden:.2f} s once per character", flush=True)
-    results: dict = {"args": vars(args), "variant": variant, "load_before": load0, "hidden_faces": int(hidden["body"].sum()),
-                     "hidden_seconds": t_hidden, "scenes": {}}
-    report: list[str] = []
-    res = args.resolution
+    results.update(hidden_faces=int(hidden["body"].sum()), hidden_seconds=t_hidden)
     for name in args.scenes:
         scene = bt.build_scene(name, res)
         scene.light = _light(name)
@@ -282,6 +298,60 @@ def main(argv=None) -> dict:
                      _culled(a_.info)])
         report.append(bt.table(f"{name} ({res}x{res}, class {cls.name}): time with and without each saving",
                                ["saving", "before s", "after s", "speed-up", "output difference", "left out"], rows))
+    return _finish(args, results, report)
+
+
+def depth_only(scene, cls, pr, args, results: dict, report: list) -> None:
+    """The path-depth check alone on one scene, rendered as the preset renders (its sampler, env_spp and spp): each
+    --depths, and each --rr max_depth:rr_depth (paths beyond rr_depth ended by Russian roulette, unbiased), against
+    --deep with the same seed (for a plain depth: the truncated bounces' mean, the bias, plus their noise; for a
+    roulette: its extra noise only, it has no bias beyond --deep's own truncation); the noise of each against a
+    second seed (pair PSNR + 3.01 dB, as bench_sampler); and the beauty pass's process CPU seconds (the machine is
+    shared: CPU seconds move less with its load than wall seconds)."""
+    from rh_dataset.render.scene import RenderSettings
+
+    seeds = (4242, 4243)
+    layers = ["image", "mask"]
+
+    def st(depth: int, rr: int | None = None) -> RenderSettings:
+        return RenderSettings(spp=pr.spp, aov_spp=pr.aov_spp, max_depth=depth, cull=False, sampler=pr.sampler,
+                              env_spp=pr.env_spp, rr_depth=rr)
+
+    def run(settings: RenderSettings, seed: int):
+        c = time.process_time()
+        out, _ = frame(scene, settings, layers, seed)
+        return out, time.process_time() - c
+
+    frame(scene, st(2), layers, 0)  # warm-up: kernels compile once (disk cache), not timed
+    deep, cpu_deep = run(st(args.deep), seeds[0])
+    sc = bt.Scorer({"image": deep.layers["image"], "mask": deep.layers["mask"]}, scene.exposure)
+    configs = [(d, None) for d in args.depths] + [tuple(int(v) for v in c.split(":")) for c in args.rr]
+    rows, R = [], {}
+    for depth, rr in configs:
+        a, cpu_a = run(st(depth, rr), seeds[0])
+        b, cpu_b = run(st(depth, rr), seeds[1])
+        vs_deep = sc.psnr(a.layers["image"])
+        noise = sc.psnr(a.layers["image"], reference=b.layers["image"]) + 10 * math.log10(2.0)
+        label = f"{depth}" if rr is None else f"{depth}, roulette from {rr}"
+        R[label] = {"max_depth": depth, "rr_depth": rr, "psnr_vs_deep": vs_deep, "noise_psnr": noise,
+                    "cpu_s": (cpu_a + cpu_b) / 2}
+        rows.append([label, vs_deep, noise, (cpu_a + cpu_b) / 2])
+    plain = {c[0]: R[f"{c[0]}"]["psnr_vs_deep"] for c in configs if c[1] is None}
+    smallest = min((d for d in plain if plain[d] >= cls.tolerance_db), default=None)
+    strands = sum(len(m.points) for m in scene.meshes if hasattr(m, "fibre"))
+    key = f"{scene.name} subject {scene.subject}"
+    results["scenes"][key] = {"scene_class": cls.name, "configs": R, "tolerance_db": cls.tolerance_db,
+                              "smallest_within_tolerance": smallest, "strands": strands, "spp": pr.spp,
+                              "deep": args.deep, "deep_cpu_s": cpu_deep}
+    rows.append([f"{args.deep} (reference)", "-", "-", cpu_deep])
+    report.append(bt.table(f"{key} ({strands} strands; {scene.camera.width}x{scene.camera.height}, {pr.name}: "
+                           f"{pr.sampler} {pr.spp} spp, env {pr.env_spp}; class {cls.name}, tolerance "
+                           f"{cls.tolerance_db} dB): smallest plain depth within it {smallest}",
+                           ["max depth", f"PSNR dB vs depth {args.deep} (same seed)", "noise PSNR dB (pair)",
+                            "beauty CPU s"], rows))
+
+
+def _finish(args, results: dict, report: list) -> dict:
     load1 = os.getloadavg()
     results["load_after"] = load1
     print(f"\nload average after: {load1[0]:.1f} {load1[1]:.1f} {load1[2]:.1f}")

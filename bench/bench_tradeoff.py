@@ -62,6 +62,7 @@ class Scene:
     pose_label: str
     triangles: int
     light: object = None  # the rh_dataset.lights.Light behind `emitter` (bench/bench_cycles.py re-creates it in Blender)
+    subject: int = 0  # the benchmark subject index (build_scene)
 
 
 def _sun_rotation(radiance: np.ndarray, target_phi_deg: float) -> float:
@@ -74,9 +75,11 @@ def _sun_rotation(radiance: np.ndarray, target_phi_deg: float) -> float:
     return float((target_phi_deg - phi_sun) % 360.0)
 
 
-def build_scene(name: str, resolution: int, seed: int = 0, *, strands: bool = True) -> Scene:
+def build_scene(name: str, resolution: int, seed: int = 0, *, strands: bool = True, subject: int = 0) -> Scene:
     """One reference scene. strands=False leaves the hair strands out (a bald subject): bench_cycles.py compares
-    renderers on triangle meshes only, since Cycles' curves are another primitive and BSDF than Mitsuba's."""
+    renderers on triangle meshes only, since Cycles' curves are another primitive and BSDF than Mitsuba's.
+    `subject`: the benchmark subject drawn (0 = the reference scenes'); pose, light and camera fill are those of the
+    scene, so another subject (long hair, headwear) is the same light transport question on another body."""
     from rh_dataset.characters import body_bounds, build_character, pose_character, sample_recipe
     from rh_common.body_model import load_anny
     from rh_dataset.generate import exposure_for, rng_for
@@ -84,7 +87,7 @@ def build_scene(name: str, resolution: int, seed: int = 0, *, strands: bool = Tr
     from rh_dataset.poses import BodyPose, sample_pose
     from rh_common.camera import frame_body
 
-    recipe = sample_recipe(rng_for(seed, "character", 0), pool="benchmark", index=0)
+    recipe = sample_recipe(rng_for(seed, "character", subject), pool="benchmark", index=subject)
     character = build_character(recipe)
     lib = bundled_hdris()
     if name == "interior-apose":
@@ -104,7 +107,7 @@ def build_scene(name: str, resolution: int, seed: int = 0, *, strands: bool = Tr
     lo, hi = body_bounds(meshes)
     cam = frame_body(lo, hi, resolution, resolution, 30.0, fill=0.9)
     return Scene(name, meshes, mitsuba_emitter_dict(light), cam, exposure_for(light), hdri, pose.label,
-                 sum(len(m.faces) for m in meshes if hasattr(m, "faces")), light)
+                 sum(len(m.faces) for m in meshes if hasattr(m, "faces")), light, subject)
 
 
 # ------------------------------------------------------------------------------------------------- rendering
@@ -174,6 +177,8 @@ def _cache_key(scene: Scene, args, res: int) -> str:
     d = {"scene": scene.name, "res": res, "spp": args.ref_spp, "depth": args.ref_depth, "aov_spp": args.ref_aov_spp,
          "chunk": args.chunk_spp, "seed": args.seed, "rh": __version__, "mitsuba": mitsuba.__version__,
          "tris": scene.triangles, "v": 1}
+    if scene.subject:
+        d["subject"] = scene.subject
     return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 

@@ -160,8 +160,9 @@ def options_from_args(args: argparse.Namespace):
 
 def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None = None, max_depth: int | None = None,
                     sampler: str | None = None, env_spp: int | None = None, denoise: bool = False,
-                    cull: bool = True, cloth: str | None = None):
-    """RenderSettings of a preset of scenes/presets.json, with the given fields overridden (None: the preset's)."""
+                    cull: bool = True, cloth: str | None = None, adaptive_tiers: tuple[int, ...] | None = None):
+    """RenderSettings of a preset of scenes/presets.json, with the given fields overridden (None: the preset's;
+    adaptive_tiers (): off)."""
     from rh_dataset.render.sampler import SAMPLERS
     from rh_dataset.render.scene import RenderSettings
     from rh_dataset.spec import SpecError
@@ -171,7 +172,7 @@ def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None 
     if preset not in presets:
         raise SpecError(f"unknown --preset {preset!r}; choose one of {sorted(presets)}")
     pr = presets[preset]
-    overridden = any(v is not None for v in (spp, aov_spp, max_depth, sampler, env_spp, cloth))
+    overridden = any(v is not None for v in (spp, aov_spp, max_depth, sampler, env_spp, cloth, adaptive_tiers))
     if sampler is not None and sampler not in SAMPLERS:
         raise SpecError(f"unknown --sampler {sampler!r}; choose one of {', '.join(SAMPLERS)}")
     from rh_dataset.characters.cloth_pose import CLOTH_MODES
@@ -184,6 +185,8 @@ def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None 
         max_depth=max_depth if max_depth is not None else pr.max_depth,
         sampler=sampler if sampler is not None else pr.sampler,
         env_spp=(env_spp or None) if env_spp is not None else _preset_env_spp(pr.env_spp, spp),
+        adaptive_tiers=(tuple(adaptive_tiers) or None) if adaptive_tiers is not None else
+        (pr.adaptive_tiers if spp is None and env_spp is None else None),
         preset=f"{pr.name}+overrides" if overridden else pr.name,
         denoise=denoise,
         cull=cull,

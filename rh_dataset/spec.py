@@ -123,6 +123,8 @@ class SplitSpec:
     max_depth: int | None = None
     """The scene class's path depth, resolved on load (so a changed class table changes the spec's digest and a
     resumed run refuses to mix depths). None for splits that do not path-trace."""
+    rr_depth: int | None = None
+    """The scene class's Russian-roulette depth, resolved on load as max_depth is (None: Mitsuba's default)."""
     olat: OlatSpec | None = None
     """The OLAT lights when light is 'olat' (None otherwise)."""
     cameras: tuple[int, ...] | None = None
@@ -319,6 +321,8 @@ class ProtocolSpec:
                 out.pop("olat")  # splits without OLAT lights keep the record (and digest) they always had
             if split.cameras is None:
                 out.pop("cameras")
+            if split.rr_depth is None:
+                out.pop("rr_depth")  # classes without a roulette depth keep the record (and digest) they had
             if split.motion is None:
                 out.pop("motion")  # datasets without motion keep the record (and digest) they always had
             else:
@@ -382,7 +386,8 @@ def _parse_protocol(path: Path, data: Any) -> ProtocolSpec:
         try:
             splits.append(SplitSpec(name=name, frames=s["frames"], poses=s["poses"], light=s["light"],
                                     layers=tuple(s["layers"]), motion=motion, scene_class=cls,
-                                    max_depth=classes[cls].max_depth if cls is not None else None, olat=olat,
+                                    max_depth=classes[cls].max_depth if cls is not None else None,
+                                    rr_depth=classes[cls].rr_depth if cls is not None else None, olat=olat,
                                     cameras=tuple(cameras) if cameras is not None else None))
         except SpecError as exc:
             raise SpecError(f"{where}: {exc}") from None

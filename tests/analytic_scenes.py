@@ -51,3 +51,22 @@ def quad(corners, albedo_texture, name="quad") -> AnalyticMesh:
     return AnalyticMesh(name, v, np.tile(nrm, (4, 1)).astype(np.float32), np.array([[0, 1, 2], [0, 2, 3]], np.int32),
                     np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32),
                     AnalyticMaterial(np.asarray(albedo_texture, np.float32)))
+
+
+def gradient_env() -> dict:
+    """An environment map that varies across a frame (a vertical gradient and a bright band), so the pixels around a
+    sphere are not trivially constant and their few-sample noise is real (the focused and adaptive passes' tests)."""
+    from rh_dataset.variant import load_mitsuba
+
+    mi = load_mitsuba()
+    v = np.linspace(0.0, 1.0, 32, dtype=np.float32)[:, None, None]
+    img = np.broadcast_to(0.2 + 1.5 * v, (32, 64, 3)).copy()
+    img[:, 20:24] = 4.0
+    return {"type": "envmap", "bitmap": mi.Bitmap(img)}
+
+
+def sphere_camera(n: int = 24):
+    """An n x n camera 4 units in front of the unit sphere at the origin."""
+    from rh_common.camera import Camera
+
+    return Camera(width=n, height=n, fov_y_deg=50.0, origin=(0.0, -4.0, 0.3), target=(0.0, 0.0, 0.0))

@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analytic_scenes import uv_sphere
-from rh_common.camera import Camera
+from analytic_scenes import gradient_env, sphere_camera, uv_sphere
 from rh_dataset.render.focus import padded_size, person_pixels, render_pixels
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings, scene_dict
@@ -18,25 +17,11 @@ def _variant():
     select_variant("llvm_ad_rgb")
 
 
-def _env() -> dict:
-    # An environment that varies across the frame (a vertical gradient and a bright band), so the pixels around
-    # the sphere are not trivially constant and their few-sample noise is real.
-    mi = load_mitsuba()
-    v = np.linspace(0.0, 1.0, 32, dtype=np.float32)[:, None, None]
-    img = np.broadcast_to(0.2 + 1.5 * v, (32, 64, 3)).copy()
-    img[:, 20:24] = 4.0
-    return {"type": "envmap", "bitmap": mi.Bitmap(img)}
-
-
-def _cam(n=24) -> Camera:
-    return Camera(width=n, height=n, fov_y_deg=50.0, origin=(0.0, -4.0, 0.3), target=(0.0, 0.0, 0.0))
-
-
 @pytest.mark.parametrize("sampler", ["independent", "multijitter"])
 def test_render_pixels_on_every_pixel_is_mitsubas_render_bit_for_bit(sampler):
     mi = load_mitsuba()
-    cam = _cam(16)
-    scene = mi.load_dict(scene_dict([uv_sphere()], _env(), cam, {"type": "path", "max_depth": 3}, 4,
+    cam = sphere_camera(16)
+    scene = mi.load_dict(scene_dict([uv_sphere()], gradient_env(), cam, {"type": "path", "max_depth": 3}, 4,
                                     pixel_format="rgba", sampler=sampler))
     full = np.array(mi.render(scene, spp=4, seed=9), dtype=np.float32)[..., :3]
     mine = render_pixels(mi, scene, np.arange(16 * 16, dtype=np.uint32), 4, 9)
@@ -50,8 +35,8 @@ def test_render_pixels_repeats_its_bits_when_pixels_straddle_drjits_work_blocks(
     # 64 x 64 pixels x 99 spp = 405504 lanes: pixels straddle the 16384-lane blocks drjit's threads take, where a
     # scatter-add into the pixels gave different last bits from run to run (this test failed about every other run).
     mi = load_mitsuba()
-    cam = _cam(64)
-    scene = mi.load_dict(scene_dict([uv_sphere()], _env(), cam, {"type": "path", "max_depth": 3}, 99,
+    cam = sphere_camera(64)
+    scene = mi.load_dict(scene_dict([uv_sphere()], gradient_env(), cam, {"type": "path", "max_depth": 3}, 99,
                                     pixel_format="rgba", sampler="multijitter"))
     pix = np.arange(64 * 64, dtype=np.uint32)
     runs = [render_pixels(mi, scene, pix, 99, 3) for _ in range(3)]
@@ -72,7 +57,7 @@ def test_focused_beauty_is_an_unbiased_estimate_of_the_full_frame_image():
     # K frames at spp 16 / env_spp 1, each an independent estimate. If both estimate the same image, the mean
     # squared difference of the focused mean to the reference equals the sum of their variances (ratio ~1); a
     # bias adds to the numerator only.
-    env, cam, sphere = _env(), _cam(), [uv_sphere(albedo=(0.6, 0.5, 0.4))]
+    env, cam, sphere = gradient_env(), sphere_camera(), [uv_sphere(albedo=(0.6, 0.5, 0.4))]
     ref_chunks = [render_frame(sphere, env, cam, RenderSettings(spp=256, aov_spp=4, max_depth=3), ["image"],
                                seed=100 + k).layers["image"].astype(np.float64) for k in range(16)]
     r = np.mean(ref_chunks, axis=0)

@@ -81,19 +81,48 @@ def test_the_split_scene_class_chooses_the_depth_and_the_preset_can_override_it(
     ref = RenderSettings(max_depth=presets["reference"].max_depth)
     assert ref.for_split(a.split("test")).max_depth == presets["reference"].max_depth
     assert presets["standard"].depth_for("apose-envmap") == classes["apose-envmap"].max_depth
+    assert std.for_split(a.split("train")).rr_depth == classes["apose-envmap"].rr_depth == \
+        presets["standard"].roulette_for("apose-envmap")
+    assert ref.for_split(a.split("test")).rr_depth is None and presets["reference"].roulette_for("posed-envmap") is None
     with pytest.raises(ValueError, match="max_depth is None"):
         render_frame([uv_sphere()], ENV, cam(), std, ["image"], seed=0)
 
 
 def test_each_class_depth_meets_its_recorded_tolerance_and_one_less_would_not():
-    # The choice rests on the measurement recorded beside it: the smallest depth whose truncation PSNR clears the
-    # tolerance.
+    # The choice rests on the measurement recorded beside it. A plain cut: the smallest depth whose truncation PSNR
+    # clears the tolerance. With a roulette depth: the roulette starts where that cut was (measured on subject 0),
+    # and max_depth is deeper than any measured, because on the strand-hair subjects no plain depth measured clears
+    # it (light hair not even 16, against 64).
     from rh_dataset.presets import load_scene_classes
 
     for c in load_scene_classes().values():
         psnr = {int(k): v for k, v in c.measured["psnr_vs_depth16_db"].items()}
-        assert psnr[c.max_depth] >= c.tolerance_db
-        assert all(psnr[d] < c.tolerance_db for d in psnr if d < c.max_depth)
+        cut = c.max_depth if c.rr_depth is None else c.rr_depth
+        assert psnr[cut] >= c.tolerance_db
+        assert all(psnr[d] < c.tolerance_db for d in psnr if d < cut)
+        if c.rr_depth is not None:
+            hair = c.measured["strand_hair_subjects"]
+            assert hair and all(v < c.tolerance_db for h in hair.values() for v in h["psnr_vs_depth16_db"].values())
+            assert c.max_depth >= 64 and any(h.get("depth16_vs_depth64_db", 99.0) < c.tolerance_db
+                                             for x in load_scene_classes().values()
+                                             for h in x.measured["strand_hair_subjects"].values())
+
+
+def test_russian_roulette_reaches_mitsuba_and_keeps_the_expectation():
+    # A grey convex sphere under constant light L: every inside pixel is exactly a * L whatever the depth (nothing to
+    # interreflect). Roulette from the first bounce ends most paths early and reweights the survivors: the pixels
+    # must still average a * L (within 4 standard errors of their own spread), and differ from the default's.
+    a = 0.5
+    out = {}
+    for rr in (None, 1):
+        st = RenderSettings(spp=16, aov_spp=4, max_depth=16, rr_depth=rr)
+        out[rr] = render_frame([uv_sphere(albedo=(a, a, a))], ENV, cam(), st, ["image", "mask"], seed=5).layers
+    inside = out[1]["mask"] > 0.999
+    x = out[1]["image"][inside].astype(np.float64)
+    assert inside.sum() > 200 and abs(x.mean() - a) < 4 * x.std() / np.sqrt(x.size)
+    assert not np.array_equal(out[1]["image"], out[None]["image"])
+    with pytest.raises(ValueError, match="rr_depth must be None or an integer >= 1"):
+        RenderSettings(rr_depth=0)
 
 
 @pytest.mark.parametrize("mutate, message", [
@@ -272,7 +301,7 @@ def test_generated_frames_record_what_was_modelled(tmp_path, monkeypatch):
     from rh_dataset.cli import main as generate_main
     from rh_dataset.presets import load_scene_classes
 
-    # standard defers the depth to each split's scene class (draft fixes 3 for every class)
+    # standard defers the depth and the roulette depth to each split's scene class
     tiny = ["--subjects", "1", "--frames", "1", "--resolution", "24", "--spp", "2", "--aov-spp", "2", "--preset",
             "standard", "--no-progress"]
     assert generate_main(["--protocol", "a", "--out", str(tmp_path / "a"), *tiny]) == 0
@@ -281,6 +310,7 @@ def test_generated_frames_record_what_was_modelled(tmp_path, monkeypatch):
         r = read_json(tmp_path / "a" / "subject_000" / "protocol_a" / split / "frame_000000.json")["render"]
         m = r["scene_model"]
         assert r["max_depth"] == m["max_depth"] == classes[cls].max_depth
+        assert r["rr_depth"] == classes[cls].rr_depth
         assert m["path_traced"] and m["emitter_loaded"] and m["cull"]
         assert m["culled_faces"]["hidden_under_clothes"] > 5000 and m["culled_faces"]["outside_frustum"] == 0
     # AOV-only pretraining frames never build the emitter at all.

@@ -201,7 +201,8 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
         # Each camera its own sample stream; a single-camera frame keeps the stream it always had.
         keys = (split.name, index) if view is None else (split.name, index, view)
         render_seed = int(rng_for(plan.seed, "render", s, key, *keys).integers(0, 2**31 - 2))
-        result = render_frame(meshes, emitter, camera, settings, split.layers, render_seed, hidden=hidden)
+        result = render_frame(meshes, emitter, camera, settings, split.layers, render_seed, hidden=hidden,
+                              exposure=exposure)
         for k, v in result.seconds.items():
             seconds[k] = seconds.get(k, 0.0) + v
         t = time.perf_counter()

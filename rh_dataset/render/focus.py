@@ -45,9 +45,11 @@ def padded_size(n: int) -> int:
         size *= 2
 
 
-def render_pixels(mi, scene, pixels: np.ndarray, spp: int, seed: int) -> np.ndarray:
+def render_pixels(mi, scene, pixels: np.ndarray, spp: int, seed: int, moments: bool = False):
     """(len(pixels), 3) float32: the box-filter average of `spp` samples of each listed pixel (flat row-major
-    indices into the sensor's film), traced by the scene's integrator with the sensor's sampler."""
+    indices into the sensor's film), traced by the scene's integrator with the sensor's sampler. `moments`: also
+    the average of the samples' squares, (len(pixels), 3) float64 (each pixel's noise, `rh_dataset.render.adaptive`);
+    the first array is the same either way."""
     import drjit as dr
 
     sensor = scene.sensors()[0]
@@ -75,9 +77,14 @@ def render_pixels(mi, scene, pixels: np.ndarray, spp: int, seed: int) -> np.ndar
     # a scatter-add, which adds them in whatever order the threads reach them: a pixel whose samples straddle two of
     # drjit's work blocks (16384 lanes) got different last bits from run to run at 99 spp.
     L = dr.select(active, L, 0.0)
-    dr.eval(L)  # one kernel traces all three channels
+    L2 = L * L if moments else None
+    dr.eval(L) if L2 is None else dr.eval(L, L2)  # one kernel traces all three channels (and their squares)
     acc = np.stack([np.array(dr.block_sum(L[c], int(spp)), dtype=np.float64) for c in range(3)], -1)
-    return (acc[:n] / spp).astype(np.float32)
+    mean = (acc[:n] / spp).astype(np.float32)
+    if not moments:
+        return mean
+    sq = np.stack([np.array(dr.block_sum(L2[c], int(spp)), dtype=np.float64) for c in range(3)], -1)
+    return mean, sq[:n] / spp
 
 
 def render_focused(mi, scene, coverage: np.ndarray, spp_chunks: list[int], env_spp: int, seeds: list[int],

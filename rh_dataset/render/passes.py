@@ -18,6 +18,7 @@ import numpy as np
 from rh_common.camera import Camera
 
 from .cull import drop_faces, outside_frustum
+from .adaptive import render_adaptive
 from .focus import person_pixels, render_focused
 from .sampler import check_spp
 from .scene import MeshLike, RenderSettings, is_strands, scene_dict
@@ -47,7 +48,8 @@ _AOV_INTEGRATOR = {"type": "aov", "aovs": "alb:albedo,nrm:sh_normal,pos:position
 
 
 def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camera, settings: RenderSettings,
-                 layers: Sequence[str], seed: int, *, hidden: Mapping[str, np.ndarray] | None = None) -> FrameRender:
+                 layers: Sequence[str], seed: int, *, hidden: Mapping[str, np.ndarray] | None = None,
+                 exposure: float | None = None) -> FrameRender:
     """Render the requested layers of one frame.
 
     Returned arrays (H, W, ...) float32:
@@ -62,6 +64,7 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
 
     `emitter` may be None when no `image` is requested (it is never loaded then anyway). `hidden`: {mesh name: face
     mask} of faces no camera can see (`rh_dataset.render.cull.hidden_faces`), left out when `settings.cull`.
+    `exposure`: the frame's display exposure, which `settings.adaptive_tiers` needs (its noise is display-space).
     """
     import time
 
@@ -84,6 +87,15 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
         check_spp(settings.sampler, settings.aov_spp, "aov_spp")
         if path_traced and settings.env_spp is not None:
             check_spp(settings.sampler, settings.env_spp, "env_spp")
+    if path_traced and settings.adaptive_tiers is not None:
+        for n in settings.adaptive_tiers:
+            check_spp(settings.sampler, n, "adaptive_tiers")
+        if settings.adaptive_tiers[-1] > MAX_SPP_PER_CALL:
+            raise ValueError(f"render setting adaptive_tiers: each tier is one render call, so at most "
+                             f"{MAX_SPP_PER_CALL} samples per pixel; got {list(settings.adaptive_tiers)}")
+        if exposure is None or not np.isfinite(exposure) or exposure <= 0:
+            raise ValueError("render_frame: adaptive_tiers weigh each pixel's noise in display space and need the "
+                             f"frame's exposure (exposure=...), got {exposure!r}")
     out: dict[str, np.ndarray] = {}
     seconds: dict[str, float] = {}
     culled = {"hidden_under_clothes": 0, "outside_frustum": 0}
@@ -102,6 +114,8 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
     t = time.perf_counter()
     if path_traced:
         integrator = {"type": "path", "max_depth": int(settings.max_depth), "hide_emitters": False}
+        if settings.rr_depth is not None:
+            integrator["rr_depth"] = int(settings.rr_depth)
     else:
         integrator = _AOV_INTEGRATOR
 
@@ -122,7 +136,14 @@ def render_frame(meshes: Sequence[MeshLike], emitter: dict | None, camera: Camer
             out.update(_postprocess_aovs(aov, camera, layers))
         if path_traced:
             t = time.perf_counter()
-            if settings.env_spp is not None and aov is not None:
+            if settings.adaptive_tiers is not None and aov is not None:
+                tiers = settings.adaptive_tiers
+                img, counts = render_adaptive(mi, scene, np.clip(aov[..., 3], 0.0, 1.0), float(exposure), settings.spp,
+                                              tiers, settings.env_spp, _chunk_seeds(seed, len(tiers) + 1)[1:],
+                                              seed + 2, FOCUS_MARGIN)
+                info["focus"] = {"env_spp": int(settings.env_spp), "margin_px": FOCUS_MARGIN,
+                                 "pixels": int(sum(counts.values())), "pixels_per_tier": counts}
+            elif settings.env_spp is not None and aov is not None:
                 chunks = _chunks(settings.spp)
                 img = render_focused(mi, scene, np.clip(aov[..., 3], 0.0, 1.0), chunks, settings.env_spp,
                                      _chunk_seeds(seed, len(chunks)), seed + 2, FOCUS_MARGIN)

@@ -68,6 +68,10 @@ class RenderSettings:
     max_depth: int | None = 6
     """Longest path (Mitsuba `max_depth`): 2 = direct light only; each extra unit adds one bounce. None: the split's
     scene class decides (`for_split`); a path-traced pass refuses an unresolved None."""
+    rr_depth: int | None = None
+    """Path depth from which Mitsuba's path tracer ends paths by Russian roulette (survival probability = the path's
+    throughput, at most 0.95, the survivors reweighted: unbiased, so paths may run deep at the cost of a little
+    noise). None: Mitsuba's default (5), which changes nothing at max_depth <= 5."""
     preset: str = "custom"
     sampler: str = "independent"
     """Mitsuba's sample generator for both passes (`rh_dataset.render.sampler.SAMPLERS`); the presets choose theirs
@@ -76,6 +80,11 @@ class RenderSettings:
     """Samples per pixel where the AOV pass sees no person (the environment seen directly); the person's pixels get
     `spp` (`rh_dataset.render.focus`: unbiased either way). None: every pixel gets `spp`. Needs an AOV layer in the
     frame (the coverage comes from that pass); a frame without one renders every pixel at `spp`."""
+    adaptive_tiers: tuple[int, ...] | None = None
+    """Sample counts a person's pixel may get (`rh_dataset.render.adaptive`): each gets the one nearest its share in
+    proportion to its display-space noise, measured on the env_spp pass, and `spp` is then the mean over the person's
+    pixels. Needs env_spp >= 2 and the frame's exposure (`render_frame(exposure=...)`). None: every person pixel
+    gets `spp`. Unbiased either way; whether it saves time is measured (docs/TRADEOFFS.md, "Samples by noise")."""
     denoise: bool = False
     """Opt-in: run Intel Open Image Denoise (pyoidn, HDR mode, guided by the albedo and normal AOVs) on the beauty
     image. Biased (docs/TRADEOFFS.md measures it); recorded in the frame JSON as `render.denoise`/`render.denoised`."""
@@ -101,6 +110,12 @@ class RenderSettings:
         if self.env_spp is not None and (not isinstance(self.env_spp, int) or not 1 <= self.env_spp <= self.spp):
             raise ValueError(f"render setting env_spp must be None or an integer in [1, spp={self.spp}], "
                              f"got {self.env_spp!r}")
+        if self.adaptive_tiers is not None:
+            from .adaptive import check_tiers
+
+            object.__setattr__(self, "adaptive_tiers", check_tiers(self.adaptive_tiers, self.spp, self.env_spp))
+        if self.rr_depth is not None and (not isinstance(self.rr_depth, int) or self.rr_depth < 1):
+            raise ValueError(f"render setting rr_depth must be None or an integer >= 1, got {self.rr_depth!r}")
         if self.max_depth is not None and (not isinstance(self.max_depth, int) or self.max_depth < 2):
             raise ValueError(f"render setting max_depth must be an integer >= 2 or None, got {self.max_depth!r}")
         from rh_dataset.characters.cloth_pose import CLOTH_MODES
@@ -110,10 +125,12 @@ class RenderSettings:
 
     def for_split(self, split) -> "RenderSettings":
         """These settings for one split of a scene description: an unset max_depth becomes the depth of the split's
-        scene class (`SplitSpec.max_depth`); a split that does not path-trace keeps None (it has no depth)."""
+        scene class (`SplitSpec.max_depth`), with its Russian-roulette depth unless rr_depth is set; a split that
+        does not path-trace keeps None (it has no depth)."""
         if self.max_depth is not None or not split.path_traced:
             return self
-        return dataclasses.replace(self, max_depth=int(split.max_depth))
+        rr = self.rr_depth if self.rr_depth is not None else getattr(split, "rr_depth", None)
+        return dataclasses.replace(self, max_depth=int(split.max_depth), rr_depth=rr)
 
 
 def mitsuba_bsdf(material: MaterialLike) -> Any:
