@@ -124,7 +124,10 @@ def subject_assets(dataset: Path, subject: str, out: Path) -> SubjectAssets:
     if key in _ASSETS:
         return _ASSETS[key]
     recipe = CharacterRecipe.from_json(read_json(Path(dataset) / subject / layout.CHARACTER_JSON))
-    character = build_character(recipe)
+    # The loose garments as the dataset draped them (render.drape; datasets made before it existed: "full").
+    ds = Path(dataset) / "dataset.json"
+    drape = (read_json(ds).get("render") or {}).get("drape", "full") if ds.is_file() else "full"
+    character = build_character(recipe, drape=drape)
     files: dict[int, Path] = {}
     tex_dir = Path(out) / subject / "textures"
     for part in character.parts:
