@@ -207,7 +207,7 @@ def character():
     from rh_dataset.characters import build_character, sample_recipe
     from rh_dataset.generate import rng_for
 
-    return build_character(sample_recipe(rng_for(0, "character", 0), pool="benchmark", index=0))
+    return build_character(sample_recipe(rng_for(0, "character", 0), pool="benchmark", index=0), drape="coarse")
 
 
 def test_hidden_skin_is_covered_by_clothes_and_far_from_uncovered_skin(character):
@@ -303,7 +303,7 @@ def test_generated_frames_record_what_was_modelled(tmp_path, monkeypatch):
 
     # standard defers the depth and the roulette depth to each split's scene class
     tiny = ["--subjects", "1", "--frames", "1", "--resolution", "24", "--spp", "2", "--aov-spp", "2", "--preset",
-            "standard", "--no-progress"]
+            "standard", "--drape", "coarse", "--no-progress"]
     assert generate_main(["--protocol", "a", "--out", str(tmp_path / "a"), *tiny]) == 0
     classes = load_scene_classes()
     for split, cls in (("train", "apose-envmap"), ("test", "posed-envmap")):
