@@ -5,10 +5,11 @@ subjects of each protocol wear them, and the arithmetic for the demo, the defaul
 
 In: the dataset seed (default 0, the generator's and rh-demo's). Out, printed with the load average: (1) for the
 first dress and the first skirt wearer of the seed, the drape's wall seconds at each level (`drape.DRAPE_LEVELS`;
-a cold cache in a temporary folder, Warp kernels compiled first by a one-step drape), the skinned posing of a walk
-frame (`pose_character`, the draft and standard presets' cloth mode) against the first subject in shell clothes; (2) per protocol, its subjects wearing a dress or a skirt; (3) the totals: drapes run once per (phenotype,
-kind, level) and are cached, so a protocol pays each loose subject's drape once, and protocols of one seed share
-subjects (and their cache).
+a cold cache in a temporary folder, Warp kernels compiled first by a one-step drape), and the skinned posing of a
+walk frame (`pose_character`, the draft and standard presets' cloth mode) against the first subject in shell
+clothes; (2) per protocol, its subjects wearing a dress or a skirt; (3) the totals: drapes run once per
+(phenotype, kind, level) and are cached, so a protocol pays each loose subject's drape once, and protocols of one
+seed share subjects (and their cache).
 """
 from __future__ import annotations
 

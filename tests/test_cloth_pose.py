@@ -228,10 +228,10 @@ def test_a_bad_preset_cloth_names_the_file(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["draped_skirt", "draped_dress"])
 def test_a_thigh_swung_into_the_draped_skirt(tmp_path, monkeypatch, kind):
-    """The left thigh raised 75 degrees into the draped skirt (and dress). Skinning alone sinks the cloth into the thigh, and
-    push_out, which puts it back on the skin, squashes folds through each other; the simulated skirt stays out of
-    the thigh within SIM_BOUND_M, and far fewer of its edges cross the cloth (measured: 19.5 mm deep before
-    push_out and 108 crossing edges after it skinned; 0 crossing edges simulated)."""
+    """The left thigh raised 75 degrees into the draped skirt (and dress). Skinning alone sinks the cloth into the
+    thigh, and push_out, which puts it back on the skin, squashes folds through each other; the simulated cloth
+    stays out of the thigh within SIM_BOUND_M, and far fewer of its edges cross the cloth (measured on the skirt:
+    19.5 mm deep before push_out and 108 crossing edges after it skinned; 0 crossing edges simulated)."""
     from rh_dataset.characters.drape import drape_garment
 
     monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))

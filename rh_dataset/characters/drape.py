@@ -36,7 +36,7 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "penetration", "push_out", "collider_faces", "cloth_model", "cloth_solver"]
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress")
-DRAPE_VERSION = 4  # bump when the pattern or the simulation changes: it is part of the cache key
+DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
 
@@ -109,13 +109,14 @@ def drape_cache_dir() -> Path:
 class DrapeProfile:
     """The cut of a draped kind, in body landmarks: the pinned top ring at `top` ("waist": between the pelvis and
     spine04, where a skirt's waistband sits; "chest": halfway between spine02 and spine01, under the arms, lowered
-    where the ring would touch the A-pose body, arms included: `_under_the_arms`; a strapless dress is held there), the cloth hanging straight down from there to `flare_from` ("top": at once; "hips": the hip joints), then
-    flaring at `DrapeSettings.flare` for `hem` times the drop from there to the knee (measured along the cloth):
-    the skirt's hem ends about 10 cm above the knee; the dress, whose 70 cm of cloth hang from the chest and give
-    way by ~15 cm under their weight (measured: the hem of a 0.9 pattern settled 17 cm lower, 9 cm under the knee),
-    is cut shorter. Every ring
-    stays `clearance` + 2 mm outside the convex hull of the trunk's and thighs' cross-section at its height, so the
-    pattern starts clear of the body wherever the hips are wider than the cloth above them."""
+    where the ring would touch the A-pose body, arms included (`_under_the_arms`): a strapless dress is held
+    there), the cloth hanging straight down from there to `flare_from` ("top": at once; "hips": the hip joints),
+    then flaring at `DrapeSettings.flare` for `hem` times the drop from there to the knee (measured along the
+    cloth): the skirt's hem ends about 10 cm above the knee; the dress, whose 70 cm of cloth hang from the chest and
+    give way by ~15 cm under their weight (measured: the hem of a 0.9 pattern settled 17 cm lower, 9 cm under the
+    knee), is cut shorter. Every ring stays `clearance` + 2 mm outside the convex hull of the trunk's, shoulders'
+    and thighs' cross-section at its height, so the pattern starts clear of the body wherever the hips are wider
+    than the cloth above them."""
 
     top: str
     flare_from: str
@@ -148,8 +149,9 @@ def drape_settings(kind: str, level: str = "full") -> DrapeSettings:
 def _hull_radii(feats, v: np.ndarray, z: float, centre: np.ndarray, ang: np.ndarray) -> np.ndarray:
     """Radii (len(ang),) from `centre` (xy) at angles `ang` (0 = -Y, the front, then towards +X) to where rays
     leave the convex hull of the cross-section of the body `v` (the A-pose the cloth is draped on: around the
-    armpits anny's bind space differs from it by centimetres) within 1.5 cm of height z, trunk, shoulders and thighs (the collider)
-    (`hull_anchors`; arms and hands are not part of the collider); -inf where the band has too few vertices."""
+    armpits anny's bind space differs from it by centimetres) within 1.5 cm of height z, trunk, shoulders and
+    thighs (the collider; `hull_anchors`; arms and hands are not part of it); -inf where the band has too few
+    vertices."""
     band = np.flatnonzero(feats.in_groups("torso", "shoulder", "upperleg") & (np.abs(v[:, 2] - z) < 0.015))
     if len(band) < 3:
         return np.full(len(ang), -np.inf)
@@ -158,16 +160,14 @@ def _hull_radii(feats, v: np.ndarray, z: float, centre: np.ndarray, ang: np.ndar
     return np.linalg.norm(ring[:, :2] - centre[:2], axis=1)
 
 
-def _under_the_arms(feats, body: np.ndarray, centre: np.ndarray, gap: float) -> float:
+def _under_the_arms(feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float) -> float:
     """Height of a dress's top ring: from halfway between spine02 and spine01 (the chest, under the armpits) down
     in 1 cm steps to spine03 at most, the first height where the ring (`gap` outside the trunk's cross-section)
     keeps `gap` / 2 off the whole A-pose body (trimesh closest points, `penetration`), arms included: the arms are
     no collider, and a ring through an inner upper arm pressed to the trunk would show as cloth cutting the arm."""
-    from .body import body_topology
-
     faces = body_topology().faces
-    z = 0.5 * (float(feats.bone_heads["spine01"][2]) + float(feats.bone_heads["spine02"][2]))
-    z_low = float(feats.bone_heads["spine03"][2])
+    z = 0.5 * (float(heads["spine01"][2]) + float(heads["spine02"][2]))
+    z_low = float(heads["spine03"][2])
     ang = np.arange(36) * (2.0 * np.pi / 36)
     while z > z_low:
         r = _hull_radii(feats, body, z, centre, ang) + gap
@@ -188,13 +188,17 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     st = drape_settings(kind) if settings is None else settings
     prof = PROFILES[kind]
     feats = body_features(phenotype)
-    body = run_anny(phenotype)["vertices"]
-    heads = feats.bone_heads
+    # Everything in the frame the cloth is simulated in: the A-pose body (the collider), whose pelvis anny puts at
+    # the origin, 8-9 cm below where it is in the bind space `BodyFeatures` and its bone heads live (the skirt's
+    # pattern was placed in bind space before the dress came: its waistband sat that much above the waist).
+    run = run_anny(phenotype)
+    body = run["vertices"]
+    heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
     na, nr = int(st.n_around), int(st.n_rings)
     gap = st.clearance + 0.002
     centre = np.asarray(heads["root"], dtype=np.float64)
     z_waist = 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01
-    z_top = z_waist if prof.top == "waist" else _under_the_arms(feats, body, centre, gap)
+    z_top = z_waist if prof.top == "waist" else _under_the_arms(feats, body, heads, centre, gap)
     z_flare = z_top if prof.flare_from == "top" else \
         0.5 * (float(heads["upperleg01.L"][2]) + float(heads["upperleg01.R"][2]))
     z_knee = 0.5 * (float(heads["lowerleg01.L"][2]) + float(heads["lowerleg01.R"][2]))
@@ -323,13 +327,15 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
     return p
 
 
-def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings) -> str:
+def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, pattern: np.ndarray) -> str:
     import newton
     import warp as wp
 
     key = {"v": DRAPE_VERSION, "kind": kind, "phenotype": {k: float(phenotype[k]) for k in PHENOTYPE_LABELS},
            "settings": dataclasses.asdict(st), "newton": newton.__version__, "warp": wp.__version__,
-           "topology": ANNY_TOPOLOGY}
+           "topology": ANNY_TOPOLOGY,
+           # The pattern itself: a change to how it is cut cannot read back a drape of the old cut.
+           "pattern": hashlib.sha256(np.ascontiguousarray(pattern, np.float64).tobytes()).hexdigest()}
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:24]
 
 
@@ -339,7 +345,7 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
     the kind's default (`drape_settings`) unless given."""
     settings = drape_settings(kind) if settings is None else settings
     verts, faces, uvs, pinned, mpu = garment_pattern(kind, phenotype, settings)
-    path = drape_cache_dir() / f"{kind}-{_cache_key(kind, phenotype, settings)}.npz"
+    path = drape_cache_dir() / f"{kind}-{_cache_key(kind, phenotype, settings, verts)}.npz"
     q = None
     if use_cache and path.is_file():
         try:
@@ -429,7 +435,7 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
     u = np.tile(np.arange(na + 1) / na, nr)
     uvs = np.clip(np.stack([u, (1.0 - ts) * length / g.metres_per_uv], 1), 0.0, 1.0)
     binding = bind_to_skeleton(g.vertices, phenotype)
-    dist, nn = cKDTree(feats.rest_vertices).query(g.vertices)
+    dist, nn = cKDTree(run_anny(phenotype)["vertices"]).query(g.vertices)  # the A-pose the cloth was draped on
     near = dist < NEAR_BODY
     np.maximum.at(under, nn[near], dist[near] + LAYER_GAP_DRAPE)
     skin = SkinBinding(binding.bind[src], binding.bones[src], binding.weights[src])
