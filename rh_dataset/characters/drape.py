@@ -1,11 +1,12 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
-In: a phenotype and a draped garment kind (`DRAPED_KINDS`). Out: `DrapedGarment`, the garment's settled rest-pose
-surface (vertices, faces, UVs) after `DrapeSettings.steps` steps of newton's `SolverVBD` with gravity, cloth
-self-contact and the body mesh (arms and hands left out) as a static collider, plus the skinning that moves it per
-frame (`SkinBinding`: the body's linear-blend weights transferred from the closest body point, the garment
-expressed in anny's bind space) and `push_out`, which puts skinned cloth that a limb swung into back on the skin.
-`penetration` measures.
+In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a strapless dress; `PROFILES` cuts each from
+one pattern function, `garment_pattern`) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
+Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
+steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
+static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
+transferred from the closest body point, the garment expressed in anny's bind space) and `push_out`, which puts
+skinned cloth that a limb swung into back on the skin. `penetration` measures.
 
 Why a solver, not a shell: a skirt's hem is longer than the body it hangs around, so it folds; only a cloth
 simulation finds where. The drape runs once per (phenotype, kind, settings) and is cached in a content-hashed
@@ -148,8 +149,8 @@ def drape_settings(kind: str, level: str = "full") -> DrapeSettings:
 
 def _hull_radii(feats, v: np.ndarray, z: float, centre: np.ndarray, ang: np.ndarray) -> np.ndarray:
     """Radii (len(ang),) from `centre` (xy) at angles `ang` (0 = -Y, the front, then towards +X) to where rays
-    leave the convex hull of the cross-section of the body `v` (the A-pose the cloth is draped on: around the
-    armpits anny's bind space differs from it by centimetres) within 1.5 cm of height z, trunk, shoulders and
+    leave the convex hull of the cross-section of the body `v` (the A-pose the cloth is draped on, not anny's bind
+    space) within 1.5 cm of height z, trunk, shoulders and
     thighs (the collider; `hull_anchors`; arms and hands are not part of it); -inf where the band has too few
     vertices."""
     band = np.flatnonzero(feats.in_groups("torso", "shoulder", "upperleg") & (np.abs(v[:, 2] - z) < 0.015))
