@@ -20,8 +20,10 @@ PHENO = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5,
 # Simulated cloth vertices may sit this deep under the posed skin (metres). newton's contact is a penalty that keeps
 # particles `DrapeSettings.clearance` (4 mm) off the body against gravity and the waistband's pull; where a moving
 # thigh presses the cloth, a vertex can end up a few millimetres inside (bench/bench_cloth_pose.py measures the
-# worst vertex per pose). The skinned path without push_out sinks the same skirt centimetres into a thigh.
-SIM_BOUND_M = 0.005
+# worst vertex per pose). The skinned path without push_out sinks the same skirt centimetres into a thigh. Measured
+# with the thigh raised 75 degrees: 8.3 mm for the skirt since it hangs from the A-pose's real waist (under 5 mm when
+# it sat 8-9 cm higher), under 5 mm for the dress; pose_character's final push_out removes it.
+SIM_BOUND_M = 0.01
 
 
 def _bent_hip(deg: float) -> dict[str, np.ndarray]:
@@ -230,8 +232,9 @@ def test_a_bad_preset_cloth_names_the_file(tmp_path):
 def test_a_thigh_swung_into_the_draped_skirt(tmp_path, monkeypatch, kind):
     """The left thigh raised 75 degrees into the draped skirt (and dress). Skinning alone sinks the cloth into the
     thigh, and push_out, which puts it back on the skin, squashes folds through each other; the simulated cloth
-    stays out of the thigh within SIM_BOUND_M, and far fewer of its edges cross the cloth (measured on the skirt:
-    19.5 mm deep before push_out and 108 crossing edges after it skinned; 0 crossing edges simulated)."""
+    stays out of the thigh within SIM_BOUND_M, and far fewer of its edges cross the cloth (measured on the skirt
+    when it sat 8-9 cm higher: 19.5 mm deep before push_out and 108 crossing edges after it skinned, 0 simulated;
+    now 13.1 mm (skirt) and 12.6 mm (dress) deep before push_out)."""
     from rh_dataset.characters.drape import drape_garment
 
     monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
@@ -240,7 +243,7 @@ def test_a_thigh_swung_into_the_draped_skirt(tmp_path, monkeypatch, kind):
     posed = run_anny(PHENO, deltas)
     faces = body_topology().faces
     raw = skin_points(bind_to_skeleton(g.vertices, PHENO), posed["bone_poses"], posed["rest_bone_poses"])
-    assert penetration(posed["vertices"], faces, raw).max() > 0.015
+    assert penetration(posed["vertices"], faces, raw).max() > 0.01  # skinning alone sinks the cloth into the thigh
     skinned = skin_into_pose([g], PHENO, deltas)[0]
     stats = {}
     sim = simulate_into_pose([g], PHENO, deltas, stats=stats)[0]
