@@ -19,12 +19,6 @@ import numpy as np
 STUDIO_HDRI = Path("/usr/share/blender/datafiles/studiolights/world/studio.exr")
 
 
-def iris_class(rgb) -> str:
-    from rh_dataset.characters.recipe_draws import _IRIS_PALETTE, IRIS_COLOUR_NAMES
-
-    return IRIS_COLOUR_NAMES[int(np.argmin(np.linalg.norm(_IRIS_PALETTE - np.asarray(rgb), axis=1)))]
-
-
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=Path("docs/eyes.png"))
@@ -37,6 +31,7 @@ def main() -> None:
     from rh_common.colourspace import quantize8, srgb_encode
     from rh_common.imageio import write_png
     from rh_dataset.characters import build_character, pose_character, recipe_from_seed
+    from rh_dataset.characters.recipe_draws import iris_colour_name as iris_class
     from rh_dataset.render.passes import render_frame
     from rh_dataset.render.scene import RenderSettings
     from rh_dataset.variant import load_mitsuba, select_variant

@@ -16,7 +16,7 @@ from rh_dataset.characters.body_features import body_features
 from rh_dataset.characters.eyes import (EYE_BONES, IRIS_RADIUS, MIRROR, PUPIL_RADIUS, SEAL, eye_geometry, fit_eyes,
                                         lid_penetration, socket_rim)
 from rh_dataset.characters.recipe import DEFAULT_IRIS, CharacterRecipe
-from rh_dataset.characters.recipe_draws import (IRIS_COLOUR_NAMES, _IRIS_PALETTE, iris_weights, recipe_from_seed,
+from rh_dataset.characters.recipe_draws import (IRIS_COLOUR_NAMES, iris_colour_name, iris_weights, recipe_from_seed,
                                                 sample_eyes)
 from rh_dataset.characters.textures import PUPIL_LINEAR, eye_texture
 
@@ -196,11 +196,7 @@ def test_iris_draw_follows_skin_and_its_own_stream():
 
     def classes(melanin, n=400):
         rng = np.random.default_rng(0)
-        names = []
-        for _ in range(n):
-            rgb = np.asarray(sample_eyes(rng, melanin).iris)
-            names.append(IRIS_COLOUR_NAMES[int(np.argmin(np.linalg.norm(_IRIS_PALETTE - rgb, axis=1)))])
-        return names
+        return [iris_colour_name(sample_eyes(rng, melanin).iris) for _ in range(n)]
 
     dark, light = classes(0.95), classes(0.05)
     assert not {"blue", "green", "grey"} & set(dark)

@@ -10,11 +10,12 @@ spherical pocket (radius 14-15.5 mm) around the eye joint, and each lid ends in 
 from the joint, rays in the slit leave the head; just outside it they meet the margin's front edge (15-18 mm away),
 then the margin itself, nearest (12-14.5 mm) at its inner edge, where the lid turns back into the pocket
 (`socket_rim` finds both edges on 72 azimuths). A ball centred near the joint closes the slit without a visible gap
-exactly when it reaches past every inner edge (its surface then runs through the lid margins all round), and it
-stays behind the lids while it stays short of the front edges. So: the centre keeps the joint's depth and is moved
-sideways and up/down (a 0.1 mm grid over +-3 mm) to the point nearest to all inner edges, the radius is the
-farthest inner edge (seen from the joint and from the centre, on both sides) plus `SEAL`, and the iris looks straight ahead, tilted down to the middle of the slit. The
-iris's size is anatomical (11 mm across, a 3.6 mm pupil), placed on the fitted ball.
+exactly when it reaches past every inner edge (its surface then runs through the lid margins all round); the lids'
+flesh in front of the margins keeps it from showing through them (`lid_penetration` measures what does). So: the
+centre keeps the joint's depth and is moved sideways and up/down (a 0.1 mm grid over +-3 mm) to the point nearest
+to all inner edges, the radius is the farthest inner edge (seen from the joint and from the centre, on both sides)
+plus `SEAL`, and the iris looks straight ahead, tilted down to the middle of the slit. The iris's size is
+anatomical (11 mm across, a 3.6 mm pupil), placed on the fitted ball.
 
 Skinning: anny has eye joints (`eye.L`, `eye.R`, children of `head`), but the skin around the eyes is weighted to
 `head` (>= 0.9) and follows the head's transform to 0.03 mm, while under anny's local-ref pose the eye joints turn
@@ -32,8 +33,7 @@ from .body_features import BodyFeatures
 from .drape import SkinBinding
 
 __all__ = ["EyeFit", "EyeGeometry", "RimLoop", "fit_eyes", "eye_geometry", "socket_rim", "lid_penetration",
-           "EYE_BONES", "SEAL",
-           "IRIS_RADIUS", "PUPIL_RADIUS", "MIRROR"]
+           "EYE_BONES", "SEAL", "IRIS_RADIUS", "PUPIL_RADIUS", "MIRROR"]
 
 EYE_BONES = ("eye.L", "eye.R")
 SEAL = 0.0003  # the ball reaches this far past the lids' inner edges (into the margins) all round

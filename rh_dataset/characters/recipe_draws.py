@@ -19,7 +19,7 @@ from .recipe import (COVERINGS, GARMENT_LAYERS, HAIR_STYLES, PATTERNS, POOLS, Ch
 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
-           "iris_weights", "EYES_STREAM"]
+           "iris_colour_name", "iris_weights", "EYES_STREAM"]
 
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 
@@ -230,6 +230,13 @@ def iris_weights(melanin: float) -> np.ndarray:
     s = (1.0 - float(melanin)) ** 2
     w = s * _IRIS_W_LIGHT + (1.0 - s) * _IRIS_W_DARK
     return w / w.sum()
+
+
+def iris_colour_name(rgb: tuple[float, float, float]) -> str:
+    """The class (IRIS_COLOUR_NAMES) whose palette colour is nearest in sRGB (as `hair_colour_name`; a large
+    jitter can move a brown to the neighbouring amber or hazel)."""
+    d = np.linalg.norm(_IRIS_PALETTE - np.asarray(rgb, dtype=np.float64), axis=1)
+    return IRIS_COLOUR_NAMES[int(np.argmin(d))]
 
 
 def sample_eyes(rng: np.random.Generator, melanin: float) -> EyeSpec:
