@@ -5,8 +5,9 @@
 
 In: every shell garment kind (`garments.SHELL_KINDS`) built alone on the phenotypes of benchmark seeds 2, 4, 6.
 Out: per kind and phenotype, the open edges of the garment's rest-pose surface (`geometry.boundary_loops`, vertices
-at body vertex + offset along the normal, or their blends) and each loop's roughness (`geometry.edge_roughness`: RMS
-curvature of the loop resampled every 5 mm, 1/m; a smooth circle of radius r reads 1/r).
+at body vertex + offset along the normal, or their blends) and each loop's roughness (`geometry.edge_roughness`: how
+much the curvature of the loop, resampled every 5 mm, varies beyond that of a circle of the same length; 1/m, 0 for
+a circle).
 
 `--before TREE`: also measure (and, with --picture, render) the garments made by another checkout of this repository
 (e.g. a `git worktree` of the commit before the level-set cut): this script re-runs itself there (cwd and
@@ -170,7 +171,8 @@ def main() -> None:
     after = measure(dump_meshes())
     before = measure(_from_tree(args.before, [])) if args.before is not None else None
     print(f"measured in {time.perf_counter() - t:.1f} s")
-    print("edge roughness: RMS curvature of each open edge resampled every 5 mm (1/m), longest loop first; "
+    print("edge roughness (geometry.edge_roughness: curvature spread beyond a circle of the same length, 5 mm steps, "
+          "1/m), longest loop first; "
           "loop lengths in cm")
     for kind in KINDS:
         for seed in SEEDS:

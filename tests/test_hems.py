@@ -9,7 +9,7 @@ import trimesh
 
 from rh_common.body_model import ANNY_TOPOLOGY
 from rh_dataset.characters import recipe_from_seed
-from rh_dataset.characters.body import body_topology
+from rh_dataset.characters.body import PHENOTYPE_LABELS, body_topology
 from rh_dataset.characters.body_features import body_features
 from rh_dataset.characters.garments import (
     BASE_OFFSET,
@@ -22,11 +22,15 @@ from rh_dataset.characters.garments import (
 from rh_dataset.characters.geometry import boundary_loops, edge_roughness, split_faces
 from rh_dataset.characters.recipe import Garment
 
-ROUGHNESS_MAX = 50.0  # 1/m, every open edge of every shell kind (measured worst 47.3: bench/bench_hems.py)
+# 1/m, every open edge of every shell kind (geometry.edge_roughness; bench/bench_hems.py measured worst 40.1 on
+# benchmark seeds 2, 4, 6, where whole faces read up to 95; 40.5 on the all-ones phenotype)
+ROUGHNESS_MAX = 45.0
 
 
-@pytest.fixture(scope="module", params=[2, 6])
+@pytest.fixture(scope="module", params=[2, 6, "ones"])
 def feats(request):
+    if request.param == "ones":  # the heaviest, tallest, most muscular corner of anny's phenotype space
+        return body_features({k: 1.0 for k in PHENOTYPE_LABELS})
     return body_features(recipe_from_seed(request.param, "benchmark", 0).phenotype)
 
 
@@ -120,7 +124,7 @@ def test_cut_edges_are_much_smoother_than_whole_faces(feats):
         _, _, r, o = _roughness(kind, feats)
         new += r
         old += o
-    assert np.median(new) < 0.7 * np.median(old), (np.median(new), np.median(old))
+    assert np.median(new) < 0.6 * np.median(old), (np.median(new), np.median(old))  # measured 0.42-0.47
 
 
 def test_shells_are_deterministic(feats):

@@ -206,9 +206,10 @@ def boundary_loops(vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray]:
 
 
 def edge_roughness(loop: np.ndarray, step: float = 0.005) -> float:
-    """Roughness of a closed curve (n, 3): the RMS curvature (1/m) of the curve resampled every `step` metres of
-    arc length (second differences). A smooth hem round a limb of radius r reads about 1 / r (a wrist ~20 1/m, a
-    waist ~7); a zigzag following the triangles reads several times more."""
+    """Roughness of a closed curve (n, 3), 1/m: how much its curvature varies beyond that of a circle of the same
+    length, sqrt(mean(k^2) - (2 pi / L)^2) over the curve resampled every `step` metres of arc length (k from second
+    differences). 0 for a circle (of any size); for a plane convex curve, the standard deviation of its curvature
+    (its mean is 2 pi / L). A zigzag that follows the triangles reads several times a smooth cut's value."""
     p = np.concatenate([loop, loop[:1]])
     seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(seg)])
@@ -216,7 +217,7 @@ def edge_roughness(loop: np.ndarray, step: float = 0.005) -> float:
     q = np.stack([np.interp(np.arange(n) * s[-1] / n, s, p[:, k]) for k in range(3)], 1)
     h = s[-1] / n
     k = np.linalg.norm(np.roll(q, -1, 0) - 2.0 * q + np.roll(q, 1, 0), axis=1) / h**2
-    return float(np.sqrt(np.mean(k**2)))
+    return float(np.sqrt(max(np.mean(k**2) - (2.0 * np.pi / s[-1]) ** 2, 0.0)))
 
 
 def hull_anchors(
