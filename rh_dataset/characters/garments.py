@@ -8,9 +8,12 @@ A garment is either
 - (skirts) a generated cone whose vertices are convex blends of body vertices on the hips and thighs: the blend of
   posed vertices plus an offset along the blended normal follows both legs the way a skirt does.
 
-Layers are resolved on the body vertices (interpolated along the edge at a cut): every garment's offset is at least the offset of the layers under it plus
-a gap, so an outer garment never dips under an inner one. Offsets taper towards a garment's open edges so a hem
-closes onto the skin (no visible gap between cloth and body at cuffs and collars).
+Layers are resolved on the body vertices (interpolated along the edge at a cut): every garment's offset is at least
+the offset of the layers under it plus a gap, so an outer garment never dips under an inner one. Offsets taper
+towards a garment's open edges so a hem closes onto the skin (no visible gap between cloth and body at cuffs and
+collars).
+
+In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first.
 """
 from __future__ import annotations
 
