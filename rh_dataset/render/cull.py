@@ -4,10 +4,10 @@ Two kinds, each sound only where stated:
 
 * **Skin hidden under clothes** (`hidden_faces`): body triangles covered by a garment shell (a garment cut from
   the body's own faces, offset outwards; a triangle the shell's edge cuts is not covered) or enclosed by a closed
-  garment (shoes, hair buns), and at least `margin` metres along the skin from any uncovered skin. Such skin is never seen (a primary ray meets the cloth
-  first) and is lit only through the thin gap at the openings, which the margin keeps it away from; so it neither
-  appears in any layer nor changes the light elsewhere beyond what bench/bench_savings.py measures (docs/TRADEOFFS.md).
-  Valid for every pass. Computed once per character, on the A-pose: the coverage is topological (garments follow
+  garment (shoes, hair buns), and at least `margin` metres along the skin from any uncovered skin. Such skin is
+  never seen (a primary ray meets the cloth first) and is lit only through the thin gap at the openings, which the
+  margin keeps it away from; so it neither appears in any layer nor changes the light elsewhere beyond what
+  bench/bench_savings.py measures (docs/TRADEOFFS.md). Valid for every pass. Computed once per character, on the A-pose: the coverage is topological (garments follow
   the skinning), and the margin absorbs how far a pose stretches the skin.
 
 * **Triangles outside the view frustum** (`outside_frustum`): only for passes that see nothing but primary hits (the
