@@ -104,7 +104,9 @@ class CharacterPart:
 
     faces (F, 3) int32 into the split vertices; uvs (V, 2) float32 in [0, 1], v up; body_vertex (V,) int64 the anny
     vertex each split vertex follows; offset (V,) float32 metres along the posed normal. Optional blend_vertices /
-    blend_weights (V, K): the anchor is then the weighted sum of those posed body vertices (skirts, hanging hair).
+    blend_weights (V, K): the anchor is then the weighted sum of those posed body vertices (skirts, hanging hair,
+    shells). Optional body_faces (F,) int64: the body face each face lies in (shells cut from the body's surface);
+    such a part is shaded with the blended body normals, not its own.
     """
 
     name: str
@@ -116,6 +118,7 @@ class CharacterPart:
     blend_vertices: np.ndarray | None = None
     blend_weights: np.ndarray | None = None
     skinning: SkinBinding | None = None  # draped garments: skinned by anny's bone transforms (drape.py)
+    body_faces: np.ndarray | None = None
     # Skinned points are pushed clear of the posed skin (cloth, headwear); eyeballs sit inside the head by design.
     collide: bool = True
 
@@ -152,6 +155,12 @@ class CharacterPart:
                 raise ValueError(f"CharacterPart {self.name}: skinning arrays must be ({n}, 3) and ({n}, K)")
             if self.blend_vertices is not None:
                 raise ValueError(f"CharacterPart {self.name}: skinning and blend anchors exclude each other")
+        if self.body_faces is not None:
+            bf = _ro(self.body_faces, np.int64)
+            if bf.shape != (len(faces),) or self.blend_vertices is None or bf.min() < 0:
+                raise ValueError(f"CharacterPart {self.name}: body_faces must be ({len(faces)},) face indices of a "
+                                 "blend-anchored shell")
+            object.__setattr__(self, "body_faces", bf)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -277,6 +286,7 @@ def _to_part(geo: PartGeometry, material: Material) -> CharacterPart:
         blend_vertices=geo.blend_vertices,
         blend_weights=geo.blend_weights,
         skinning=geo.skinning,
+        body_faces=geo.body_faces,
     )
 
 
@@ -379,12 +389,15 @@ def _split_fibres(hair, fibres: tuple[HairFibre, ...], rng: np.random.Generator)
     return tuple(out)
 
 
+def _blended_normals(normals: np.ndarray, bv: np.ndarray, bw: np.ndarray) -> np.ndarray:
+    nb = (normals[bv] * bw.astype(np.float64)[..., None]).sum(1)
+    return nb / np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
+
+
 def _anchor(verts: np.ndarray, normals: np.ndarray, bv: np.ndarray, bw: np.ndarray, off: np.ndarray) -> np.ndarray:
     """Blended anchors plus offsets along the blended normals (float64)."""
     w = bw.astype(np.float64)[..., None]
-    nb = (normals[bv] * w).sum(1)
-    nb /= np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
-    return (verts[bv] * w).sum(1) + off[:, None].astype(np.float64) * nb
+    return (verts[bv] * w).sum(1) + off[:, None].astype(np.float64) * _blended_normals(normals, bv, bw)
 
 
 def _check_transform(name: str, m: np.ndarray) -> np.ndarray:
@@ -466,7 +479,10 @@ def pose_character(
             v = p + part.offset[:, None].astype(np.float64) * n
         else:
             v = _anchor(verts, normals, part.blend_vertices, part.blend_weights, part.offset)
-            n = _welded_normals(v, part.faces)
+            if part.body_faces is not None:  # a shell: the body's own (interpolated) normals, as before it was cut
+                n = _blended_normals(normals, part.blend_vertices, part.blend_weights)
+            else:
+                n = _welded_normals(v, part.faces)
         n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
         n = n / np.linalg.norm(n, axis=1, keepdims=True)  # second pass: unit length to float32 precision
         posed.append(
