@@ -1,5 +1,5 @@
-"""A character = anny body + garments and headwear (textured meshes) + strand hair, each following the body's
-skinning.
+"""A character = anny body + eyeballs, garments and headwear (textured meshes) + strand hair, each following the
+body's skinning.
 
 UV convention: every `uvs` array is v-up (OpenGL): texture row 0 (the top of an albedo array) is v = 1. Mitsuba 3's
 `bitmap` texture looks rows up the other way round (row 0 at v = 0, checked by rendering a two-colour quad), so a
@@ -11,7 +11,9 @@ anchor's normal. Nothing is simulated per frame, so shell garments fold only whe
 every pose. Draped garments (drape.py) are simulated once in the rest pose and then, per frame, either skinned with
 the body's linear-blend weights transferred to them or simulated from the rest pose into the frame's
 (cloth_pose.py, the `cloth` argument); headwear (headwear.py) is skinned the same way (caps, hats and glasses
-rigidly to the head bone, head scarves with the body's weights), and presses or hides the hair under it. Hair is
+rigidly to the head bone, head scarves with the body's weights), and presses or hides the hair under it; the
+eyeballs (eyes.py) are rigid with anny's eye joints and, alone among skinned parts, are not pushed off the skin
+(they sit in the sockets, inside the head). Hair is
 strands (`hair.py`): every control point is anchored the same way as a shell vertex, and posing gives
 `PosedStrands` (control points and radii, one `HairFibre` per set of strands) beside the `PosedMesh`es.
 """
@@ -30,12 +32,13 @@ from .garments import PartGeometry, build_garments, shoe_height_map
 from .body_features import body_features
 from .cloth_pose import CLOTH_MODES, ClothPoseSettings, simulated_parts
 from .drape import SkinBinding, penetration, push_out, skin_points
+from .eyes import eye_geometry
 from .geometry import split_faces
 from .hair import build_hair
 from .headwear import build_headwear, press_hair
 from .hair_fibre import HairFibre, fibres_for_colour
 from .recipe import CharacterRecipe
-from .textures import body_layout_coords, garment_texture, shoe_sole, skin_texture, texel_positions
+from .textures import body_layout_coords, eye_texture, garment_texture, shoe_sole, skin_texture, texel_positions
 
 __all__ = [
     "Material",
@@ -67,7 +70,9 @@ class Material:
     principled-BSDF convention). two_sided: shade back faces too (hems, skirts and hair sheets are seen from inside).
     sheen / sheen_tint: the principled BSDF's cloth sheen lobe (retro-reflection at grazing angles; 0 = none) and
     how much of the albedo's colour it takes. The albedo ground truth stays `albedo`: the sheen is a lobe added on
-    top, like the specular one (docs/ARCHITECTURE.md, "Albedo").
+    top, like the specular one (docs/ARCHITECTURE.md, "Albedo"). clearcoat / clearcoat_gloss: the principled BSDF's
+    clear coat (a second, colourless specular layer; 0 = none) and its glossiness (1 = mirror-like): the tear film
+    on the eyes. Also not in the albedo.
     """
 
     albedo: np.ndarray
@@ -76,6 +81,8 @@ class Material:
     two_sided: bool = True
     sheen: float = 0.0
     sheen_tint: float = 0.5
+    clearcoat: float = 0.0
+    clearcoat_gloss: float = 0.0
 
     def __post_init__(self) -> None:
         a = np.asarray(self.albedo)
@@ -84,7 +91,7 @@ class Material:
         if not np.all(np.isfinite(a)) or a.min() < 0.0 or a.max() > 1.0:
             raise ValueError("Material.albedo must be finite and within [0, 1]")
         object.__setattr__(self, "albedo", _ro(a, np.float32))
-        for name in ("roughness", "specular", "sheen", "sheen_tint"):
+        for name in ("roughness", "specular", "sheen", "sheen_tint", "clearcoat", "clearcoat_gloss"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float, np.floating)) and 0.0 <= float(v) <= 1.0):
                 raise ValueError(f"Material.{name} must be in [0, 1], got {v!r}")
@@ -112,6 +119,8 @@ class CharacterPart:
     blend_weights: np.ndarray | None = None
     skinning: SkinBinding | None = None  # draped garments: skinned by anny's bone transforms (drape.py)
     body_faces: np.ndarray | None = None
+    # Skinned points are pushed clear of the posed skin (cloth, headwear); eyeballs sit inside the head by design.
+    collide: bool = True
 
     def __post_init__(self) -> None:
         faces = _ro(self.faces, np.int32)
@@ -235,12 +244,16 @@ FABRIC_SPECULAR = 0.15
 
 # Independent noise streams per texture: np.random.default_rng([seed, stream]).
 _STREAM_SKIN, _STREAM_HAIR, _STREAM_SOLE, _STREAM_SKIN_DETAIL, _STREAM_GARMENT0, _STREAM_HEADWEAR0 = 1, 2, 3, 4, 10, 30
+_STREAM_EYES = 5
 
 # Sheen of each fabric (recipe.FABRICS) for the principled BSDF's sheen lobe: woven cotton and denim have none worth
 # the name, a jersey a little, a knit's fibres more, a velvet's pile most (Burley 2012 uses sheen for exactly this).
 FABRIC_SHEEN = {"plain": 0.0, "jersey": 0.3, "knit": 0.6, "velvet": 1.0}
 # Headwear materials: fabric as garments; glasses frames are polished acetate (a dielectric of IOR ~1.5).
 FRAME_SPECULAR = 0.5
+# Eyes: a moist base (specular 0.5 ~ IOR 1.5, roughness 0.3) under a full clear coat, the tear film over cornea
+# and sclera (IOR 1.34-1.38), nearly mirror-like: the face's sharpest highlight.
+EYE_ROUGHNESS, EYE_SPECULAR, EYE_CLEARCOAT, EYE_CLEARCOAT_GLOSS = 0.3, 0.5, 1.0, 0.95
 
 # Shoe soles (linear RGB): white rubber, gum, black rubber; drawn per character, dark uppers favour white soles.
 _SOLE_COLOURS = np.array([[0.7, 0.7, 0.66], [0.32, 0.19, 0.09], [0.03, 0.03, 0.03]], dtype=np.float32)
@@ -334,6 +347,16 @@ def _build_cached(recipe_json: str, res: int) -> Character:
                            FABRIC_SPECULAR)
         parts.append(CharacterPart(h.kind, geo.faces, geo.uvs, _nearest_body_vertex(feats, geo.vertices),
                                    np.zeros(len(geo.vertices), np.float32), mat, skinning=geo.skinning))
+
+    eyes = eye_geometry(feats)
+    r2 = max(res // 4, 16)
+    eye_tex = eye_texture(recipe.eyes.iris, eyes.theta_iris, eyes.theta_pupil,
+                          np.random.default_rng([seed, _STREAM_EYES]), r2)
+    parts.append(CharacterPart("eyes", eyes.faces, eyes.uvs, _nearest_body_vertex(feats, eyes.vertices),
+                               np.zeros(len(eyes.vertices), np.float32),
+                               Material(eye_tex, EYE_ROUGHNESS, EYE_SPECULAR, two_sided=False,
+                                        clearcoat=EYE_CLEARCOAT, clearcoat_gloss=EYE_CLEARCOAT_GLOSS),
+                               skinning=eyes.skinning, collide=False))
 
     rng = np.random.default_rng([seed, _STREAM_HAIR])
     covers = [g.cover for g in hats if g.cover is not None]
@@ -447,7 +470,8 @@ def pose_character(
             if part.name in simulated and cloth_stats is not None:
                 depth = float(penetration(verts, topo.faces, v).max())
                 cloth_stats["depth_before_push_m"] = max(cloth_stats.get("depth_before_push_m", -np.inf), depth)
-            v = push_out(v, verts, normals, topo.faces)
+            if part.collide:
+                v = push_out(v, verts, normals, topo.faces)
             n = _welded_normals(v, part.faces)
         elif part.blend_vertices is None:
             p = verts[part.body_vertex]
