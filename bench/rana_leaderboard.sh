@@ -17,7 +17,7 @@
 #   SMPL+D                       the coarse stage, once with TextureNet's albedo (the paper's) and once with the
 #                                exposure-SH albedo of the runs without pretraining
 #   oracle bound                 listed apart, never ranked
-# PRETRAIN=0 leaves out pretraining and every row that needs it. The no-pretraining runs go beside the pretraining
+# PRETRAIN=0 leaves out pretraining, its data and every row that needs it. The no-pretraining runs go beside the pretraining
 # (one torch thread each); the pretrained runs of both protocols follow it in parallel.
 # PHASES (default "all") runs a part only, for a board made in pieces: "scratch" (the rows without pretraining),
 # "pretrain" (pretraining, then the pretrained rows), "board" (rh-eval, rh-leaderboard, screenshots), or a list.
@@ -54,8 +54,11 @@ else
     scene=$p; [ "$OLAT" = 1 ] && scene=olat_$p
     rh-generate --protocol $scene --out "$DATA" --subjects 2 --frames 20 --resolution 128 --preset draft --no-progress
   done
-  rh-generate --protocol rana_pretrain --out "$PRE_DATA" --subjects "$PRE_SUBJECTS" --frames "$PRE_FRAMES" \
-    --resolution 128 --preset draft --no-progress
+  # The pretraining frames only feed the pretraining: PRETRAIN=0 makes none (they were 1485 s of the last board).
+  if [ "$PRETRAIN" = 1 ]; then
+    rh-generate --protocol rana_pretrain --out "$PRE_DATA" --subjects "$PRE_SUBJECTS" --frames "$PRE_FRAMES" \
+      --resolution 128 --preset draft --no-progress
+  fi
 fi
 
 pretraining() {

@@ -4,7 +4,8 @@ In: a scene (default protocol_a: 49 benchmark subjects) and the dataset seed (rh
 recipes are drawn exactly as rh-generate draws them (`sample_recipe(rng_for(seed, "character", s), ...)`); nothing
 is built or rendered, so it runs in seconds. Out (stdout):
 * sex (anny's gender > 0.5 is female, as the recipe draws hair from it) and body (anny phenotype quartiles);
-* hair styles and colours (`recipe_draws.hair_colour_name`: the palette colour each was drawn from);
+* hair styles and colours (`recipe_draws.hair_colour_name`: the palette colour each was drawn from), iris colours
+  (`recipe_draws.iris_colour_name`);
 * garments: how many subjects wear each kind, and the patterns and fabrics;
 * every other top-level recipe field (headwear, ...), counted generically by its `kind`/`style`/`type` or value;
 * skin: the Individual Typology Angle of each subject's mean skin albedo (`rh_common.colourspace.ita_degrees` of
@@ -23,11 +24,11 @@ import numpy as np
 from rh_common.colourspace import ITA_CATEGORIES, ita_category, ita_degrees
 from rh_dataset.characters import sample_recipe
 from rh_dataset.characters.recipe import skin_albedo_linear
-from rh_dataset.characters.recipe_draws import hair_colour_name
+from rh_dataset.characters.recipe_draws import hair_colour_name, iris_colour_name
 from rh_dataset.generate.seeding import rng_for
 from rh_dataset.spec import load_protocol
 
-_READ = {"format", "seed", "pool", "index", "phenotype", "skin", "hair", "garments"}  # fields read by name below
+_READ = {"format", "seed", "pool", "index", "phenotype", "skin", "hair", "garments", "eyes"}  # read by name below
 
 
 def benchmark_recipes(scene: str, seed: int) -> list:
@@ -66,6 +67,7 @@ def summarise(recipes: list) -> list[str]:
         lines.append(f"  {k:13s} anny {k} min {q[0]:.2f}  quartiles {q[1]:.2f} {q[2]:.2f} {q[3]:.2f}  max {q[4]:.2f}")
     lines.append(f"hair styles     {_counts(Counter(r.hair.style for r in recipes))}")
     lines.append(f"hair colours    {_counts(Counter(hair_colour_name(r.hair.colour) for r in recipes))}")
+    lines.append(f"iris colours    {_counts(Counter(iris_colour_name(r.eyes.iris) for r in recipes))}")
     lines.append(f"garments        {_counts(Counter(g.kind for r in recipes for g in r.garments))}  (subjects wearing)")
     lines.append(f"  patterns      {_counts(Counter(g.pattern for r in recipes for g in r.garments if g.kind != 'shoes'))}")
     lines.append(f"  fabrics       {_counts(Counter(g.fabric for r in recipes for g in r.garments if g.kind != 'shoes'))}")

@@ -70,3 +70,23 @@ def sphere_camera(n: int = 24):
     from rh_common.camera import Camera
 
     return Camera(width=n, height=n, fov_y_deg=50.0, origin=(0.0, -4.0, 0.3), target=(0.0, 0.0, 0.0))
+
+
+_DEEP_REFERENCE: dict = {}
+
+
+def deep_sphere_reference():
+    """The full-frame reference the unbiasedness tests of the focused and adaptive beauty passes compare against:
+    the sphere (albedo 0.6, 0.5, 0.4) under `gradient_env` seen by `sphere_camera`, 16 chunks of 256 independent spp
+    at depth 3. Returns (env, camera, meshes, mean image, variance of that mean from its chunks), float64 images.
+    Rendered once per test session (a few seconds) and shared."""
+    if not _DEEP_REFERENCE:
+        from rh_dataset.render.passes import render_frame
+        from rh_dataset.render.scene import RenderSettings
+
+        env, cam, sphere = gradient_env(), sphere_camera(), [uv_sphere(albedo=(0.6, 0.5, 0.4))]
+        chunks = [render_frame(sphere, env, cam, RenderSettings(spp=256, aov_spp=4, max_depth=3), ["image"],
+                               seed=100 + k).layers["image"].astype(np.float64) for k in range(16)]
+        _DEEP_REFERENCE["ref"] = (env, cam, sphere, np.mean(chunks, axis=0),
+                                  np.var(chunks, axis=0, ddof=1) / len(chunks))
+    return _DEEP_REFERENCE["ref"]

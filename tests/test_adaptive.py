@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analytic_scenes import gradient_env, sphere_camera, uv_sphere
+from analytic_scenes import deep_sphere_reference, gradient_env, sphere_camera, uv_sphere
 from rh_common.colourspace import srgb_encode_reference
 from rh_dataset.render.adaptive import allocate, check_tiers, display_noise
 from rh_dataset.render.focus import person_pixels
@@ -81,11 +81,7 @@ def test_adaptive_beauty_is_an_unbiased_estimate_of_the_full_frame_image():
     # independent estimate; if both estimate the same image, the mean squared difference of the adaptive mean to the
     # reference equals the sum of their variances (ratio ~1), a bias would add to the numerator only. The frames'
     # spread includes the allocation's own randomness (each frame's pilot differs), as it must.
-    env, cam, sphere = gradient_env(), sphere_camera(), [uv_sphere(albedo=(0.6, 0.5, 0.4))]
-    ref_chunks = [render_frame(sphere, env, cam, RenderSettings(spp=256, aov_spp=4, max_depth=3), ["image"],
-                               seed=100 + k).layers["image"].astype(np.float64) for k in range(16)]
-    r = np.mean(ref_chunks, axis=0)
-    var_r = np.var(ref_chunks, axis=0, ddof=1) / len(ref_chunks)
+    env, cam, sphere, r, var_r = deep_sphere_reference()
     st = RenderSettings(spp=16, aov_spp=4, max_depth=3, env_spp=4, sampler="multijitter", adaptive_tiers=(4, 16, 36))
     runs = [render_frame(sphere, env, cam, st, ["image", "mask"], seed=1000 + 7 * k, exposure=1.0) for k in range(16)]
     tiers = runs[0].info["focus"]["pixels_per_tier"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analytic_scenes import gradient_env, sphere_camera, uv_sphere
+from analytic_scenes import deep_sphere_reference, gradient_env, sphere_camera, uv_sphere
 from rh_dataset.render.focus import padded_size, person_pixels, render_pixels
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings, scene_dict
@@ -57,11 +57,7 @@ def test_focused_beauty_is_an_unbiased_estimate_of_the_full_frame_image():
     # K frames at spp 16 / env_spp 1, each an independent estimate. If both estimate the same image, the mean
     # squared difference of the focused mean to the reference equals the sum of their variances (ratio ~1); a
     # bias adds to the numerator only.
-    env, cam, sphere = gradient_env(), sphere_camera(), [uv_sphere(albedo=(0.6, 0.5, 0.4))]
-    ref_chunks = [render_frame(sphere, env, cam, RenderSettings(spp=256, aov_spp=4, max_depth=3), ["image"],
-                               seed=100 + k).layers["image"].astype(np.float64) for k in range(16)]
-    r = np.mean(ref_chunks, axis=0)
-    var_r = np.var(ref_chunks, axis=0, ddof=1) / len(ref_chunks)
+    env, cam, sphere, r, var_r = deep_sphere_reference()
     st = RenderSettings(spp=16, aov_spp=4, max_depth=3, env_spp=1, sampler="multijitter")
     runs = [render_frame(sphere, env, cam, st, ["image", "mask"], seed=1000 + 7 * k) for k in range(16)]
     assert all(run.info["focus"]["pixels"] > 50 for run in runs)

@@ -234,9 +234,15 @@ def test_hidden_skin_is_covered_by_clothes_and_far_from_uncovered_skin(character
         pv = posed[name].vertices.astype(np.float64)
         box = np.flatnonzero(np.all((pos >= pv.min(0)) & (pos <= pv.max(0)), axis=1))
         enclosed[box] |= _inside_by_parity(pos[box], pv, posed[name].faces)
-    shells = {tuple(sorted(t)) for p in character.parts if p.name != "body" and p.blend_vertices is None
-              for t in p.body_vertex[p.faces]}
-    in_shell = np.array([tuple(sorted(t)) in shells for t in tri])
+    # A shell covers the body faces it copies whole (its vertices there sit on one body vertex each); a face its
+    # edge cuts is partly bare.
+    in_shell = np.zeros(len(tri), bool)
+    for p in character.parts:
+        if p.name != "body" and p.body_faces is not None:
+            whole = (p.blend_weights.max(axis=1) == 1.0)[p.faces].all(axis=1)
+            assert np.array_equal(np.sort(p.blend_vertices[p.faces[whole], 0], axis=1),
+                                  np.sort(tri[p.body_faces[whole]], axis=1))
+            in_shell[p.body_faces[whole]] = True
     covered = in_shell | enclosed[tri].all(axis=1)
     # Every hidden face is under a shell or enclosed ...
     assert np.all(covered[hid])

@@ -1,5 +1,5 @@
-"""Characters: anny bodies dressed in procedural garments, headwear and strand hair, with procedural skin and fabric
-textures.
+"""Characters: anny bodies with eyeballs, dressed in procedural garments, headwear and strand hair, with
+procedural skin, eye and fabric textures.
 
 Public API: recipes (`CharacterRecipe`, `sample_recipe`), `build_character`, `pose_character`, `body_bounds`.
 The body model itself is loaded by `rh_common.body_model` (shared with RANA).
@@ -24,6 +24,7 @@ from .recipe import (
     PATTERNS,
     POOLS,
     CharacterRecipe,
+    EyeSpec,
     Garment,
     HairSpec,
     Headwear,
@@ -49,6 +50,7 @@ __all__ = [
     "PATTERNS",
     "POOLS",
     "CharacterRecipe",
+    "EyeSpec",
     "Garment",
     "HairSpec",
     "Headwear",

@@ -1,5 +1,5 @@
-"""A character = anny body + garments and headwear (textured meshes) + strand hair, each following the body's
-skinning.
+"""A character = anny body + eyeballs, garments and headwear (textured meshes) + strand hair, each following the
+body's skinning.
 
 UV convention: every `uvs` array is v-up (OpenGL): texture row 0 (the top of an albedo array) is v = 1. Mitsuba 3's
 `bitmap` texture looks rows up the other way round (row 0 at v = 0, checked by rendering a two-colour quad), so a
@@ -11,7 +11,9 @@ anchor's normal. Nothing is simulated per frame, so shell garments fold only whe
 every pose. Draped garments (drape.py) are simulated once in the rest pose and then, per frame, either skinned with
 the body's linear-blend weights transferred to them or simulated from the rest pose into the frame's
 (cloth_pose.py, the `cloth` argument); headwear (headwear.py) is skinned the same way (caps, hats and glasses
-rigidly to the head bone, head scarves with the body's weights), and presses or hides the hair under it. Hair is
+rigidly to the head bone, head scarves with the body's weights), and presses or hides the hair under it; the
+eyeballs (eyes.py) are rigid with anny's eye joints and, alone among skinned parts, are not pushed off the skin
+(they sit in the sockets, inside the head). Hair is
 strands (`hair.py`): every control point is anchored the same way as a shell vertex, and posing gives
 `PosedStrands` (control points and radii, one `HairFibre` per set of strands) beside the `PosedMesh`es.
 """
@@ -30,12 +32,13 @@ from .garments import PartGeometry, build_garments, shoe_height_map
 from .body_features import body_features
 from .cloth_pose import CLOTH_MODES, ClothPoseSettings, simulated_parts
 from .drape import DRAPE_LEVELS, DrapeSettings, SkinBinding, penetration, push_out, skin_points
+from .eyes import eye_geometry
 from .geometry import split_faces
 from .hair import build_hair
 from .headwear import build_headwear, press_hair
 from .hair_fibre import HairFibre, fibres_for_colour
 from .recipe import CharacterRecipe
-from .textures import body_layout_coords, garment_texture, shoe_sole, skin_texture, texel_positions
+from .textures import body_layout_coords, eye_texture, garment_texture, shoe_sole, skin_texture, texel_positions
 
 __all__ = [
     "Material",
@@ -67,7 +70,9 @@ class Material:
     principled-BSDF convention). two_sided: shade back faces too (hems, skirts and hair sheets are seen from inside).
     sheen / sheen_tint: the principled BSDF's cloth sheen lobe (retro-reflection at grazing angles; 0 = none) and
     how much of the albedo's colour it takes. The albedo ground truth stays `albedo`: the sheen is a lobe added on
-    top, like the specular one (docs/ARCHITECTURE.md, "Albedo").
+    top, like the specular one (docs/ARCHITECTURE.md, "Albedo"). clearcoat / clearcoat_gloss: the principled BSDF's
+    clear coat (a second, colourless specular layer; 0 = none) and its glossiness (1 = mirror-like): the tear film
+    on the eyes. Also not in the albedo.
     """
 
     albedo: np.ndarray
@@ -76,6 +81,8 @@ class Material:
     two_sided: bool = True
     sheen: float = 0.0
     sheen_tint: float = 0.5
+    clearcoat: float = 0.0
+    clearcoat_gloss: float = 0.0
 
     def __post_init__(self) -> None:
         a = np.asarray(self.albedo)
@@ -84,7 +91,7 @@ class Material:
         if not np.all(np.isfinite(a)) or a.min() < 0.0 or a.max() > 1.0:
             raise ValueError("Material.albedo must be finite and within [0, 1]")
         object.__setattr__(self, "albedo", _ro(a, np.float32))
-        for name in ("roughness", "specular", "sheen", "sheen_tint"):
+        for name in ("roughness", "specular", "sheen", "sheen_tint", "clearcoat", "clearcoat_gloss"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float, np.floating)) and 0.0 <= float(v) <= 1.0):
                 raise ValueError(f"Material.{name} must be in [0, 1], got {v!r}")
@@ -97,7 +104,9 @@ class CharacterPart:
 
     faces (F, 3) int32 into the split vertices; uvs (V, 2) float32 in [0, 1], v up; body_vertex (V,) int64 the anny
     vertex each split vertex follows; offset (V,) float32 metres along the posed normal. Optional blend_vertices /
-    blend_weights (V, K): the anchor is then the weighted sum of those posed body vertices (skirts, hanging hair).
+    blend_weights (V, K): the anchor is then the weighted sum of those posed body vertices (skirts, hanging hair,
+    shells). Optional body_faces (F,) int64: the body face each face lies in (shells cut from the body's surface);
+    such a part is shaded with the blended body normals, not its own.
     """
 
     name: str
@@ -109,6 +118,9 @@ class CharacterPart:
     blend_vertices: np.ndarray | None = None
     blend_weights: np.ndarray | None = None
     skinning: SkinBinding | None = None  # draped garments: skinned by anny's bone transforms (drape.py)
+    body_faces: np.ndarray | None = None
+    # Skinned points are pushed clear of the posed skin (cloth, headwear); eyeballs sit inside the head by design.
+    collide: bool = True
     drape: DrapeSettings | None = None  # draped garments: the simulation they were draped with (drape.py)
 
     def __post_init__(self) -> None:
@@ -144,6 +156,12 @@ class CharacterPart:
                 raise ValueError(f"CharacterPart {self.name}: skinning arrays must be ({n}, 3) and ({n}, K)")
             if self.blend_vertices is not None:
                 raise ValueError(f"CharacterPart {self.name}: skinning and blend anchors exclude each other")
+        if self.body_faces is not None:
+            bf = _ro(self.body_faces, np.int64)
+            if bf.shape != (len(faces),) or self.blend_vertices is None or bf.min() < 0:
+                raise ValueError(f"CharacterPart {self.name}: body_faces must be ({len(faces)},) face indices of a "
+                                 "blend-anchored shell")
+            object.__setattr__(self, "body_faces", bf)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -227,12 +245,16 @@ FABRIC_SPECULAR = 0.15
 
 # Independent noise streams per texture: np.random.default_rng([seed, stream]).
 _STREAM_SKIN, _STREAM_HAIR, _STREAM_SOLE, _STREAM_SKIN_DETAIL, _STREAM_GARMENT0, _STREAM_HEADWEAR0 = 1, 2, 3, 4, 10, 30
+_STREAM_EYES = 5
 
 # Sheen of each fabric (recipe.FABRICS) for the principled BSDF's sheen lobe: woven cotton and denim have none worth
 # the name, a jersey a little, a knit's fibres more, a velvet's pile most (Burley 2012 uses sheen for exactly this).
 FABRIC_SHEEN = {"plain": 0.0, "jersey": 0.3, "knit": 0.6, "velvet": 1.0}
 # Headwear materials: fabric as garments; glasses frames are polished acetate (a dielectric of IOR ~1.5).
 FRAME_SPECULAR = 0.5
+# Eyes: a moist base (specular 0.5 ~ IOR 1.5, roughness 0.3) under a full clear coat, the tear film over cornea
+# and sclera (IOR 1.34-1.38), nearly mirror-like: the face's sharpest highlight.
+EYE_ROUGHNESS, EYE_SPECULAR, EYE_CLEARCOAT, EYE_CLEARCOAT_GLOSS = 0.3, 0.5, 1.0, 0.95
 
 # Shoe soles (linear RGB): white rubber, gum, black rubber; drawn per character, dark uppers favour white soles.
 _SOLE_COLOURS = np.array([[0.7, 0.7, 0.66], [0.32, 0.19, 0.09], [0.03, 0.03, 0.03]], dtype=np.float32)
@@ -265,6 +287,7 @@ def _to_part(geo: PartGeometry, material: Material) -> CharacterPart:
         blend_vertices=geo.blend_vertices,
         blend_weights=geo.blend_weights,
         skinning=geo.skinning,
+        body_faces=geo.body_faces,
         drape=geo.drape,
     )
 
@@ -331,6 +354,16 @@ def _build_cached(recipe_json: str, res: int, drape: str = "full") -> Character:
         parts.append(CharacterPart(h.kind, geo.faces, geo.uvs, _nearest_body_vertex(feats, geo.vertices),
                                    np.zeros(len(geo.vertices), np.float32), mat, skinning=geo.skinning))
 
+    eyes = eye_geometry(feats)
+    r2 = max(res // 4, 16)
+    eye_tex = eye_texture(recipe.eyes.iris, eyes.theta_iris, eyes.theta_pupil,
+                          np.random.default_rng([seed, _STREAM_EYES]), r2)
+    parts.append(CharacterPart("eyes", eyes.faces, eyes.uvs, _nearest_body_vertex(feats, eyes.vertices),
+                               np.zeros(len(eyes.vertices), np.float32),
+                               Material(eye_tex, EYE_ROUGHNESS, EYE_SPECULAR, two_sided=False,
+                                        clearcoat=EYE_CLEARCOAT, clearcoat_gloss=EYE_CLEARCOAT_GLOSS),
+                               skinning=eyes.skinning, collide=False))
+
     rng = np.random.default_rng([seed, _STREAM_HAIR])
     covers = [g.cover for g in hats if g.cover is not None]
     press = (lambda pts, sc: press_hair(pts, covers, sc)) if covers else None
@@ -362,12 +395,15 @@ def _split_fibres(hair, fibres: tuple[HairFibre, ...], rng: np.random.Generator)
     return tuple(out)
 
 
+def _blended_normals(normals: np.ndarray, bv: np.ndarray, bw: np.ndarray) -> np.ndarray:
+    nb = (normals[bv] * bw.astype(np.float64)[..., None]).sum(1)
+    return nb / np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
+
+
 def _anchor(verts: np.ndarray, normals: np.ndarray, bv: np.ndarray, bw: np.ndarray, off: np.ndarray) -> np.ndarray:
     """Blended anchors plus offsets along the blended normals (float64)."""
     w = bw.astype(np.float64)[..., None]
-    nb = (normals[bv] * w).sum(1)
-    nb /= np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
-    return (verts[bv] * w).sum(1) + off[:, None].astype(np.float64) * nb
+    return (verts[bv] * w).sum(1) + off[:, None].astype(np.float64) * _blended_normals(normals, bv, bw)
 
 
 def _check_transform(name: str, m: np.ndarray) -> np.ndarray:
@@ -440,7 +476,8 @@ def pose_character(
             if part.name in simulated and cloth_stats is not None:
                 depth = float(penetration(verts, topo.faces, v).max())
                 cloth_stats["depth_before_push_m"] = max(cloth_stats.get("depth_before_push_m", -np.inf), depth)
-            v = push_out(v, verts, normals, topo.faces)
+            if part.collide:
+                v = push_out(v, verts, normals, topo.faces)
             n = _welded_normals(v, part.faces)
         elif part.blend_vertices is None:
             p = verts[part.body_vertex]
@@ -448,7 +485,10 @@ def pose_character(
             v = p + part.offset[:, None].astype(np.float64) * n
         else:
             v = _anchor(verts, normals, part.blend_vertices, part.blend_weights, part.offset)
-            n = _welded_normals(v, part.faces)
+            if part.body_faces is not None:  # a shell: the body's own (interpolated) normals, as before it was cut
+                n = _blended_normals(normals, part.blend_vertices, part.blend_weights)
+            else:
+                n = _welded_normals(v, part.faces)
         n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
         n = n / np.linalg.norm(n, axis=1, keepdims=True)  # second pass: unit length to float32 precision
         posed.append(

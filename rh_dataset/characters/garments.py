@@ -1,14 +1,19 @@
 """Garment shells cut from the body's own surface, so they are skinned by anny's weights and follow every pose.
 
 A garment is either
-- a subset of the body's faces (chosen by bone-group labels and cut-offs along the limbs and the trunk) whose
-  vertices sit `offset` metres out along the posed body normal, or
+- a shell: the part of the body's surface where a smooth field (`garment_level`: height, distance along a limb)
+  is negative, cut out along the field's zero level through the triangles (`geometry.split_faces`), so necklines,
+  hems and cuffs are smooth curves, not the triangles' zigzag; its vertices sit `offset` metres out along the posed
+  body normal (a cut vertex: blended between the two ends of its body edge), or
 - (skirts) a generated cone whose vertices are convex blends of body vertices on the hips and thighs: the blend of
   posed vertices plus an offset along the blended normal follows both legs the way a skirt does.
 
-Layers are resolved on the body vertices: every garment's offset is at least the offset of the layers under it plus
-a gap, so an outer garment never dips under an inner one. Offsets taper towards a garment's open edges so a hem
-closes onto the skin (no visible gap between cloth and body at cuffs and collars).
+Layers are resolved on the body vertices (interpolated along the edge at a cut): every garment's offset is at least
+the offset of the layers under it plus a gap, so an outer garment never dips under an inner one. Offsets taper
+towards a garment's open edges so a hem closes onto the skin (no visible gap between cloth and body at cuffs and
+collars).
+
+In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first.
 """
 from __future__ import annotations
 
@@ -26,7 +31,7 @@ from .drape import DRAPED_KINDS, DrapeSettings, SkinBinding, draped_part, drape_
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
-__all__ = ["PartGeometry", "build_garments", "garment_vertex_mask", "BASE_OFFSET", "LAYER_GAP"]
+__all__ = ["PartGeometry", "build_garments", "garment_level", "SHELL_KINDS", "BASE_OFFSET", "LAYER_GAP"]
 
 # Cloth thickness above the skin, metres (outer garments thicker: a jacket stands off the body more than a tee).
 BASE_OFFSET = {
@@ -49,7 +54,8 @@ class PartGeometry:
 
     Posed position of split vertex i: anchor_i + offset_i * n_i, where anchor_i / n_i are the posed body vertex
     `body_vertex[i]` and its normal, or, when `blend_vertices` is set, the `blend_weights`-weighted sums of posed
-    body vertices / normals (normal renormalised).
+    body vertices / normals (normal renormalised). Shells (`body_faces` set) are blends of the two ends of a body
+    edge, so their cut edges can run across the body's triangles.
     """
 
     name: str
@@ -62,6 +68,7 @@ class PartGeometry:
     blend_vertices: np.ndarray | None = None  # (V, K) int64
     blend_weights: np.ndarray | None = None  # (V, K) float32, rows sum to 1
     skinning: "SkinBinding | None" = None  # draped garments: linear-blend skinning instead of anchors (drape.py)
+    body_faces: np.ndarray | None = None  # (F,) shells: the body face each face lies in (normals are the body's)
     drape: "DrapeSettings | None" = None  # draped garments: the simulation they were draped with (drape.py)
 
 
@@ -74,49 +81,66 @@ def _z(feats: BodyFeatures, bone: str) -> float:
     return float(feats.bone_heads[bone][2])
 
 
-def garment_vertex_mask(kind: str, feats: BodyFeatures) -> np.ndarray:
-    """Body vertices a shell garment covers (rest pose of this phenotype)."""
+def garment_level(kind: str, feats: BodyFeatures) -> np.ndarray:
+    """A smooth field (V,) float64 over the body vertices (rest pose of this phenotype), in metres, negative where
+    a shell garment covers the body: its zero level set is the garment's open edges (neckline, hem, cuffs, waist),
+    along which `split_faces` cuts the body's triangles. Each edge is a level of a smooth function (height, a
+    rounded scoop in front of the neck, distance along a limb's axis), so the cut is a smooth curve; bone-group
+    labels only pick which function applies to a vertex (an arm takes the sleeve's, never the trunk's), so their
+    ragged borders never become an edge."""
     v = feats.rest_vertices
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     z_neck = _z(feats, "neck01")
     y_neck = float(feats.bone_heads["neck01"][1])
     z_hip = 0.5 * (_z(feats, "upperleg01.L") + _z(feats, "upperleg01.R"))
     z_waist = 0.5 * (_z(feats, "root") + _z(feats, "spine04")) + 0.02
-    trunk = feats.in_groups("torso", "shoulder", "neck")
-    arm = feats.in_groups("shoulder", "upperarm", "lowerarm")
-    leg = feats.in_groups("upperleg", "lowerleg")
+    out = np.full(len(v), 1.0)  # vertices no part of the garment applies to: 1 m outside
     if kind in ("tshirt", "longsleeve", "jacket"):
-        # A scoop at the front centre: the neckline drops in front of the neck, not behind it.
-        front = np.clip(-(y - y_neck) / 0.07, 0.0, 1.0) * np.clip(1.0 - np.abs(x) / 0.1, 0.0, 1.0)
+        # A scoop at the front centre: the neckline drops in front of the neck, not behind it (smoothsteps, so
+        # the collar's curve has no corners).
+        front = _smoothstep(-(y - y_neck) / 0.07) * _smoothstep(1.0 - np.abs(x) / 0.1)
         drop = {"tshirt": 0.04, "longsleeve": 0.03, "jacket": 0.06}[kind]
-        z_collar = z_neck - 0.012 - drop * front
+        collar = z - (z_neck - 0.012 - drop * front)
         z_hem = z_hip + {"tshirt": 0.0, "longsleeve": -0.005, "jacket": -0.02}[kind]
         sleeve = {"tshirt": 0.3, "longsleeve": 0.95, "jacket": 0.97}[kind]
-        # Hem: a horizontal cut through trunk and hips alike (upper-leg labelled hip vertices included), kept above
-        # the crotch so a top never turns into a bodysuit between the legs.
-        hips = feats.in_groups("upperleg") & (z > z_hem)
-        body = (trunk | hips) & (z < z_collar) & (z > z_hem)
-        sleeves = arm & (np.nan_to_num(feats.arm_t, nan=9.0) <= sleeve) & (z < z_collar)
-        return body | sleeves
-    if kind in ("trousers", "shorts"):
+        # Hem: a horizontal cut through trunk and hips alike (upper-leg vertices included), above the crotch so a
+        # top never turns into a bodysuit between the legs.
+        trunk = feats.in_groups("torso", "shoulder", "neck", "upperleg")
+        arm = feats.in_groups("shoulder", "upperarm", "lowerarm", "hand")
+        body = np.maximum(collar, z_hem - z)
+        arm_len = {s: float(np.linalg.norm(feats.bone_heads[f"wrist.{s}"] - feats.bone_heads[f"upperarm01.{s}"]))
+                   for s in "LR"}
+        length = np.where(x > 0, arm_len["L"], arm_len["R"])
+        cuff = np.maximum(collar, (np.nan_to_num(feats.arm_t, nan=9.0) - sleeve) * length)
+        out = np.where(trunk, body, out)
+        out = np.where(arm, np.minimum(cuff, np.where(trunk, body, np.inf)), out)
+    elif kind in ("trousers", "shorts"):
         length = {"trousers": 0.965, "shorts": 0.42}[kind]
-        legs = leg & (np.nan_to_num(feats.leg_t, nan=9.0) <= length)
-        return (trunk | legs) & (z < z_waist) & ~feats.in_groups("shoulder", "neck")
-    if kind == "shoes":
-        foot = feats.in_groups("foot") | feats.masks["foot.L"] | feats.masks["foot.R"]
-        ankle = feats.in_groups("lowerleg") & (np.nan_to_num(feats.leg_t, nan=-9.0) >= 0.95)
-        return foot | ankle
-    raise ValueError(f"garment_vertex_mask: {kind!r} is not a shell garment")
+        leg_len = {s: float(np.linalg.norm(feats.bone_heads[f"foot.{s}"] - feats.bone_heads[f"upperleg01.{s}"]))
+                   for s in "LR"}
+        scale = np.where(x > 0, leg_len["L"], leg_len["R"])
+        waist = z - z_waist
+        leg = np.maximum(waist, (np.nan_to_num(feats.leg_t, nan=9.0) - length) * scale)
+        out = np.where(feats.in_groups("torso"), waist, out)
+        out = np.where(feats.in_groups("upperleg", "lowerleg", "foot"), leg, out)
+    else:
+        raise ValueError(f"garment_level: {kind!r} is not a shell garment (shells: {SHELL_KINDS})")
+    return out
 
 
-def _select_faces(mask: np.ndarray, topology: str) -> np.ndarray:
-    """Faces with all three vertices in the mask, with small holes filled and specks removed (labels from argmax
-    weights can leave a few stray faces)."""
+SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")
+LEVEL_MIN = 1e-5  # metres: no vertex sits on the level set itself (a cut there would make a zero-area face)
+
+
+def _clean_level(level: np.ndarray, topology: str) -> np.ndarray:
+    """The level with small holes filled and specks removed: an island of fewer than 60 uncovered faces inside a
+    garment is covered, an island of fewer than 40 covered faces (any corner inside) is dropped. Vertices are
+    also kept off the zero level by LEVEL_MIN."""
     topo = body_topology(topology)
-    sel = mask[topo.faces].all(axis=1)
-    # Face adjacency through shared edges.
+    level = np.where(np.abs(level) < LEVEL_MIN, np.where(level < 0, -LEVEL_MIN, LEVEL_MIN), level)
     f = topo.faces
     nf = len(f)
+    # Face adjacency through shared edges.
     e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
     fid = np.tile(np.arange(nf), 3)
     key = e[:, 0] * topo.n_vertices + e[:, 1]
@@ -130,15 +154,18 @@ def _select_faces(mask: np.ndarray, topology: str) -> np.ndarray:
         g = sparse.coo_matrix((np.ones(keep.sum()), (a[keep], b[keep])), shape=(nf, nf))
         return csgraph.connected_components(g, directed=False)
 
-    n, lab = components(~sel)  # holes: small islands of unselected faces
-    sizes = np.bincount(lab[~sel], minlength=n)
-    small = sizes < 60
-    sel = sel | (~sel & small[lab])
-    n, lab = components(sel)  # specks: small islands of selected faces
-    sizes = np.bincount(lab[sel], minlength=n)
-    big = sizes >= 40
-    sel = sel & big[lab]
-    return np.flatnonzero(sel)
+    sel = (level[f] < 0).any(axis=1)
+    n, lab = components(~sel)  # holes: small islands of uncovered faces
+    small = np.bincount(lab[~sel], minlength=n) < 60
+    fill = np.unique(f[~sel & small[lab]])
+    level = level.copy()
+    level[fill] = -np.abs(level[fill])
+    sel = (level[f] < 0).any(axis=1)
+    n, lab = components(sel)  # specks: small islands of covered faces
+    tiny = np.bincount(lab[sel], minlength=n) < 40
+    drop = np.unique(f[sel & tiny[lab]])
+    level[drop] = np.abs(level[drop])
+    return level
 
 
 def _metres_per_uv(face_ids: np.ndarray, feats: BodyFeatures, topology: str) -> float:
@@ -152,26 +179,33 @@ def _metres_per_uv(face_ids: np.ndarray, feats: BodyFeatures, topology: str) -> 
 
 
 def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str) -> PartGeometry:
-    face_ids = _select_faces(garment_vertex_mask(kind, feats), topology)
-    split = split_faces(face_ids, topology)
-    dist = boundary_distance(face_ids, feats.rest_vertices, topology)
-    taper = TAPER_MIN + (1.0 - TAPER_MIN) * _smoothstep(dist / TAPER_WIDTH)
-    off = BASE_OFFSET[kind] * taper
-    if kind == "shoes":
-        # Soles: thicker where the foot faces down.
-        off = off + 0.012 * np.clip(-feats.rest_normals[:, 2] - 0.3, 0.0, 1.0)
-    verts = np.unique(split.body_vertex)
+    """A shell cut from the body along `garment_level`'s zero level. Every vertex is a blend of the two ends of a
+    body edge (weight 1 on one end except on the cut), offset along the blended normal: the taper runs over the
+    surface distance from the cut, and layering compares with the layers below interpolated the same way."""
+    level = _clean_level(garment_level(kind, feats), topology)
+    topo = body_topology(topology)
+    face_ids = np.flatnonzero((level[topo.faces] < 0).any(axis=1))
+    split = split_faces(face_ids, topology, level=level)
+    dist = boundary_distance(split, feats.rest_vertices)
+    off = BASE_OFFSET[kind] * (TAPER_MIN + (1.0 - TAPER_MIN) * _smoothstep(dist / TAPER_WIDTH))
+    t = split.cut_t
     need = np.where(under > 0, under + LAYER_GAP, 0.0)
-    off = np.maximum(off, need)
-    under[verts] = np.maximum(under[verts], off[verts])
+    off = np.maximum(off, (1.0 - t) * need[split.body_vertex] + t * need[split.cut_vertex])
+    whole = t == 0
+    np.maximum.at(under, split.body_vertex[whole], off[whole])
+    bv = np.stack([split.body_vertex, split.cut_vertex], 1)
+    bw = np.stack([1.0 - t, t], 1).astype(np.float32)
     return PartGeometry(
         name=kind,
         faces=split.faces,
         uvs=split.uvs,
-        body_vertex=split.body_vertex,
-        offset=off[split.body_vertex].astype(np.float32),
+        body_vertex=np.where(t > 0.5, split.cut_vertex, split.body_vertex),
+        offset=off.astype(np.float32),
         uv_layout="body",
         metres_per_uv=_metres_per_uv(face_ids, feats, topology),
+        blend_vertices=bv,
+        blend_weights=bw,
+        body_faces=split.body_faces,
     )
 
 

@@ -1,8 +1,9 @@
 """Mesh utilities shared by garments, hair and textures: seam splitting, surface distances, anchoring points to the
 body, clearance, UV rasterisation, tubes.
 
-In: anny's topology (by name), vertex/normal arrays and index selections. Out: split meshes (`split_faces`),
-per-vertex distances (`boundary_distance`, `surface_clearance`), ray distances to a mesh (`first_hit`, trimesh),
+In: anny's topology (by name), vertex/normal arrays and index selections. Out: split meshes (`split_faces`, cut
+along a level set when asked), per-vertex distances (`boundary_distance`, `surface_clearance`), a mesh's open edges
+as loops and their roughness (`boundary_loops`, `edge_roughness`), ray distances to a mesh (`first_hit`, trimesh),
 blend weights that make a point follow the posed body (`hull_anchors`, `smoothing_weights`, `bind_points` ->
 `Binding`), compacted meshes (`drop_unreferenced`), the texel -> (face, barycentrics) map of anny's UV layout
 (`uv_raster`) and capped tubes (`closed_tube`).
@@ -28,6 +29,8 @@ __all__ = [
     "SplitMesh",
     "split_faces",
     "boundary_distance",
+    "boundary_loops",
+    "edge_roughness",
     "hull_anchors",
     "smoothing_weights",
     "Binding",
@@ -42,49 +45,179 @@ __all__ = [
 
 @dataclasses.dataclass(frozen=True)
 class SplitMesh:
-    """A subset of the body's faces with vertices split at UV seams (what a renderer with per-vertex UVs needs)."""
+    """A subset of the body's faces with vertices split at UV seams (what a renderer with per-vertex UVs needs),
+    optionally cut along a level set (`split_faces(level=...)`): a cut vertex lies on the body edge from
+    `body_vertex` (inside) to `cut_vertex` (outside), at fraction `cut_t` of the way; other vertices have
+    cut_vertex == body_vertex and cut_t == 0."""
 
     faces: np.ndarray  # (F, 3) int32 into the split vertices
     uvs: np.ndarray  # (V, 2) float32, v up
-    body_vertex: np.ndarray  # (V,) int64 body vertex each split vertex follows
-    body_faces: np.ndarray  # (F,) int64 index of each face in the body's face list
+    body_vertex: np.ndarray  # (V,) int64 body vertex each split vertex follows (a cut vertex: its inside end)
+    body_faces: np.ndarray  # (F,) int64 index of the body face each face lies in
+    cut_vertex: np.ndarray  # (V,) int64 the other end of a cut vertex's body edge (= body_vertex when not cut)
+    cut_t: np.ndarray  # (V,) float64 in [0, 1): how far along that edge
+
+    def points(self, vertices: np.ndarray) -> np.ndarray:
+        """Positions (V, 3) float64 of the split vertices on a body surface given by its vertices (any pose)."""
+        t = self.cut_t[:, None]
+        return (1.0 - t) * vertices[self.body_vertex] + t * vertices[self.cut_vertex]
+
+    def welded(self) -> np.ndarray:
+        """(V,) int64 index of each split vertex among the distinct surface points (UV-seam copies share one)."""
+        _, inv = np.unique(np.stack([self.body_vertex, self.cut_vertex], 1), axis=0, return_inverse=True)
+        return inv.ravel().astype(np.int64)
 
 
-def split_faces(face_ids: np.ndarray, topology: str = ANNY_TOPOLOGY) -> SplitMesh:
-    """One split vertex per unique (body vertex, UV index) pair among the corners of the selected faces."""
+CUT_T_MIN = 1e-3  # a cut point never sits closer than this fraction of its edge to a vertex (no zero-area faces)
+
+
+def split_faces(face_ids: np.ndarray, topology: str = ANNY_TOPOLOGY, level: np.ndarray | None = None) -> SplitMesh:
+    """One split vertex per unique (body vertex, UV index) pair among the corners of the selected faces.
+
+    `level` (V,) per body vertex, if given, cuts the selection along its zero level set and keeps the side where
+    it is negative: a face with all corners inside is kept whole, one with none dropped, and one that straddles
+    the level is replaced by its inside part (a triangle or a quad, as one or two triangles) whose new corners lie
+    on the crossed edges where the linearly interpolated level is zero. A cut vertex is shared by both faces of its
+    edge (per UV index pair, like any split vertex), so the result is as watertight as the selection and its open
+    edges follow the level set instead of the triangles' zigzag."""
     topo = body_topology(topology)
     face_ids = np.asarray(face_ids, dtype=np.int64)
-    fv = topo.faces[face_ids]
-    ft = topo.face_texcoords[face_ids]
-    key = fv.astype(np.int64) * (len(topo.texcoords) + 1) + ft
-    uniq, inverse = np.unique(key.ravel(), return_inverse=True)
-    body_vertex = uniq // (len(topo.texcoords) + 1)
-    uv_index = uniq % (len(topo.texcoords) + 1)
+    fv = topo.faces[face_ids].astype(np.int64)
+    ft = topo.face_texcoords[face_ids].astype(np.int64)
+    if level is None:
+        inside = np.ones(fv.shape, dtype=bool)
+    else:
+        level = np.asarray(level, dtype=np.float64)
+        if level.shape != (topo.n_vertices,) or not np.all(np.isfinite(level)):
+            raise ValueError(f"split_faces: level must be ({topo.n_vertices},) finite values, one per body vertex")
+        inside = level[fv] < 0.0
+    n_in = inside.sum(1)
+    # Corner records (inside vertex a, outside vertex b, their UV indices); an uncut corner is (a, a, ta, ta).
+    rec, src = [], []
+
+    def corner(rows, k):
+        c = np.arange(len(rows))
+        return np.stack([fv[rows, k[c]], fv[rows, k[c]], ft[rows, k[c]], ft[rows, k[c]]], 1)
+
+    def crossing(rows, k_in, k_out):
+        c = np.arange(len(rows))
+        return np.stack([fv[rows, k_in[c]], fv[rows, k_out[c]], ft[rows, k_in[c]], ft[rows, k_out[c]]], 1)
+
+    whole = np.flatnonzero(n_in == 3)
+    if len(whole):
+        rec.append(np.stack([corner(whole, np.full(len(whole), k)) for k in range(3)], 1))
+        src.append(whole)
+    one = np.flatnonzero(n_in == 1)  # the inside corner first, then the two crossings (winding kept)
+    if len(one):
+        k0 = np.argmax(inside[one], axis=1)
+        k1, k2 = (k0 + 1) % 3, (k0 + 2) % 3
+        rec.append(np.stack([corner(one, k0), crossing(one, k0, k1), crossing(one, k0, k2)], 1))
+        src.append(one)
+    two = np.flatnonzero(n_in == 2)  # corners k0, k1 inside, k2 outside: quad k0, k1, x12, x02 as two triangles
+    if len(two):
+        k2 = np.argmin(inside[two], axis=1)
+        k0, k1 = (k2 + 1) % 3, (k2 + 2) % 3
+        c0, c1 = corner(two, k0), corner(two, k1)
+        x12, x02 = crossing(two, k1, k2), crossing(two, k0, k2)
+        rec.append(np.stack([c0, c1, x12], 1))
+        rec.append(np.stack([c0, x12, x02], 1))
+        src += [two, two]
+    if not rec:
+        raise ValueError("split_faces: nothing selected (no face has a corner inside the level set)")
+    rec = np.concatenate(rec)  # (F', 3, 4)
+    body_faces = face_ids[np.concatenate(src)]
+    order = np.argsort(body_faces, kind="stable")  # faces in body order (a cut quad's two halves together)
+    rec, body_faces = rec[order], body_faces[order]
+    uniq, inverse = np.unique(rec.reshape(-1, 4), axis=0, return_inverse=True)
+    a, b, ta, tb = uniq.T
+    t = np.zeros(len(uniq))
+    cut = a != b
+    if cut.any():
+        la, lb = level[a[cut]], level[b[cut]]
+        t[cut] = np.clip(la / (la - lb), CUT_T_MIN, 1.0 - CUT_T_MIN)
+    tex = topo.texcoords.astype(np.float64)
+    uvs = (1.0 - t)[:, None] * tex[ta] + t[:, None] * tex[tb]
     return SplitMesh(
         faces=inverse.reshape(-1, 3).astype(np.int32),
-        uvs=topo.texcoords[uv_index].astype(np.float32),
-        body_vertex=body_vertex.astype(np.int64),
-        body_faces=face_ids,
+        uvs=uvs.astype(np.float32),
+        body_vertex=a.astype(np.int64),
+        body_faces=body_faces,
+        cut_vertex=b.astype(np.int64),
+        cut_t=t,
     )
 
 
-def boundary_distance(face_ids: np.ndarray, vertices: np.ndarray, topology: str = ANNY_TOPOLOGY) -> np.ndarray:
-    """Distance along the surface (shortest path over mesh edges) from each body vertex of the selected faces to
-    the open boundary of the selection; inf for vertices outside it. Used to taper garment and hair offsets so a
-    hem closes onto the skin instead of leaving a visible gap."""
-    topo = body_topology(topology)
-    f = topo.faces[np.asarray(face_ids, dtype=np.int64)]
+def boundary_distance(split: SplitMesh, vertices: np.ndarray) -> np.ndarray:
+    """Distance along the surface (shortest path over the mesh's edges, UV-seam copies welded) from each split
+    vertex to the mesh's open boundary, on the body surface given by `vertices`; cut vertices of a level-set cut
+    lie on that boundary (0). Used to taper garment offsets so a hem closes onto the skin instead of leaving a
+    visible gap."""
+    weld = split.welded()
+    n = int(weld.max()) + 1
+    pos = np.zeros((n, 3))
+    pos[weld] = split.points(vertices)
+    f = weld[split.faces]
     e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
     uniq, counts = np.unique(e, axis=0, return_counts=True)
     boundary = np.unique(uniq[counts == 1].ravel())
-    n = topo.n_vertices
-    w = np.linalg.norm(vertices[uniq[:, 0]] - vertices[uniq[:, 1]], axis=1) + 1e-9
-    graph = sparse.coo_matrix((w, (uniq[:, 0], uniq[:, 1])), shape=(n, n)).tocsr()
     if len(boundary) == 0:
-        out = np.full(n, np.inf)
-        out[np.unique(f)] = 1.0
-        return out
-    return csgraph.dijkstra(graph, directed=False, indices=boundary, min_only=True)
+        return np.ones(len(weld))
+    w = np.linalg.norm(pos[uniq[:, 0]] - pos[uniq[:, 1]], axis=1) + 1e-9
+    graph = sparse.coo_matrix((w, (uniq[:, 0], uniq[:, 1])), shape=(n, n)).tocsr()
+    return csgraph.dijkstra(graph, directed=False, indices=boundary, min_only=True)[weld]
+
+
+def boundary_loops(vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray]:
+    """The open edges of a mesh as closed loops of points ((n, 3) each, the first point not repeated), vertices at
+    equal positions (UV-seam copies) welded first. Raises if an open edge's vertex has more than two open edges
+    (the boundary is not a set of simple loops)."""
+    import trimesh
+
+    key = np.round(np.asarray(vertices, np.float64) / 1e-7).astype(np.int64)
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    mesh = trimesh.Trimesh(np.asarray(vertices, np.float64)[first], inv.ravel()[faces], process=False)
+    edges = mesh.edges_sorted[trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)]
+    if len(edges) == 0:
+        return []
+    if np.any(np.bincount(edges.ravel()) > 2):
+        raise ValueError("boundary_loops: a vertex has more than two open edges (boundary not manifold)")
+    loops = []
+    for comp in trimesh.graph.connected_components(edges):
+        nxt = {}
+        sub = edges[np.isin(edges[:, 0], comp)]
+        for a, b in sub:
+            nxt.setdefault(a, []).append(b)
+            nxt.setdefault(b, []).append(a)
+        if any(len(v) != 2 for v in nxt.values()):
+            raise ValueError("boundary_loops: an open boundary does not close into a loop")
+        start = int(comp[0])
+        order, prev, cur = [start], -1, start
+        while True:
+            a, b = nxt[cur]
+            step = a if a != prev else b
+            if step == start:
+                break
+            order.append(step)
+            prev, cur = cur, step
+        if len(order) != len(comp):
+            raise ValueError("boundary_loops: an open boundary does not close into a single loop")
+        loops.append(mesh.vertices[order])
+    return loops
+
+
+def edge_roughness(loop: np.ndarray, step: float = 0.005) -> float:
+    """Roughness of a closed curve (n, 3), 1/m: how much its curvature varies beyond that of a circle of the same
+    length, sqrt(mean(k^2) - (2 pi / L)^2) over the curve resampled every `step` metres of arc length (k from second
+    differences). 0 for a circle (of any size); for a plane convex curve, the standard deviation of its curvature
+    (its mean is 2 pi / L). A zigzag that follows the triangles reads several times a smooth cut's value."""
+    p = np.concatenate([loop, loop[:1]])
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    n = max(int(round(s[-1] / step)), 8)
+    q = np.stack([np.interp(np.arange(n) * s[-1] / n, s, p[:, k]) for k in range(3)], 1)
+    h = s[-1] / n
+    k = np.linalg.norm(np.roll(q, -1, 0) - 2.0 * q + np.roll(q, 1, 0), axis=1) / h**2
+    return float(np.sqrt(max(np.mean(k**2) - (2.0 * np.pi / s[-1]) ** 2, 0.0)))
 
 
 def hull_anchors(

@@ -39,6 +39,8 @@ def _mesh(mi, pm: PosedMesh):
     }
     if pm.material.sheen > 0.0:
         bsdf.update(sheen=pm.material.sheen, sheen_tint=pm.material.sheen_tint)
+    if pm.material.clearcoat > 0.0:
+        bsdf.update(clearcoat=pm.material.clearcoat, clearcoat_gloss=pm.material.clearcoat_gloss)
     if pm.material.two_sided:
         bsdf = {"type": "twosided", "bsdf": bsdf}
     props = mi.Properties()

@@ -29,6 +29,8 @@ __all__ = [
     "HairSpec",
     "Garment",
     "Headwear",
+    "EyeSpec",
+    "DEFAULT_IRIS",
     "CharacterRecipe",
     "skin_albedo_linear",
 ]
@@ -216,6 +218,22 @@ class Headwear:
         _check_fabric_fields(self, "headwear")
 
 
+# Eyes (eyes.py): the iris colour. Recipes written before eyes existed have no "eyes" key and read back with
+# DEFAULT_IRIS, a medium brown (the commonest iris colour worldwide).
+DEFAULT_IRIS = (99 / 255, 60 / 255, 32 / 255)
+
+
+@dataclasses.dataclass(frozen=True)
+class EyeSpec:
+    """iris: the iris's colour, sRGB in [0, 1] (its mean; `textures.eye_texture` paints fibres and a darker limbal
+    ring around it). Sclera and pupil are drawn by the texture's own stream, not stored."""
+
+    iris: tuple[float, float, float] = DEFAULT_IRIS
+
+    def __post_init__(self) -> None:
+        _set(self, "iris", _check_rgb("eyes.iris", self.iris))
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # The recipe
 # ---------------------------------------------------------------------------------------------------------------
@@ -223,7 +241,8 @@ class Headwear:
 class CharacterRecipe:
     """Everything that defines a character. `garments` is ordered from the innermost layer outwards. `headwear`:
     at most one of COVERINGS, then optionally glasses (empty = none; the JSON then has no "headwear" key, so
-    recipes written before headwear existed read back unchanged)."""
+    recipes written before headwear existed read back unchanged). `eyes`: the iris colour (recipes without it read
+    with `EyeSpec()`)."""
 
     seed: int
     pool: str
@@ -233,6 +252,7 @@ class CharacterRecipe:
     hair: HairSpec
     garments: tuple[Garment, ...]
     headwear: tuple[Headwear, ...] = ()
+    eyes: EyeSpec = EyeSpec()
 
     def __post_init__(self) -> None:
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not (0 <= self.seed < 2**63):
@@ -278,6 +298,8 @@ class CharacterRecipe:
         if len(set(hk)) != len(hk) or sum(k in COVERINGS for k in hk) > 1 or hk != ordered:
             raise ValueError(f"headwear: at most one of {COVERINGS}, then optionally glasses, got {hk}")
         _set(self, "headwear", headwear)
+        if not isinstance(self.eyes, EyeSpec):
+            raise ValueError(f"eyes must be an EyeSpec, got {type(self.eyes).__name__}")
 
     # JSON -------------------------------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -293,6 +315,7 @@ class CharacterRecipe:
                 {**dataclasses.asdict(g), "colour": list(g.colour), "colour2": list(g.colour2)} for g in self.garments
             ],
         }
+        d["eyes"] = {"iris": list(self.eyes.iris)}
         if self.headwear:
             d["headwear"] = [{**dataclasses.asdict(h), "colour": list(h.colour), "colour2": list(h.colour2)}
                              for h in self.headwear]
@@ -314,9 +337,10 @@ class CharacterRecipe:
         if d.get("format") != RECIPE_FORMAT:
             raise ValueError(f"format must be {RECIPE_FORMAT!r}, got {d.get('format')!r}")
         expected = {"format", "seed", "pool", "index", "phenotype", "skin", "hair", "garments"}
-        if set(d) - {"headwear"} != expected:  # headwear is optional (absent = none)
-            raise ValueError(f"recipe keys must be {sorted(expected)} (and optionally headwear), got unknown "
-                             f"{sorted(set(d) - expected - {'headwear'})} missing {sorted(expected - set(d))}")
+        optional = {"headwear", "eyes"}  # absent = no headwear, EyeSpec()
+        if set(d) - optional != expected:
+            raise ValueError(f"recipe keys must be {sorted(expected)} (and optionally {sorted(optional)}), got unknown "
+                             f"{sorted(set(d) - expected - optional)} missing {sorted(expected - set(d))}")
         try:
             skin = SkinTone(**d["skin"])
         except TypeError as exc:
@@ -343,8 +367,16 @@ class CharacterRecipe:
                 headwear.append(Headwear(**h))
             except (TypeError, KeyError) as exc:
                 raise ValueError(f"headwear[{i}]: {exc}") from exc
+        eyes = EyeSpec()
+        if "eyes" in d:
+            try:
+                e = dict(d["eyes"])
+                e["iris"] = tuple(e["iris"])
+                eyes = EyeSpec(**e)
+            except (TypeError, KeyError, ValueError) as exc:
+                raise ValueError(f"eyes: {exc} (expected {{\"iris\": [r, g, b]}}, sRGB in [0, 1])") from exc
         return cls(seed=d["seed"], pool=d["pool"], index=d["index"], phenotype=dict(d["phenotype"]), skin=skin,
-                   hair=hair, garments=tuple(garments), headwear=tuple(headwear))
+                   hair=hair, garments=tuple(garments), headwear=tuple(headwear), eyes=eyes)
 
     @classmethod
     def from_json(cls, data: str | dict[str, Any]) -> "CharacterRecipe":

@@ -15,10 +15,11 @@ import numpy as np
 
 from .body import sample_phenotype
 from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, PATTERNS, POOLS, TOPS, CharacterRecipe,
-                     Garment, HairSpec, Headwear, SkinTone)
+                     EyeSpec, Garment, HairSpec, Headwear, SkinTone)
 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
-           "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "DRESS_P", "DRESS_STREAM"]
+           "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
+           "iris_colour_name", "iris_weights", "EYES_STREAM", "DRESS_P", "DRESS_STREAM"]
 
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 # Loose clothing (issue 17): the published dataset's subjects wear "long hair, loose clothing, jackets, hats, head
@@ -147,8 +148,9 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     garments = _dress(np.random.default_rng([int(seed), DRESS_STREAM]), female, garments)
     skin, garments = _surface_detail(seed, skin, hair, garments)
     headwear = sample_headwear(np.random.default_rng([int(seed), HEADWEAR_STREAM]), female, phenotype["age"])
+    eyes = sample_eyes(np.random.default_rng([int(seed), EYES_STREAM]), skin.melanin)
     return CharacterRecipe(seed=int(seed), pool=pool, index=int(index), phenotype=phenotype, skin=skin, hair=hair,
-                           garments=garments, headwear=headwear)
+                           garments=garments, headwear=headwear, eyes=eyes)
 
 
 def _dress(rng: np.random.Generator, female: bool, garments: tuple[Garment, ...]) -> tuple[Garment, ...]:
@@ -226,3 +228,41 @@ def sample_headwear(rng: np.random.Generator, female: bool, age: float) -> tuple
         c = _jitter(rng, _FRAME_PALETTE[rng.integers(len(_FRAME_PALETTE))], 0.05)
         out.append(Headwear("glasses", c, roughness=float(rng.uniform(0.2, 0.35))))
     return tuple(out)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Eyes (issue 17): the iris colour, from its own stream np.random.default_rng([seed, EYES_STREAM]), drawn after
+# everything else so every other field of every seed is what it was before eyes existed.
+# ---------------------------------------------------------------------------------------------------------------
+EYES_STREAM = 1705
+IRIS_COLOUR_NAMES = ("dark brown", "brown", "amber", "hazel", "green", "blue", "grey")
+# Mean iris colours, sRGB 8-bit, picked by us from photographs of each class (the texture adds fibres, a darker
+# limbal ring and a pupillary zone around the mean).
+_IRIS_PALETTE = np.array([[52, 32, 20], [99, 60, 32], [140, 96, 44], [118, 100, 56], [92, 116, 70],
+                          [88, 126, 164], [126, 136, 142]], dtype=np.float64) / 255.0
+# Class weights at the two ends of the skin-melanin axis. Iris and skin pigment come from the same melanocyte
+# pigmentation genes (OCA2/HERC2 among them), so light irises (blue, grey, green) are almost confined to light skin;
+# brown is the commonest colour worldwide (~70-80 %). Our choice, guided by those prevalences, not a census.
+_IRIS_W_LIGHT = np.array([0.08, 0.22, 0.05, 0.15, 0.12, 0.32, 0.06])
+_IRIS_W_DARK = np.array([0.72, 0.25, 0.03, 0.0, 0.0, 0.0, 0.0])
+
+
+def iris_weights(melanin: float) -> np.ndarray:
+    """P(iris class) (IRIS_COLOUR_NAMES order) for a skin melanin in [0, 1]: the light-skin weights fade with
+    (1 - melanin)^2 (melanin 0.3, ColorChecker "light skin": ~49 % of them; 0.7, "dark skin": 9 %)."""
+    s = (1.0 - float(melanin)) ** 2
+    w = s * _IRIS_W_LIGHT + (1.0 - s) * _IRIS_W_DARK
+    return w / w.sum()
+
+
+def iris_colour_name(rgb: tuple[float, float, float]) -> str:
+    """The class (IRIS_COLOUR_NAMES) whose palette colour is nearest in sRGB (as `hair_colour_name`; a large
+    jitter can move a brown to the neighbouring amber or hazel)."""
+    d = np.linalg.norm(_IRIS_PALETTE - np.asarray(rgb, dtype=np.float64), axis=1)
+    return IRIS_COLOUR_NAMES[int(np.argmin(d))]
+
+
+def sample_eyes(rng: np.random.Generator, melanin: float) -> EyeSpec:
+    """An iris colour: a class by `iris_weights`, its palette colour jittered (mostly in brightness)."""
+    k = int(rng.choice(len(_IRIS_PALETTE), p=iris_weights(melanin)))
+    return EyeSpec(iris=_jitter(rng, _IRIS_PALETTE[k], 0.1))

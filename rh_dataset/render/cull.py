@@ -3,11 +3,11 @@
 Two kinds, each sound only where stated:
 
 * **Skin hidden under clothes** (`hidden_faces`): body triangles covered by a garment shell (a garment cut from
-  the body's own faces, offset outwards) or enclosed by a closed garment (shoes, hair buns), and at least
-  `margin` metres along the skin from any uncovered skin. Such skin is never seen (a primary ray meets the cloth
-  first) and is lit only through the thin gap at the openings, which the margin keeps it away from; so it neither
-  appears in any layer nor changes the light elsewhere beyond what bench/bench_savings.py measures (docs/TRADEOFFS.md).
-  Valid for every pass. Computed once per character, on the A-pose: the coverage is topological (garments follow
+  the body's own faces, offset outwards; a triangle the shell's edge cuts is not covered) or enclosed by a closed
+  garment (shoes, hair buns), and at least `margin` metres along the skin from any uncovered skin. Such skin is
+  never seen (a primary ray meets the cloth first) and is lit only through the thin gap at the openings, which the
+  margin keeps it away from; so it neither appears in any layer nor changes the light elsewhere beyond what
+  bench/bench_savings.py measures (docs/TRADEOFFS.md). Valid for every pass. Computed once per character, on the A-pose: the coverage is topological (garments follow
   the skinning), and the margin absorbs how far a pose stretches the skin.
 
 * **Triangles outside the view frustum** (`outside_frustum`): only for passes that see nothing but primary hits (the
@@ -97,19 +97,17 @@ def _hidden_faces(character, margin: float) -> dict[str, np.ndarray]:
     pos = np.zeros((n, 3))
     pos[body.body_vertex] = posed["body"].vertices
 
-    def keys(t: np.ndarray) -> np.ndarray:
-        t = np.sort(t, axis=1).astype(np.int64)
-        return (t[:, 0] * n + t[:, 1]) * n + t[:, 2]
-
     covered = np.zeros(len(tri), bool)
     inside = np.zeros(n, bool)
     for part in character.parts:
         if part.name == "body":
             continue
-        if part.blend_vertices is None:
-            # A shell cut from the body's faces, offset outwards: the faces it copies are under it.
-            shell = part.offset[part.faces].min(axis=1) > 0.0
-            covered |= np.isin(keys(tri), keys(part.body_vertex[part.faces][shell]))
+        if part.body_faces is not None:
+            # A shell cut from the body's faces, offset outwards: the faces it copies whole are under it (a face
+            # it cuts is partly bare skin).
+            whole = (part.blend_weights.max(axis=1) == 1.0)[part.faces].all(axis=1)
+            shell = whole & (part.offset[part.faces].min(axis=1) > 0.0)
+            covered[part.body_faces[shell]] = True
         elif _is_closed(posed[part.name].vertices, part.faces):
             # A closed garment (shoes, a bun): the skin inside its volume.
             pv = posed[part.name].vertices

@@ -25,7 +25,7 @@ class MaterialLike(Protocol):
     albedo: np.ndarray  # (H, W, 3) float32 linear, row 0 = top of the texture image (v = 1)
     roughness: float
     specular: float
-    # optional: sheen, sheen_tint (the principled sheen lobe; absent = 0)
+    # optional: sheen, sheen_tint (the principled sheen lobe), clearcoat, clearcoat_gloss (its clear coat; absent = 0)
 
 
 class MeshLike(Protocol):
@@ -165,6 +165,11 @@ def mitsuba_bsdf(material: MaterialLike) -> Any:
         if sheen > 0.0:
             bsdf["sheen"] = sheen
             bsdf["sheen_tint"] = float(getattr(material, "sheen_tint", 0.5))
+        # A clear coat (the eyes' tear film): a second specular lobe; the albedo AOV is still base_color.
+        coat = float(getattr(material, "clearcoat", 0.0))
+        if coat > 0.0:
+            bsdf["clearcoat"] = coat
+            bsdf["clearcoat_gloss"] = float(getattr(material, "clearcoat_gloss", 0.0))
     # Hems, skirts and hair sheets are seen from inside: shade both faces alike.
     if getattr(material, "two_sided", False):
         bsdf = {"type": "twosided", "material": bsdf}
