@@ -26,17 +26,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def draped_recipe(index: int, seed: int = 0):
-    """The first benchmark recipe from `index` on (dataset seed `seed`) that draws a skirt, with the skirt swapped for
-    the draped one (same colour and pattern)."""
-    from rh_dataset.characters.recipe import CharacterRecipe
+    """The first benchmark recipe from `index` on (dataset seed `seed`) that draws a skirt (the draped one: every
+    skirt recipe_from_seed draws is)."""
     from rh_dataset.characters.recipe_draws import derive_seed, recipe_from_seed
 
     i = index
     while True:
         r = recipe_from_seed(derive_seed("benchmark", i, seed), "benchmark", i)
-        if r.garment("skirt") is not None:
-            g = tuple(dataclasses.replace(x, kind="draped_skirt") if x.kind == "skirt" else x for x in r.garments)
-            return CharacterRecipe.from_json(dataclasses.replace(r, garments=g).to_json_text())
+        if r.garment("draped_skirt") is not None:
+            return r
         i += 1
 
 
@@ -50,13 +48,13 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body import body_topology, run_anny
-    from rh_dataset.characters.drape import (DrapeSettings, bind_to_skeleton, drape_garment, penetration,
+    from rh_dataset.characters.drape import (bind_to_skeleton, drape_garment, drape_settings, penetration,
                                              push_out, skin_points)
     from rh_dataset.poses import sample_poses
 
     recipe = draped_recipe(args.index)
     ph = recipe.phenotype
-    st = DrapeSettings()
+    st = drape_settings("draped_skirt")
     load = lambda: " ".join(open("/proc/loadavg").read().split()[:3])  # noqa: E731
     print(f"character: benchmark index {recipe.index}, garments {[g.kind for g in recipe.garments]}")
     t = time.perf_counter()

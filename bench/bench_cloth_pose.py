@@ -7,7 +7,7 @@ penetration and the image difference, and from them which preset poses cloth whi
     python bench/bench_cloth_pose.py --subjects 1 --no-render --max-body-step 0.01   # another simulation setting
 
 Subjects: the first benchmark-pool recipes that draw a skirt (recipe_from_seed(derive_seed("benchmark", i, --seed)),
-as bench/bench_cloth.py draws them), the skirt swapped for the draped one (bench_cloth.draped_recipe). Poses per
+as bench/bench_cloth.py draws them: bench_cloth.draped_recipe; every skirt drawn is the draped one). Poses per
 subject: protocol a's turntable frame at 90 degrees (the rest A-pose turned) and the first --poses test poses the
 generator draws for that subject (`sample_pose` from `rng_for(seed, "pose", subject, "test", j)`).
 

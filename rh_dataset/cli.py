@@ -73,6 +73,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "while the body moves from the rest pose into the frame's (tens of seconds a posed frame); "
                         "the frame JSON records it under render.cloth (docs/TRADEOFFS.md, 'Skinned or simulated "
                         "cloth')")
+    p.add_argument("--drape", default=None,
+                   help="how finely loose garments (draped skirts and dresses) are simulated onto each subject's body "
+                        "(overrides the preset): 'full' (the benchmark's, 1-3 min a subject on 2 cores, cached) or "
+                        "'coarse' (the draft preset's, ~1/8 of that); recorded under render.drape")
     p.add_argument("--seed", type=int, default=0, help="dataset seed: characters, poses, lights and sampler seeds")
     p.add_argument("--variant", default=None, choices=["llvm_ad_rgb", "cuda_ad_rgb", "scalar_rgb"],
                    help="Mitsuba variant (default: cuda_ad_rgb if a GPU works, else llvm_ad_rgb)")
@@ -152,7 +156,7 @@ def options_from_args(args: argparse.Namespace):
         motion=motion, character=character)
     settings = render_settings(args.preset, spp=args.spp, aov_spp=args.aov_spp, max_depth=args.max_depth,
                                sampler=args.sampler, env_spp=args.env_spp, denoise=bool(args.denoise),
-                               cull=not args.no_cull, cloth=args.cloth)
+                               cull=not args.no_cull, cloth=args.cloth, drape=args.drape)
     plan = DatasetPlan(out=args.out, spec=spec, settings=settings, seed=args.seed, variant=args.variant,
                        overwrite=args.overwrite, character_path=args.character)
     return plan, backend_from_args(args)
@@ -160,7 +164,8 @@ def options_from_args(args: argparse.Namespace):
 
 def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None = None, max_depth: int | None = None,
                     sampler: str | None = None, env_spp: int | None = None, denoise: bool = False,
-                    cull: bool = True, cloth: str | None = None, adaptive_tiers: tuple[int, ...] | None = None):
+                    cull: bool = True, cloth: str | None = None, adaptive_tiers: tuple[int, ...] | None = None,
+                    drape: str | None = None):
     """RenderSettings of a preset of scenes/presets.json, with the given fields overridden (None: the preset's;
     adaptive_tiers (): off)."""
     from rh_dataset.render.sampler import SAMPLERS
@@ -172,13 +177,17 @@ def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None 
     if preset not in presets:
         raise SpecError(f"unknown --preset {preset!r}; choose one of {sorted(presets)}")
     pr = presets[preset]
-    overridden = any(v is not None for v in (spp, aov_spp, max_depth, sampler, env_spp, cloth, adaptive_tiers))
+    overridden = any(v is not None for v in (spp, aov_spp, max_depth, sampler, env_spp, cloth, adaptive_tiers, drape))
     if sampler is not None and sampler not in SAMPLERS:
         raise SpecError(f"unknown --sampler {sampler!r}; choose one of {', '.join(SAMPLERS)}")
     from rh_dataset.characters.cloth_pose import CLOTH_MODES
 
     if cloth is not None and cloth not in CLOTH_MODES:
         raise SpecError(f"unknown --cloth {cloth!r}; choose one of {', '.join(CLOTH_MODES)}")
+    from rh_dataset.characters.drape import DRAPE_LEVELS
+
+    if drape is not None and drape not in DRAPE_LEVELS:
+        raise SpecError(f"unknown --drape {drape!r}; choose one of {', '.join(DRAPE_LEVELS)}")
     return RenderSettings(
         spp=spp if spp is not None else pr.spp,
         aov_spp=aov_spp if aov_spp is not None else pr.aov_spp,
@@ -191,6 +200,7 @@ def render_settings(preset: str, *, spp: int | None = None, aov_spp: int | None 
         denoise=denoise,
         cull=cull,
         cloth=cloth if cloth is not None else pr.cloth,
+        drape=drape if drape is not None else pr.drape,
     )
 
 

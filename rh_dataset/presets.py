@@ -31,6 +31,8 @@ class Preset:
     """Counts a person's pixel may get in proportion to its noise, spp their mean (`rh_dataset.render.adaptive`)."""
     cloth: str = "skinned"
     """How draped garments reach each frame's pose (`RenderSettings.cloth`), chosen by bench/bench_cloth_pose.py."""
+    drape: str = "full"
+    """How finely draped garments are simulated (`RenderSettings.drape`)."""
     description: str = ""
 
     def depth_for(self, scene_class: str) -> int:
@@ -75,7 +77,7 @@ def load_presets(path: Path | None = None) -> dict[str, Preset]:
     data = json.loads(path.read_text())
     out = {}
     for name, p in data["presets"].items():
-        _check_keys(f"{path}: preset {name}", p, {"spp", "aov_spp", "max_depth", "sampler", "env_spp", "cloth",
+        _check_keys(f"{path}: preset {name}", p, {"spp", "aov_spp", "max_depth", "sampler", "env_spp", "cloth", "drape",
                                                    "adaptive_tiers", "description"},
                     {"spp", "aov_spp", "max_depth", "sampler"})
         if p["sampler"] not in SAMPLERS:
@@ -86,6 +88,11 @@ def load_presets(path: Path | None = None) -> dict[str, Preset]:
         if p.get("cloth", "skinned") not in CLOTH_MODES:
             raise SpecError(f"{path}: preset {name}: cloth must be one of {', '.join(CLOTH_MODES)}, got "
                             f"{p['cloth']!r}")
+        from .characters.drape import DRAPE_LEVELS
+
+        if p.get("drape", "full") not in DRAPE_LEVELS:
+            raise SpecError(f"{path}: preset {name}: drape must be one of {', '.join(DRAPE_LEVELS)}, got "
+                            f"{p['drape']!r}")
         env = p.get("env_spp")
         if env is not None and (not isinstance(env, int) or not 1 <= env <= p["spp"]):
             raise SpecError(f"{path}: preset {name}: env_spp must be an integer in [1, spp] or absent, got {env!r}")

@@ -6,7 +6,8 @@ from pathlib import Path
 
 _CACHE: dict[str, Path] = {}
 
-_RENDER = ["--subjects", "1", "--frames", "2", "--spp", "2", "--aov-spp", "1", "--max-depth", "2", "--no-progress"]
+_RENDER = ["--subjects", "1", "--frames", "2", "--spp", "2", "--aov-spp", "1", "--max-depth", "2", "--drape", "coarse",
+           "--no-progress"]
 TINY = ["--protocol", "a", "--resolution", "32", *_RENDER]
 PUBLISHED_B = ["--protocol", "published_b", "--resolution", "64x36", *_RENDER]
 

@@ -41,7 +41,8 @@ def test_stage_meshes_camera_and_light(exported, split):
     stage = Usd.Stage.Open(str(path))
     assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z and UsdGeom.GetStageMetersPerUnit(stage) == 1.0
     # Meshes: one per character part, with the posed vertices and the faces pose_character gives.
-    character = build_character(CharacterRecipe.from_json(read_json(ds / "subject_000" / "character.json")))
+    character = build_character(CharacterRecipe.from_json(read_json(ds / "subject_000" / "character.json")),
+                                drape="coarse")  # export_data generates with --drape coarse
     pose = BodyPose.from_json(meta["body"]["pose"])
     posed = pose_character(character, dict(pose.bones), pose.root_transform)
     strands = [p for p in posed if hasattr(p, "fibre")]

@@ -76,6 +76,7 @@ def test_vertices_project_onto_the_mask_and_params_rebuild_them(exported):
         local = run_anny(dict(zip(params["shape_labels"], params["shapes"][0])), bones)["vertices"]
         np.testing.assert_allclose(local @ axis_angle_matrix(params["Rh"][0]).T + params["Th"][0], xyz, atol=1e-5)
         # ... and they are exactly the skin the renderer drew (the body part of the posed character).
-        character = build_character(CharacterRecipe.from_json(read_json(ds / "subject_000" / "character.json")))
+        character = build_character(CharacterRecipe.from_json(read_json(ds / "subject_000" / "character.json")),
+                                drape="coarse")  # export_data generates with --drape coarse
         body = pose_character(character, dict(pose.bones), pose.root_transform)[0]
         np.testing.assert_allclose(xyz[character.part("body").body_vertex], body.vertices, atol=1e-6)

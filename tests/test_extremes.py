@@ -235,7 +235,7 @@ def character():
     from rh_dataset.characters import build_character, sample_recipe
     from rh_dataset.generate import rng_for
 
-    return build_character(sample_recipe(rng_for(0, "character", 0), pool="benchmark", index=0))
+    return build_character(sample_recipe(rng_for(0, "character", 0), pool="benchmark", index=0), drape="coarse")
 
 
 def _extreme_poses():

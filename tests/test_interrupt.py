@@ -21,7 +21,7 @@ from rh_common.imageio import atomic_path, read_json, write_exr, write_png
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = ["--subjects", "1", "--frames", "2", "--resolution", "32", "--spp", "4", "--aov-spp", "2", "--max-depth", "3",
-        "--no-progress"]
+        "--drape", "coarse", "--no-progress"]
 ENV = {**os.environ, "PYTHONPATH": str(REPO)}
 
 # A command that writes files atomically forever, for the mechanism alone (no renderer: it starts in a fraction of

@@ -212,7 +212,7 @@ TINY_C = {
                  "layers": ["image", "mask", "albedo", "normal", "depth"], "scene_class": "posed-envmap"},
     },
 }
-GEN = ["--spp", "4", "--aov-spp", "2", "--max-depth", "3", "--no-progress"]
+GEN = ["--spp", "4", "--aov-spp", "2", "--max-depth", "3", "--drape", "coarse", "--no-progress"]
 
 
 @pytest.fixture(scope="module")

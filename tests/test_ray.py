@@ -13,7 +13,7 @@ from rh_dataset.cli import build_parser, options_from_args  # noqa: E402
 from rh_dataset.verify import verify  # noqa: E402
 
 SMALL = ["--protocol", "a", "--subjects", "1", "--frames", "2", "--resolution", "32", "--spp", "2", "--aov-spp", "1",
-         "--max-depth", "2", "--no-progress"]
+         "--max-depth", "2", "--drape", "coarse", "--no-progress"]
 RAY = ["--backend", "ray", "--ray-frames-per-task", "2"]
 
 

@@ -31,7 +31,7 @@ from .body import body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, shoe_height_map
 from .body_features import body_features
 from .cloth_pose import CLOTH_MODES, ClothPoseSettings, simulated_parts
-from .drape import SkinBinding, penetration, push_out, skin_points
+from .drape import DRAPE_LEVELS, DrapeSettings, SkinBinding, penetration, push_out, skin_points
 from .eyes import eye_geometry
 from .geometry import split_faces
 from .hair import build_hair
@@ -121,6 +121,7 @@ class CharacterPart:
     body_faces: np.ndarray | None = None
     # Skinned points are pushed clear of the posed skin (cloth, headwear); eyeballs sit inside the head by design.
     collide: bool = True
+    drape: DrapeSettings | None = None  # draped garments: the simulation they were draped with (drape.py)
 
     def __post_init__(self) -> None:
         faces = _ro(self.faces, np.int32)
@@ -287,22 +288,27 @@ def _to_part(geo: PartGeometry, material: Material) -> CharacterPart:
         blend_weights=geo.blend_weights,
         skinning=geo.skinning,
         body_faces=geo.body_faces,
+        drape=geo.drape,
     )
 
 
-def build_character(recipe: CharacterRecipe, texture_resolution: int = DEFAULT_TEXTURE_RESOLUTION) -> Character:
+def build_character(recipe: CharacterRecipe, texture_resolution: int = DEFAULT_TEXTURE_RESOLUTION,
+                    drape: str = "full") -> Character:
     """Geometry and textures of a recipe. Deterministic (bit-identical for equal recipes); the last two results are
-    cached, keyed by the recipe's canonical JSON."""
+    cached, keyed by the recipe's canonical JSON. `drape`: how finely draped garments are simulated
+    (`drape.DRAPE_LEVELS`; a generated dataset's `RenderSettings.drape`)."""
+    if drape not in DRAPE_LEVELS:
+        raise ValueError(f"build_character: drape must be one of {DRAPE_LEVELS}, got {drape!r}")
     if not isinstance(recipe, CharacterRecipe):
         raise ValueError(f"build_character: expected a CharacterRecipe, got {type(recipe).__name__}")
     res = int(texture_resolution)
     if not (16 <= res <= 8192):
         raise ValueError(f"build_character: texture_resolution must be in [16, 8192], got {texture_resolution}")
-    return _build_cached(recipe.to_json_text(), res)
+    return _build_cached(recipe.to_json_text(), res, drape)
 
 
 @functools.lru_cache(maxsize=2)
-def _build_cached(recipe_json: str, res: int) -> Character:
+def _build_cached(recipe_json: str, res: int, drape: str = "full") -> Character:
     recipe = CharacterRecipe.from_json(recipe_json)
     topology = ANNY_TOPOLOGY
     feats = body_features(recipe.phenotype, topology)
@@ -319,7 +325,7 @@ def _build_cached(recipe_json: str, res: int) -> Character:
     ]
 
     under = np.zeros(len(feats.rest_vertices))
-    geos = build_garments(recipe.garments, feats, topology, under=under, phenotype=recipe.phenotype)
+    geos = build_garments(recipe.garments, feats, topology, under=under, phenotype=recipe.phenotype, drape=drape)
     body_coords = None
     for i, (g, geo) in enumerate(zip(recipe.garments, geos)):
         rng = np.random.default_rng([seed, _STREAM_GARMENT0 + i])

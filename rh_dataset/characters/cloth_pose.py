@@ -279,8 +279,10 @@ def simulated_parts(character, bone_deltas: Mapping[str, np.ndarray] | None,
     if not parts:
         return {}
     phenotype = character.phenotype
-    garments = [drape_garment(p.name, phenotype) for p in parts]
-    posed = simulate_into_pose(garments, phenotype, bone_deltas, settings, stats=stats)
+    garments = [drape_garment(p.name, phenotype, p.drape) for p in parts]
+    # One fabric for the cloth simulated together: the levels' settings differ in resolution and steps only.
+    posed = simulate_into_pose(garments, phenotype, bone_deltas, settings, fabric=parts[0].drape or DrapeSettings(),
+                               stats=stats)
     rig = rig_for(load_anny(), phenotype)
     reference = rig.world_poses(np.tile(np.eye(4), (len(rig.bone_labels), 1, 1)))  # the rest (A-)pose
     out = {}

@@ -1,11 +1,12 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
-In: a phenotype and a draped garment kind (`DRAPED_KINDS`). Out: `DrapedGarment`, the garment's settled rest-pose
-surface (vertices, faces, UVs) after `DrapeSettings.steps` steps of newton's `SolverVBD` with gravity, cloth
-self-contact and the body mesh (arms and hands left out) as a static collider, plus the skinning that moves it per
-frame (`SkinBinding`: the body's linear-blend weights transferred from the closest body point, the garment
-expressed in anny's bind space) and `push_out`, which puts skinned cloth that a limb swung into back on the skin.
-`penetration` measures.
+In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a strapless dress; `PROFILES` cuts each from
+one pattern function, `garment_pattern`) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
+Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
+steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
+static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
+transferred from the closest body point, the garment expressed in anny's bind space) and `push_out`, which puts
+skinned cloth that a limb swung into back on the skin. `penetration` measures.
 
 Why a solver, not a shell: a skirt's hem is longer than the body it hangs around, so it folds; only a cloth
 simulation finds where. The drape runs once per (phenotype, kind, settings) and is cached in a content-hashed
@@ -30,12 +31,13 @@ from .body import PHENOTYPE_LABELS, body_topology, run_anny
 from .body_features import body_features
 from .geometry import hull_anchors
 
-__all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "skirt_pattern",
+__all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
+           "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "skin_points", "drape_cache_dir", "DRAPE_VERSION", "draped_part",
            "penetration", "push_out", "collider_faces", "cloth_model", "cloth_solver"]
 
-DRAPED_KINDS = ("draped_skirt",)
-DRAPE_VERSION = 3  # bump when the pattern or the simulation changes: it is part of the cache key
+DRAPED_KINDS = ("draped_skirt", "draped_dress")
+DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
 
@@ -104,37 +106,122 @@ def drape_cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "relighting-humans" / "drape"
 
 
-def _rings_at_waist(feats, n_around: int) -> tuple[np.ndarray, float, np.ndarray]:
-    """Waist radii (n_around,) around the pelvis, angle 0 = -Y (the front) then towards +X: where rays from the
-    pelvis leave the convex hull of the trunk's cross-section at waist height (`hull_anchors`); the waist height."""
-    v = feats.rest_vertices
-    z_waist = 0.5 * (float(feats.bone_heads["root"][2]) + float(feats.bone_heads["spine04"][2])) + 0.01
-    centre = np.asarray(feats.bone_heads["root"], dtype=np.float64)
-    band = np.flatnonzero(feats.in_groups("torso", "upperleg") & (np.abs(v[:, 2] - z_waist) < 0.015))
-    ang = np.arange(n_around) * (2.0 * np.pi / n_around)
+@dataclasses.dataclass(frozen=True)
+class DrapeProfile:
+    """The cut of a draped kind, in body landmarks: the pinned top ring at `top` ("waist": between the pelvis and
+    spine04, where a skirt's waistband sits; "chest": halfway between spine02 and spine01, under the arms, lowered
+    where the ring would touch the A-pose body, arms included (`_under_the_arms`): a strapless dress is held
+    there), the cloth hanging straight down from there to `flare_from` ("top": at once; "hips": the hip joints),
+    then flaring at `DrapeSettings.flare` for `hem` times the drop from there to the knee (measured along the
+    cloth): the skirt's hem ends about 10 cm above the knee; the dress, whose 70 cm of cloth hang from the chest and
+    give way by ~15 cm under their weight (measured: the hem of a 0.9 pattern settled 17 cm lower, 9 cm under the
+    knee), is cut shorter. Every ring stays `clearance` + 2 mm outside the convex hull of the trunk's, shoulders'
+    and thighs' cross-section at its height, so the pattern starts clear of the body wherever the hips are wider
+    than the cloth above them."""
+
+    top: str
+    flare_from: str
+    hem: float = 0.9
+
+
+PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7)}
+# The simulation per (kind, level). "full": the benchmark's. The dress is about twice the skirt's length; 36 rings
+# (2 cm apart, the skirt's 1.6 cm) keep its drape to ~1.5x the skirt's particles. "coarse": half the particles
+# around and along, half the steps (~1/8 of the work): the draft preset's, for quick looks, the demo and tests
+# (bench/bench_drape_cost.py measures both).
+DRAPE_LEVELS = ("full", "coarse")
+_SETTINGS = {
+    ("draped_skirt", "full"): DrapeSettings(),
+    ("draped_dress", "full"): DrapeSettings(n_rings=36, contact_ke=5.0e4),
+    ("draped_skirt", "coarse"): DrapeSettings(n_around=36, n_rings=12, steps=150),
+    ("draped_dress", "coarse"): DrapeSettings(n_around=36, n_rings=18, steps=150, contact_ke=5.0e4),
+}
+
+
+def drape_settings(kind: str, level: str = "full") -> DrapeSettings:
+    """The `DrapeSettings` a draped kind is draped with at `level` (one of DRAPE_LEVELS; `RenderSettings.drape`)."""
+    if kind not in DRAPED_KINDS:
+        raise ValueError(f"drape: kind must be one of {DRAPED_KINDS}, got {kind!r}")
+    if level not in DRAPE_LEVELS:
+        raise ValueError(f"drape: level must be one of {DRAPE_LEVELS}, got {level!r}")
+    return _SETTINGS[kind, level]
+
+
+def _hull_radii(feats, v: np.ndarray, z: float, centre: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    """Radii (len(ang),) from `centre` (xy) at angles `ang` (0 = -Y, the front, then towards +X) to where rays
+    leave the convex hull of the cross-section of the body `v` (the A-pose the cloth is draped on, not anny's bind
+    space) within 1.5 cm of height z, trunk, shoulders and
+    thighs (the collider; `hull_anchors`; arms and hands are not part of it); -inf where the band has too few
+    vertices."""
+    band = np.flatnonzero(feats.in_groups("torso", "shoulder", "upperleg") & (np.abs(v[:, 2] - z) < 0.015))
+    if len(band) < 3:
+        return np.full(len(ang), -np.inf)
     idx, w = hull_anchors(v, band, centre, ang)
     ring = (v[idx] * w[..., None]).sum(1)
-    return np.linalg.norm(ring[:, :2] - centre[:2], axis=1), z_waist, centre
+    return np.linalg.norm(ring[:, :2] - centre[:2], axis=1)
 
 
-def skirt_pattern(phenotype: dict[str, float], settings: DrapeSettings = DrapeSettings()):
-    """The undraped skirt: a cone from the waist (its top ring on the body, pinned) flaring at `settings.flare` to
-    just above the knee. Returns (vertices (V, 3), faces (F, 3) int32 outward, uvs (V, 2), pinned (V,) bool,
-    metres_per_uv). A seam column is not duplicated: the cloth is one closed tube (u wraps; UVs are per vertex, so
-    the last column's faces reuse u of the first, which the texture's period hides)."""
+def _under_the_arms(feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float) -> float:
+    """Height of a dress's top ring: from halfway between spine02 and spine01 (the chest, under the armpits) down
+    in 1 cm steps to spine03 at most, the first height where the ring (`gap` outside the trunk's cross-section)
+    keeps `gap` / 2 off the whole A-pose body (trimesh closest points, `penetration`), arms included: the arms are
+    no collider, and a ring through an inner upper arm pressed to the trunk would show as cloth cutting the arm."""
+    faces = body_topology().faces
+    z = 0.5 * (float(heads["spine01"][2]) + float(heads["spine02"][2]))
+    z_low = float(heads["spine03"][2])
+    ang = np.arange(36) * (2.0 * np.pi / 36)
+    while z > z_low:
+        r = _hull_radii(feats, body, z, centre, ang) + gap
+        ring = np.c_[centre[0] + r * np.sin(ang), centre[1] - r * np.cos(ang), np.full(len(ang), z)]
+        if penetration(body, faces, ring).max() < -0.5 * gap:
+            return z
+        z -= 0.01
+    return z_low
+
+
+def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None):
+    """The undraped cloth of a draped kind (`PROFILES`): a closed tube of `n_rings` rings of `n_around` particles,
+    its top ring on the body (pinned), hanging straight down to the profile's `flare_from` and then a cone at
+    `settings.flare` to just above the knee; each ring pushed out where the body's cross-section reaches it. Returns
+    (vertices (V, 3), faces (F, 3) int32 outward, uvs (V, 2), pinned (V,) bool, metres_per_uv). A seam column is
+    not duplicated: the cloth is one closed tube (u wraps; UVs are per vertex, so the last column's faces reuse u of
+    the first, which the texture's period hides)."""
+    st = drape_settings(kind) if settings is None else settings
+    prof = PROFILES[kind]
     feats = body_features(phenotype)
-    na, nr = int(settings.n_around), int(settings.n_rings)
-    radii, z_waist, centre = _rings_at_waist(feats, na)
-    radii = radii + settings.clearance + 0.002
-    z_knee = 0.5 * (float(feats.bone_heads["lowerleg01.L"][2]) + float(feats.bone_heads["lowerleg01.R"][2]))
-    length = 0.9 * (z_waist - z_knee)
+    # Everything in the frame the cloth is simulated in: the A-pose body (the collider), whose pelvis anny puts at
+    # the origin, 8-9 cm below where it is in the bind space `BodyFeatures` and its bone heads live (the skirt's
+    # pattern was placed in bind space before the dress came: its waistband sat that much above the waist).
+    run = run_anny(phenotype)
+    body = run["vertices"]
+    heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
+    na, nr = int(st.n_around), int(st.n_rings)
+    gap = st.clearance + 0.002
+    centre = np.asarray(heads["root"], dtype=np.float64)
+    z_waist = 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01
+    z_top = z_waist if prof.top == "waist" else _under_the_arms(feats, body, heads, centre, gap)
+    z_flare = z_top if prof.flare_from == "top" else \
+        0.5 * (float(heads["upperleg01.L"][2]) + float(heads["upperleg01.R"][2]))
+    z_knee = 0.5 * (float(heads["lowerleg01.L"][2]) + float(heads["lowerleg01.R"][2]))
+    straight = z_top - z_flare  # path length of the part hanging straight down
+    length = straight + prof.hem * (z_flare - z_knee)  # the flared part's slant length
     ang = np.arange(na) * (2.0 * np.pi / na)
     ts = np.linspace(0.0, 1.0, nr)
     s = ts * length
-    rr = radii[None, :] + s[:, None] * np.sin(settings.flare)
+    cone = np.maximum(s - straight, 0.0)  # path length along the flared part
+    zs = np.where(s <= straight, z_top - s, z_flare - cone * np.cos(st.flare))
+    flare_out = cone * np.sin(st.flare)
+    # r_i = flare_out_i + m_i, m_i the running maximum of (body + gap - flare_out): the cone as drawn where the
+    # body stays inside it, pushed out (and kept out further down) where the body reaches it.
+    m = _hull_radii(feats, body, float(zs[0]), centre, ang) + gap
+    rr = np.empty((nr, na))
+    for i in range(nr):
+        if i:
+            m = np.maximum(m, _hull_radii(feats, body, float(zs[i]), centre, ang) + gap - flare_out[i])
+        rr[i] = flare_out[i] + m
     x = centre[0] + rr * np.sin(ang)[None, :]
     y = centre[1] - rr * np.cos(ang)[None, :]
-    zz = np.broadcast_to((z_waist - s * np.cos(settings.flare))[:, None], rr.shape)
+    zz = np.broadcast_to(zs[:, None], rr.shape)
     verts = np.stack([x, y, zz], -1).reshape(-1, 3)
     i, j = np.meshgrid(np.arange(nr - 1), np.arange(na), indexing="ij")
     a = i * na + j
@@ -241,23 +328,25 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
     return p
 
 
-def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings) -> str:
+def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, pattern: np.ndarray) -> str:
     import newton
     import warp as wp
 
     key = {"v": DRAPE_VERSION, "kind": kind, "phenotype": {k: float(phenotype[k]) for k in PHENOTYPE_LABELS},
            "settings": dataclasses.asdict(st), "newton": newton.__version__, "warp": wp.__version__,
-           "topology": ANNY_TOPOLOGY}
+           "topology": ANNY_TOPOLOGY,
+           # The pattern itself: a change to how it is cut cannot read back a drape of the old cut.
+           "pattern": hashlib.sha256(np.ascontiguousarray(pattern, np.float64).tobytes()).hexdigest()}
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:24]
 
 
-def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSettings = DrapeSettings(),
+def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None,
                   use_cache: bool = True) -> DrapedGarment:
-    """The draped rest-pose garment, from the cache or simulated (then cached, written atomically)."""
-    if kind not in DRAPED_KINDS:
-        raise ValueError(f"drape_garment: kind must be one of {DRAPED_KINDS}, got {kind!r}")
-    verts, faces, uvs, pinned, mpu = skirt_pattern(phenotype, settings)
-    path = drape_cache_dir() / f"{kind}-{_cache_key(kind, phenotype, settings)}.npz"
+    """The draped rest-pose garment, from the cache or simulated (then cached, written atomically). `settings`:
+    the kind's default (`drape_settings`) unless given."""
+    settings = drape_settings(kind) if settings is None else settings
+    verts, faces, uvs, pinned, mpu = garment_pattern(kind, phenotype, settings)
+    path = drape_cache_dir() / f"{kind}-{_cache_key(kind, phenotype, settings, verts)}.npz"
     q = None
     if use_cache and path.is_file():
         try:
@@ -324,7 +413,7 @@ NEAR_BODY = 0.03  # cloth closer than this to the skin in the rest pose register
 
 
 def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray,
-                settings: DrapeSettings = DrapeSettings()):
+                settings: DrapeSettings | None = None):
     """The draped garment as a `PartGeometry` skinned by `SkinBinding`, with a seam column duplicated so u runs
     0..1 around. `under` (body vertices' outermost offset so far) is raised where the cloth lies within
     `NEAR_BODY` of the skin, so a top hanging over the waistband stays outside it."""
@@ -332,6 +421,7 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
 
     from .garments import PartGeometry
 
+    settings = drape_settings(kind) if settings is None else settings
     g = drape_garment(kind, phenotype, settings)
     na, nr = int(settings.n_around), int(settings.n_rings)
     cols = np.concatenate([np.arange(na), [0]])
@@ -346,7 +436,7 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
     u = np.tile(np.arange(na + 1) / na, nr)
     uvs = np.clip(np.stack([u, (1.0 - ts) * length / g.metres_per_uv], 1), 0.0, 1.0)
     binding = bind_to_skeleton(g.vertices, phenotype)
-    dist, nn = cKDTree(feats.rest_vertices).query(g.vertices)
+    dist, nn = cKDTree(run_anny(phenotype)["vertices"]).query(g.vertices)  # the A-pose the cloth was draped on
     near = dist < NEAR_BODY
     np.maximum.at(under, nn[near], dist[near] + LAYER_GAP_DRAPE)
     skin = SkinBinding(binding.bind[src], binding.bones[src], binding.weights[src])
@@ -360,6 +450,7 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
         uv_layout="own",
         metres_per_uv=g.metres_per_uv,
         skinning=skin,
+        drape=settings,
     )
 
 

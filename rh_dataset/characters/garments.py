@@ -27,7 +27,7 @@ from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body import body_topology
 from .body_features import BodyFeatures
-from .drape import DRAPED_KINDS, SkinBinding, draped_part
+from .drape import DRAPED_KINDS, DrapeSettings, SkinBinding, draped_part, drape_settings
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
@@ -69,6 +69,7 @@ class PartGeometry:
     blend_weights: np.ndarray | None = None  # (V, K) float32, rows sum to 1
     skinning: "SkinBinding | None" = None  # draped garments: linear-blend skinning instead of anchors (drape.py)
     body_faces: np.ndarray | None = None  # (F,) shells: the body face each face lies in (normals are the body's)
+    drape: "DrapeSettings | None" = None  # draped garments: the simulation they were draped with (drape.py)
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
@@ -522,12 +523,14 @@ def build_garments(
     topology: str = ANNY_TOPOLOGY,
     under: np.ndarray | None = None,
     phenotype: dict[str, float] | None = None,
+    drape: str = "full",
 ) -> list[PartGeometry]:
     """Geometry of every garment, innermost first, with layer offsets resolved.
 
     `under` (V,) float64, if given, holds per body vertex the outermost offset already used (zeros = bare skin);
     it is updated in place so that hair laid afterwards can stay outside the clothes. `phenotype` is needed by
-    draped garments (the cloth simulation runs on the posed body).
+    draped garments (the cloth simulation runs on the posed body); `drape`: their simulation's level
+    (`drape.DRAPE_LEVELS`, `RenderSettings.drape`).
     """
     if under is None:
         under = np.zeros(len(feats.rest_vertices))
@@ -540,7 +543,7 @@ def build_garments(
         elif g.kind in DRAPED_KINDS:
             if phenotype is None:
                 raise ValueError(f"build_garments: {g.kind} needs the phenotype (it is draped on the body)")
-            out.append(draped_part(g.kind, phenotype, feats, under))
+            out.append(draped_part(g.kind, phenotype, feats, under, drape_settings(g.kind, drape)))
         else:
             out.append(_shell(g.kind, feats, under, topology))
     return out

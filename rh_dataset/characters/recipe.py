@@ -20,6 +20,7 @@ from .body import PHENOTYPE_LABELS
 __all__ = [
     "POOLS",
     "GARMENT_KINDS",
+    "DRESSES",
     "PATTERNS",
     "FABRICS",
     "HAIR_STYLES",
@@ -36,11 +37,13 @@ __all__ = [
 
 RECIPE_FORMAT = "rh-character/1"  # headwear (optional key) kept the format: older recipes read back unchanged
 POOLS = ("benchmark", "pretrain")
-# draped_skirt: a loose skirt draped by newton's cloth solver (drape.py); never drawn by `recipe_from_seed` (off by
-# default, so generated datasets keep their bytes), chosen by editing a recipe.
-GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "shoes")
+# draped_skirt, draped_dress: loose garments draped by newton's cloth solver (drape.py). A dress is worn instead of a
+# top and a bottom. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a recipe's choice.
+GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
+                 "shoes")
 TOPS = ("tshirt", "longsleeve")
 BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt")
+DRESSES = ("draped_dress",)
 PATTERNS = ("solid", "stripes", "checks", "noise")
 # Fabric finish (how the renderer's sheen lobe and the knit texture treat a garment; character.FABRIC_SHEEN):
 # plain = woven (cotton, denim: threads far below the pixel footprint, no sheen), jersey = fine knit (t-shirts),
@@ -50,7 +53,8 @@ HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 # Headwear (headwear.py): at most one covering piece (cap, brimmed_hat, headscarf) plus, independently, glasses.
 HEADWEAR_KINDS = ("cap", "brimmed_hat", "headscarf", "glasses")
 # Innermost first: shoes under trouser hems, bottoms under tops (a shirt hangs over the waistband), jacket outside.
-GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "tshirt", "longsleeve", "jacket")
+GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress", "tshirt", "longsleeve",
+                  "jacket")
 COVERINGS = ("cap", "brimmed_hat", "headscarf")
 
 
@@ -275,10 +279,13 @@ class CharacterRecipe:
         kinds = [g.kind for g in garments]
         if len(set(kinds)) != len(kinds):
             raise ValueError(f"garments: each kind at most once, got {kinds}")
-        if sum(k in TOPS for k in kinds) != 1:
-            raise ValueError(f"garments: exactly one of {TOPS} is required, got {kinds}")
-        if sum(k in BOTTOMS for k in kinds) != 1:
-            raise ValueError(f"garments: exactly one of {BOTTOMS} is required, got {kinds}")
+        dresses = sum(k in DRESSES for k in kinds)
+        if dresses > 1 or (dresses and any(k in TOPS + BOTTOMS for k in kinds)):
+            raise ValueError(f"garments: a dress ({DRESSES}) is worn alone, without a top or bottom, got {kinds}")
+        if not dresses and sum(k in TOPS for k in kinds) != 1:
+            raise ValueError(f"garments: exactly one of {TOPS} (or a dress, {DRESSES}) is required, got {kinds}")
+        if not dresses and sum(k in BOTTOMS for k in kinds) != 1:
+            raise ValueError(f"garments: exactly one of {BOTTOMS} (or a dress, {DRESSES}) is required, got {kinds}")
         layered = sorted(kinds, key=GARMENT_LAYERS.index)
         if kinds != layered:
             raise ValueError(f"garments must be listed innermost first, i.e. {layered}, got {kinds}")

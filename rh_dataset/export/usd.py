@@ -117,14 +117,15 @@ class SubjectAssets:
 _ASSETS: dict[str, SubjectAssets] = {}
 
 
-def subject_assets(dataset: Path, subject: str, out: Path) -> SubjectAssets:
+def subject_assets(dataset: Path, subject: str, out: Path, drape: str = "full") -> SubjectAssets:
+    """`drape`: the drape level the frames were rendered with (their JSON's render.drape)."""
     from rh_dataset.characters import CharacterRecipe, build_character
 
-    key = f"{Path(dataset).resolve()}::{subject}::{Path(out).resolve()}"
+    key = f"{Path(dataset).resolve()}::{subject}::{Path(out).resolve()}::{drape}"
     if key in _ASSETS:
         return _ASSETS[key]
     recipe = CharacterRecipe.from_json(read_json(Path(dataset) / subject / layout.CHARACTER_JSON))
-    character = build_character(recipe)
+    character = build_character(recipe, drape=drape)
     files: dict[int, Path] = {}
     tex_dir = Path(out) / subject / "textures"
     for part in character.parts:
@@ -170,7 +171,8 @@ def export_frame(f: FrameRef, out: Path, protocol: str, *, dataset: Path, hdri_f
     from rh_dataset.poses import BodyPose
 
     Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, Vt = _pxr()
-    assets = subject_assets(dataset, f.subject, out)
+    # The loose garments as the frame's render draped them (frames made before render.drape existed: "full").
+    assets = subject_assets(dataset, f.subject, out, f.meta.get("render", {}).get("drape", "full"))
     pose = BodyPose.from_json(f.meta["body"]["pose"])
     meshes = pose_character(assets.character, dict(pose.bones), pose.root_transform)
 

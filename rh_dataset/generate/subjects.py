@@ -113,7 +113,7 @@ class AnnySubjects:
 
         spec = self.plan.spec
         recipe = sample_recipe(rng_for(self.plan.seed, "character", s), pool=spec.character_pool, index=s)
-        character = build_character(recipe)
+        character = build_character(recipe, drape=self.plan.settings.drape)
         lo, hi = framing_box(*body_bounds(pose_character(character, None, None)))
         cam = frame_body(lo, hi, spec.width, spec.height, spec.fov_y_deg, fill=CAMERA_FILL)
         return Subject(s, character, recipe.to_json(), cam, rig_cameras(spec, lo, hi))

@@ -96,6 +96,11 @@ class RenderSettings:
     """How draped garments reach each frame's pose (`rh_dataset.characters.cloth_pose.CLOTH_MODES`): "skinned"
     (linear-blend skinning, then pushed out of the skin) or "simulated" (newton's cloth solver while the body moves
     from the rest pose into the frame's). Which preset takes which: bench/bench_cloth_pose.py, docs/TRADEOFFS.md."""
+    drape: str = "full"
+    """How finely draped garments (loose skirts and dresses) are simulated onto each subject's rest-pose body
+    (`rh_dataset.characters.drape.DRAPE_LEVELS`): "full" (the benchmark's), "coarse" (half the particles around and
+    along, half the steps: ~1/8 of the drape's time; the draft preset's). A per-dataset choice: every subject is
+    built with it."""
 
     def __post_init__(self) -> None:
         for name in ("denoise", "cull"):
@@ -122,6 +127,10 @@ class RenderSettings:
 
         if self.cloth not in CLOTH_MODES:
             raise ValueError(f"render setting cloth must be one of {', '.join(CLOTH_MODES)}, got {self.cloth!r}")
+        from rh_dataset.characters.drape import DRAPE_LEVELS
+
+        if self.drape not in DRAPE_LEVELS:
+            raise ValueError(f"render setting drape must be one of {', '.join(DRAPE_LEVELS)}, got {self.drape!r}")
 
     def for_split(self, split) -> "RenderSettings":
         """These settings for one split of a scene description: an unset max_depth becomes the depth of the split's

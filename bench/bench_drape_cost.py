@@ -1,0 +1,97 @@
+"""What loose garments cost the benchmark: drape seconds per kind and level, posing seconds per frame, how many
+subjects of each protocol wear them, and the arithmetic for the demo, the default test suite and the full benchmark.
+
+    python bench/bench_drape_cost.py              # ~4 min on a busy 2-core box (two full drapes, two coarse ones)
+
+In: the dataset seed (default 0, the generator's and rh-demo's). Out, printed with the load average: (1) for the
+first dress and the first skirt wearer of the seed, the drape's wall seconds at each level (`drape.DRAPE_LEVELS`;
+a cold cache in a temporary folder, Warp kernels compiled first by a one-step drape), and the skinned posing of a
+walk frame (`pose_character`, the draft and standard presets' cloth mode) against the first subject in shell
+clothes; (2) per protocol, its subjects wearing a dress or a skirt; (3) the totals: drapes run once per
+(phenotype, kind, level) and are cached, so a protocol pays each loose subject's drape once, and protocols of one
+seed share subjects (and their cache).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--protocols", nargs="+", default=["demo", "a", "b", "c"])
+    args = ap.parse_args(argv)
+
+    from rh_common.body_model import load_anny
+    from rh_dataset.characters import build_character, pose_character, sample_recipe
+    from rh_dataset.characters.drape import DRAPE_LEVELS, drape_garment, drape_settings
+    from rh_dataset.generate.seeding import rng_for
+    from rh_dataset.poses import sample_poses
+    from rh_dataset.spec import load_protocol
+
+    load = lambda: " ".join(open("/proc/loadavg").read().split()[:3])  # noqa: E731
+    n_max = max(load_protocol(p).subjects for p in args.protocols)
+    recipes = [sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s) for s in range(n_max)]
+    loose = [next((g.kind for g in r.garments if g.kind.startswith("draped_")), None) for r in recipes]
+
+    print(f"seed {args.seed}; load at start {load()}")
+    first = {k: loose.index(k) for k in ("draped_dress", "draped_skirt") if k in loose}
+    os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_drape_cost_")  # cold: every drape is timed
+    ph0 = recipes[next(iter(first.values()))].phenotype
+    t = time.perf_counter()
+    drape_garment("draped_skirt", ph0, dataclasses.replace(drape_settings("draped_skirt"), steps=1), use_cache=False)
+    print(f"Warp/newton kernels (one-step drape, compiled or loaded): {time.perf_counter() - t:.1f} s")
+    secs = {}
+    for kind, s in first.items():
+        for level in DRAPE_LEVELS:
+            st = drape_settings(kind, level)
+            t = time.perf_counter()
+            drape_garment(kind, recipes[s].phenotype, st)
+            secs[kind, level] = time.perf_counter() - t
+            print(f"subject {s:2d} {kind:13s} {level:6s} {st.n_around}x{st.n_rings} particles, {st.steps} steps: "
+                  f"drape {secs[kind, level]:6.1f} s  (load {load()})", flush=True)
+    pose = next(p for p in sample_poses(np.random.default_rng(7), load_anny(), 8) if p.label == "walk")
+    for kind, s in first.items():
+        r = recipes[s]
+        ch = build_character(r, 64, drape="full")
+        bare = build_character(recipes[loose.index(None)], 64)  # the first subject in shell clothes only
+        times = {}
+        for name, c in (("with", ch), ("without", bare)):
+            ts = []
+            for _ in range(3):
+                t = time.perf_counter()
+                pose_character(c, dict(pose.bones), pose.root_transform)
+                ts.append(time.perf_counter() - t)
+            times[name] = statistics.median(ts)
+        print(f"subject {s:2d} {kind:13s} posing a walk frame (skinned, median of 3): {times['with']:.2f} s, "
+              f"subject {loose.index(None)} in shell clothes {times['without']:.2f} s  (load {load()})")
+        secs[kind, "pose"] = times["with"] - times["without"]
+
+    print("\nprotocol        subjects  dresses  skirts  frames/subject  drape (full / coarse)   posing added")
+    for p in args.protocols:
+        spec = load_protocol(p)
+        ks = loose[:spec.subjects]
+        nd, ns = ks.count("draped_dress"), ks.count("draped_skirt")
+        frames = sum(sp.frames for sp in spec.splits)
+        full = nd * secs.get(("draped_dress", "full"), 0.0) + ns * secs.get(("draped_skirt", "full"), 0.0)
+        coarse = nd * secs.get(("draped_dress", "coarse"), 0.0) + ns * secs.get(("draped_skirt", "coarse"), 0.0)
+        posing = (nd * secs.get(("draped_dress", "pose"), 0.0) + ns * secs.get(("draped_skirt", "pose"), 0.0)) * frames
+        print(f"{p:14s} {spec.subjects:9d} {nd:8d} {ns:7d} {frames:15d}  {full / 60:7.1f} / {coarse / 60:5.1f} min"
+              f"  {posing / 3600:9.2f} h (if every frame posed as the walk)")
+    print(f"(load at the end {load()})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
