@@ -19,6 +19,7 @@ from rh_dataset.characters.recipe import DEFAULT_IRIS, CharacterRecipe
 from rh_dataset.characters.recipe_draws import (IRIS_COLOUR_NAMES, iris_colour_name, iris_weights, recipe_from_seed,
                                                 sample_eyes)
 from rh_dataset.characters.textures import PUPIL_LINEAR, eye_texture
+from rh_dataset.poses.joints import rotation_about
 
 FORWARD, UP = np.array([0.0, -1.0, 0.0]), np.array([0.0, 0.0, 1.0])
 SEEDS = (2, 12)  # two benchmark subjects (different bodies)
@@ -37,10 +38,9 @@ def _bone_transform(phenotype, bones, label: str = "head") -> tuple[np.ndarray, 
 
 
 def _rot(axis: int, deg: float) -> np.ndarray:
+    """4x4: `deg` degrees about coordinate axis `axis` (0 x, 1 y, 2 z), right-handed."""
     m = np.eye(4)
-    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+    m[:3, :3] = rotation_about(np.eye(3)[axis], deg)
     return m
 
 

@@ -15,6 +15,7 @@ from rh_dataset.characters.headwear import FIT_CLEARANCE, build_headwear, covere
 from rh_dataset.characters.recipe import CharacterRecipe, HairSpec, Headwear
 from rh_dataset.characters.recipe_draws import HEADWEAR_P, recipe_from_seed, sample_headwear
 from rh_dataset.characters.scalp import scalp
+from rh_dataset.poses.joints import rotation_about
 
 RED, BLACK = (0.6, 0.15, 0.1), (0.05, 0.05, 0.05)
 
@@ -47,10 +48,9 @@ def _head_transform(phenotype, bones=None) -> np.ndarray:
 
 
 def _rot(axis: int, deg: float) -> np.ndarray:
+    """4x4: `deg` degrees about coordinate axis `axis` (0 x, 1 y, 2 z), right-handed."""
     m = np.eye(4)
-    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+    m[:3, :3] = rotation_about(np.eye(3)[axis], deg)
     return m
 
 
