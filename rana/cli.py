@@ -19,7 +19,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from rh_common.interrupt import add_debug_flag, command, on_stop
+from rh_common.interrupt import add_debug_flag, checkpoint, command, on_stop
 
 from .config import PRESETS, get_preset
 from .config_flags import add_config_flags, apply_config_flags
@@ -208,6 +208,7 @@ def main(argv: list[str] | None = None) -> int:
                                 aov_only_train=args.aov_only_train)
             print(f"rana synth: wrote {root}")
     except (FileNotFoundError, ValueError) as exc:
+        checkpoint()  # an error that follows a stop lost in a C callback is that stop (rh_common.interrupt)
         print(f"rana {args.cmd}: error: {exc}", file=sys.stderr)
         return 2
     return 0

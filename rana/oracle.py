@@ -16,7 +16,7 @@ import numpy as np
 
 from rh_common import sh
 from rh_common.imageio import read_exr
-from rh_common.interrupt import add_debug_flag, command, on_stop
+from rh_common.interrupt import add_debug_flag, checkpoint, command, on_stop
 
 from .predictions import PredictionWriter, iter_test_frames
 
@@ -64,6 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         n = predict_oracle(args.dataset, args.protocol, args.out, args.split)
     except (FileNotFoundError, ValueError) as exc:
+        checkpoint()  # an error that follows a stop lost in a C callback is that stop (rh_common.interrupt)
         print(f"rana-oracle: error: {exc}", file=sys.stderr)
         return 2
     print(f"rana-oracle: {n} frames written to {args.out}")

@@ -33,7 +33,7 @@ from rh_common import sh
 from rh_common.colourspace import luminance
 from rh_common.imageio import atomic_path
 from rh_common.threads import torch_threads
-from rh_common.interrupt import add_debug_flag, command, on_stop
+from rh_common.interrupt import add_debug_flag, checkpoint, command, on_stop
 
 from .body import body_topology
 from .config import RanaConfig, get_preset, PRESETS
@@ -290,6 +290,7 @@ def main(argv: list[str] | None = None) -> int:
         with torch_threads(cfg.threads):  # the command's own count, restored when it returns
             path = pretrain(args.dataset, args.protocol, args.out, cfg, progress=not args.no_progress, force=args.force)
     except (FileNotFoundError, ValueError) as exc:
+        checkpoint()  # an error that follows a stop lost in a C callback is that stop (rh_common.interrupt)
         print(f"rana-pretrain: error: {exc}", file=sys.stderr)
         return 2
     print(f"rana-pretrain: wrote {path}")

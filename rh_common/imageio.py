@@ -21,6 +21,8 @@ import numpy as np
 import OpenEXR
 from PIL import Image
 
+from rh_common.interrupt import checkpoint
+
 __all__ = [
     "ImageFileError",
     "atomic_path",
@@ -70,6 +72,9 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
             except FileExistsError:  # another writer's name (a 48-bit random collision): never ours to remove
                 tmp_path = None
         yield tmp_path
+        # A stop that arrived while this file was computed may have been lost in a C callback (rh_common.interrupt):
+        # then what was computed may be wrong, and it is not kept.
+        checkpoint()
         with open(tmp_path, "rb+") as f:
             os.fchmod(f.fileno(), 0o666 & ~_umask())
             os.fsync(f.fileno())

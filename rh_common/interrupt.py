@@ -11,6 +11,12 @@ what is finished so far. Out: the same `main`, which
 - with `--debug` in its arguments (every command's parser declares it with `add_debug_flag`) lets the traceback
   through instead.
 
+A stop can be lost on the way: Python cannot raise out of a C library's callback (rtree's ctypes stream, under
+trimesh's closest-point queries, prints "Exception ignored" and carries on, perhaps with a wrong answer). So the
+signal is also remembered, and `checkpoint()` raises it again: `rh_common.imageio.atomic_path` calls it before it
+commits a file, so nothing computed across a lost stop is kept; an error that escapes after a stop (the library's
+own failure at the lost exception) is reported as that stop.
+
 A further SIGINT/SIGTERM while the command unwinds is ignored, so that the clean-up itself (removing a temporary
 file, stopping worker processes) cannot be cut short; `kill -9` stays safe because every write is atomic.
 Worker processes call `worker_signals()` first: SIGTERM then unwinds them the same way (a terminated worker leaves
@@ -33,7 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator
 
-__all__ = ["command", "on_stop", "Stopped", "worker_signals", "signals_kept", "add_debug_flag", "resume_command", "disk_error_line",
+__all__ = ["command", "on_stop", "Stopped", "checkpoint", "stop_received", "worker_signals", "signals_kept", "add_debug_flag", "resume_command", "disk_error_line",
            "human_bytes", "nearest_folder", "EXIT_DISK", "DISK_ERRNOS"]
 
 EXIT_DISK = 1
@@ -71,6 +77,18 @@ def _raise_stopped(signum: int, frame) -> None:
         signal.signal(s, signal.SIG_IGN)
     _received.append(signum)
     raise Stopped(signum)
+
+
+def stop_received() -> int | None:
+    """The stopping signal this process has received (while a command or a worker runs), or None."""
+    return _received[-1] if _received else None
+
+
+def checkpoint() -> None:
+    """Raise `Stopped` if a stopping signal has arrived: its own exception may have been lost in a C callback (see
+    the module docstring). Call it before committing work; outside a command it does nothing."""
+    if _received:
+        raise Stopped(_received[-1])
 
 
 def worker_signals() -> None:
@@ -188,18 +206,30 @@ def command(prog: str, *, not_on_resume: tuple[str, ...] = ()
                     # during the interpreter's teardown (which restores the default handlers) would replace the
                     # exit code by "killed by SIGINT".
                     previous = None
-                _say(f"{prog}: stopped by {signal.Signals(signum).name}: {_finished(cmd)}no partial file was kept; "
-                     f"resume with: {resume_command(prog, cmd.argv)}")
-                return 128 + int(signum)
+                return _stopped(prog, cmd, signum)
             except OSError as raised:
                 exc = _disk_error(raised)
+                if outer and not debug and exc is None and _received:  # as below, for a non-disk OSError
+                    if argv is None:
+                        previous = None
+                    return _stopped(prog, cmd, _received[-1])
                 if debug or not outer or exc is None:
                     raise
                 _say(disk_error_line(prog, exc, resume=resume_command(prog, cmd.argv), finished=_finished(cmd, ""),
                                      remaining_bytes=_call(cmd.remaining_bytes)))
                 return EXIT_DISK
+            except Exception:
+                # After a stop whose exception was lost in a C callback, the library fails in its own way: that
+                # failure is the stop's doing, and the user asked for the stop.
+                if debug or not outer or not _received:
+                    raise
+                if argv is None:
+                    previous = None
+                return _stopped(prog, cmd, _received[-1])
             finally:
                 _active.remove(cmd)
+                if outer:
+                    _received.clear()
                 if previous is not None:
                     for s, h in previous.items():
                         signal.signal(s, h if h is not None else signal.SIG_DFL)
@@ -207,6 +237,12 @@ def command(prog: str, *, not_on_resume: tuple[str, ...] = ()
         return run
 
     return decorate
+
+
+def _stopped(prog: str, cmd: _Command, signum: int) -> int:
+    _say(f"{prog}: stopped by {signal.Signals(signum).name}: {_finished(cmd)}no partial file was kept; "
+         f"resume with: {resume_command(prog, cmd.argv)}")
+    return 128 + int(signum)
 
 
 def _disk_error(exc: BaseException) -> OSError | None:

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from rh_common.cli_help import HelpFormatter
-from rh_common.interrupt import add_debug_flag, command, on_stop
+from rh_common.interrupt import add_debug_flag, checkpoint, command, on_stop
 
 __all__ = ["main", "build_parser", "options_from_args", "render_settings", "backend_from_args"]
 
@@ -243,6 +243,7 @@ def main(argv: list[str] | None = None) -> int:
             space.check_space(plan)
         counts = generate(plan, backend, progress=not args.no_progress)
     except (ValueError, GenerateError, VariantError, FileNotFoundError, BlenderError, space.SpaceError) as exc:
+        checkpoint()  # an error that follows a stop lost in a C callback is that stop (rh_common.interrupt)
         print(f"rh-generate: error: {exc}", file=sys.stderr)
         return 2
     print(f"rh-generate: {counts['rendered']} frames rendered, {counts['skipped']} already complete, "

@@ -7,7 +7,7 @@ import math
 import sys
 from pathlib import Path
 
-from rh_common.interrupt import add_debug_flag, command, on_stop
+from rh_common.interrupt import add_debug_flag, checkpoint, command, on_stop
 
 __all__ = ["main", "build_parser"]
 
@@ -131,6 +131,7 @@ def main(argv: list[str] | None = None) -> int:
             ev = Evaluator(opts)
             result, rows, cols = ev.evaluate(args.predictions, args.dataset, args.protocol, split=args.split)
     except (PredictionError, ImageFileError, WeightError, FileNotFoundError, ValueError) as exc:
+        checkpoint()  # an error that follows a stop lost in a C callback is that stop (rh_common.interrupt)
         print(f"rh-eval: error: {exc}", file=sys.stderr)
         return 2
     if args.kind:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from rh_common import layout
 from rh_common.imageio import atomic_path
-from rh_common.interrupt import add_debug_flag, command, on_stop
+from rh_common.interrupt import add_debug_flag, checkpoint, command, on_stop
 
 from .leaderboard_results import (ALIGNED_COLUMNS, COLUMNS, IMAGE_ALIGNED_COLUMNS, Entry, _align_text, _best,
                                   _by_convention, _cell, _columns, _conv_name, _convention_line, _groups,
@@ -349,6 +349,7 @@ def main(argv: list[str] | None = None) -> int:
         comparisons = [layout.read_comparison(c) for c in args.comparison]
         entries, warnings = load_results(args.results, allow_mixed=args.allow_mixed, comparisons=comparisons)
     except (ValueError, OSError) as exc:
+        checkpoint()  # an error that follows a stop lost in a C callback is that stop (rh_common.interrupt)
         print(f"rh-leaderboard: error: {exc}", file=sys.stderr)
         return 2
     if args.pictures < 0:

@@ -76,6 +76,46 @@ def test_a_signal_stops_a_command_with_one_line_and_no_temporary_file(tmp_path, 
     assert not list(tmp_path.glob(".*.tmp"))
 
 
+# A command whose stop lands inside a C library's callback (rtree's ctypes stream under trimesh does this): Python
+# prints "Exception ignored" and the callback returns as if nothing happened. The command then computes a result
+# that may be wrong and tries to keep it.
+LOST = textwrap.dedent("""
+    import ctypes, sys, time
+    import numpy as np
+    from rh_common.imageio import write_png
+    from rh_common.interrupt import command
+
+    def busy():
+        print("READY", flush=True)
+        while True:
+            time.sleep(0.01)
+
+    @command("lost")
+    def main(argv=None):
+        out = (sys.argv[1:] if argv is None else argv)[0]
+        ctypes.CFUNCTYPE(None)(busy)()  # the stop is raised in here, and lost
+        print("AFTER", flush=True)
+        write_png(f"{out}/result.png", np.zeros((4, 4), np.uint8))
+        return 0
+
+    sys.exit(main())
+""")
+
+
+def test_a_stop_lost_in_a_c_callback_still_stops_before_anything_is_kept(tmp_path):
+    script = tmp_path / "lost.py"
+    script.write_text(LOST)
+    proc = subprocess.Popen([sys.executable, str(script), str(tmp_path)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=ENV)
+    assert proc.stdout.readline().strip() == "READY"
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert "AFTER" in out and "Exception ignored" in err  # the stop was indeed lost where it was raised
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1].startswith("lost: stopped by SIGINT: no partial file was kept")
+    assert not (tmp_path / "result.png").exists() and not list(tmp_path.glob(".*.tmp"))
+
+
 def test_a_second_ctrl_c_while_stopping_leaves_no_temporary_file(tmp_path):
     for _ in range(5):  # different moments inside the writes
         proc = _toy(tmp_path)

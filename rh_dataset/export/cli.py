@@ -11,7 +11,7 @@ from pathlib import Path
 from rh_common import layout
 from rh_common.cli_help import HelpFormatter
 from rh_common.imageio import read_json, write_json
-from rh_common.interrupt import add_debug_flag, command, on_stop
+from rh_common.interrupt import add_debug_flag, checkpoint, command, on_stop
 
 from .common import ExportError, check_dataset, iter_frames
 
@@ -250,6 +250,7 @@ def main(argv: list[str] | None = None) -> int:
                                 smpl_model=args.smpl_model, smpl_gender=args.smpl_gender, smpl_settings=settings,
                                 smplx_model=args.smplx_model)
     except (ExportError, ValueError, FileNotFoundError) as exc:
+        checkpoint()  # an error that follows a stop lost in a C callback is that stop (rh_common.interrupt)
         print(f"rh-export: error: {exc}", file=sys.stderr)
         return 2
     print(f"rh-export: {counts['frames']} frames, {counts['files']} files written in {counts['seconds']:.1f} s; "
