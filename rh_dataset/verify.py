@@ -106,11 +106,15 @@ def verify(root: str | Path, *, check_content: bool = True, progress: bool = Fal
 
 
 def _print_comparison(cmp: layout.Comparison, shown: int = 20) -> None:
-    print(f"{'split/layer':<32} {'max |A-B|':>12} {'min PSNR dB':>12} {'frames differing':>17}")
+    print(f"{'split/layer':<32} {'max |A-B|':>12} {'min PSNR dB':>12} {'frames differing':>17} "
+          f"{'pixels diverged':>16}")
     for key, d in sorted(cmp.layers.items()):
         psnr = "inf" if d.min_psnr_db == float("inf") else f"{d.min_psnr_db:.1f}"
-        flag = "" if d.within() else "  outside tolerance"
-        print(f"{key:<32} {d.max_abs:>12.4g} {psnr:>12} {d.frames_differing:>8} of {d.frames:<6}{flag}")
+        flag = ("" if d.within("rounding") else "  within sampling noise" if d.within(cmp.tier)
+                else "  outside tolerance")
+        div = f"{100 * d.max_diverged_fraction:.2f} %" if d.pixels_diverged else "-"
+        print(f"{key:<32} {d.max_abs:>12.4g} {psnr:>12} {d.frames_differing:>8} of {d.frames:<6} {div:>16}{flag}")
+    print("(pixels diverged: the largest share of one frame's pixels that differ beyond rounding)")
     for line in cmp.mismatches[:shown]:
         print(line)
     for rel in cmp.frames_differing[:shown]:
@@ -134,6 +138,11 @@ def main(argv: list[str] | None = None) -> int:
                         "difference and lowest PSNR per layer, the frames that differ, and whether the two are the "
                         "same benchmark within the tolerance of docs/ARCHITECTURE.md ('Content identity'); OTHER "
                         "is verified too")
+    p.add_argument("--tolerance", choices=layout.TIERS, default="noise",
+                   help="with --against: what counts as the same benchmark. 'noise' (default): every file within "
+                        "rounding except up to 2 %% of its pixels whose paths took another course (another CPU "
+                        "vector width, strand hair); 'rounding': every file within rounding (>= 100 dB, 8-bit "
+                        "within 1 level), the check for a change of the generator on one machine")
     p.add_argument("--record", type=Path, metavar="FILE",
                    help="with --against: write the comparison as JSON (rh-comparison/1), every differing frame "
                         "listed; rh-leaderboard --comparison FILE reads it to rank results of both datasets together")
@@ -158,7 +167,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.against and not any(pr.path.endswith(layout.MANIFEST_JSON) and "missing" in pr.what
                                 for r in reports.values() for pr in r.problems):
         cmp = layout.compare_datasets(args.root, args.against, reports[args.root].identity,
-                                      reports[args.against].identity, progress=not args.no_progress)
+                                      reports[args.against].identity, progress=not args.no_progress,
+                                      tier=args.tolerance)
         _print_comparison(cmp)
         print(f"rh-verify --against: {cmp.verdict}")
         if args.record:

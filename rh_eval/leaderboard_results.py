@@ -117,9 +117,13 @@ def _same_split(ref: Entry, e: Entry, comparisons: list[dict]) -> str | None:
         psnrs = [v["min_psnr_db"] for v in layers.values() if not v.get("is_8bit") and v["min_psnr_db"] != "inf"]
         worst = f"lowest layer PSNR {min(psnrs):.1f} dB" if psnrs else "float layers equal"
         levels = max([v["max_abs"] for v in layers.values() if v.get("is_8bit")] or [0])
+        # Records before the noise tier have no "within_rounding": their tolerance was rounding.
+        how = "within rounding" if c.get("within_rounding", True) else "within sampling noise"
+        diverged = max([v.get("max_diverged_fraction", 0.0) for v in layers.values()] or [0.0])
+        spread = f", up to {100 * diverged:.2f} % of a file's pixels diverged" if diverged else ""
         e.within_tolerance = (f"{e.row_name}: scored on content identity `{b[:16]}…`, which agrees with "
-                              f"`{a[:16]}…` only within tolerance (rh-verify --against: {worst}, 8-bit layers "
-                              f"within {levels:g} level; tolerance {c.get('tolerance')})")
+                              f"`{a[:16]}…` only {how} (rh-verify --against: {worst}, 8-bit layers "
+                              f"within {levels:g} level{spread}; tolerance {c.get('tolerance')})")
         return None
     return (f"content identity {b[:16]}… differs from {ref.path}'s {a[:16]}… (if the datasets agree within "
             f"tolerance, give rh-verify A --against B --record FILE's record as --comparison FILE)")

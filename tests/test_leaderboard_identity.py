@@ -75,11 +75,11 @@ def test_leaderboard_combines_on_identity_and_on_a_tolerance_record(setup, tmp_p
     capsys.readouterr()
     assert lb_main([str(res["a"]), str(res["b"]), "--out", str(tmp_path / "lb2"), "--comparison", str(rec)]) == 0
     md = (tmp_path / "lb2" / "leaderboard.md").read_text()
-    assert "agrees with" in md and "only within tolerance" in md and "lowest layer PSNR" in md
+    assert "agrees with" in md and "only within rounding" in md and "lowest layer PSNR" in md
     rows = [l for l in md.splitlines() if l.startswith("| m")]
     assert sorted(rw.split("|")[1].strip() for rw in rows) == ["m (res_a.json)", "m (res_b.json) ≈"]
     html = (tmp_path / "lb2" / "index.html").read_text()
-    assert "only within tolerance" in html and "m (res_b.json) ≈" in html
+    assert "only within rounding" in html and "m (res_b.json) ≈" in html
     # A record that found them different: refused with that reason.
     rec_c = tmp_path / "ac.json"
     assert verify_main([str(ds["a"]), "--against", str(ds["c"]), "--record", str(rec_c), "--no-progress"]) == 1

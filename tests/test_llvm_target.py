@@ -1,5 +1,6 @@
 """The decision of docs/ARCHITECTURE.md ("Content identity"): datasets rendered with 16-lane (AVX-512) and 8-lane
-(AVX2) LLVM kernels are not pinned to one target but are the same benchmark within the documented tolerance. Both
+(AVX2) LLVM kernels are not pinned to one target but are the same benchmark within the documented tolerance (its
+sampling-noise tier: a few pixels' paths through strand hair differ, everything else within rounding). Both
 are rendered here, on this machine, through bench/llvm_target.py (which sets Dr.Jit's LLVM target)."""
 from __future__ import annotations
 
@@ -22,9 +23,6 @@ def _native_width() -> int:
     return int(out.split("vector width ")[1].split(",")[0])
 
 
-@pytest.mark.xfail(strict=False, reason="open regression since strand hair (measured 2 December 2026, docs/ARCHITECTURE.md "
-                   "'Content identity'): a ray grazing a curve hits it at one vector width and misses at the other, "
-                   "so 8- and 16-lane datasets differ at the Monte Carlo noise level, far outside the 100 dB tolerance")
 def test_8_and_16_lane_kernels_are_the_same_benchmark_within_tolerance(tmp_path):
     if _native_width() != 16:
         pytest.skip("needs an AVX-512 host (16 lanes) to render both widths")
@@ -36,5 +34,7 @@ def test_8_and_16_lane_kernels_are_the_same_benchmark_within_tolerance(tmp_path)
     a, b = tmp_path / "w16", tmp_path / "w8"
     cmp = layout.compare_datasets(a, b, layout.read_identity(a), layout.read_identity(b))
     assert cmp.mismatches == []  # the same cameras, poses and lights: numpy computes them, not LLVM
-    assert cmp.within_tolerance, {k: v.to_json() for k, v in cmp.layers.items()}
+    # Within sampling noise, not rounding, since strand hair: a ray grazing a curve hits it at one vector width and
+    # misses at the other (docs/ARCHITECTURE.md, "Content identity").
+    assert cmp.tier == "noise" and cmp.within_tolerance, {k: v.to_json() for k, v in cmp.layers.items()}
     assert {k.rsplit("/", 1)[1] for k in cmp.layers} >= {"image.exr", "albedo.exr", "normal.exr", "depth.exr"}
