@@ -1,15 +1,20 @@
-"""Benchmark subjects in loose garments: the first draped-dress and draped-skirt wearers among a dataset seed's
-subjects, draped at a drape level, rendered rest front | rest side | a posed frame front | side, with the drape's
-seconds and how deep any cloth vertex sits in the body in each view.
+"""Benchmark subjects in loose garments: the first draped-dress, draped-skirt and draped-trousers wearers among a
+dataset seed's subjects, draped at a drape level, rendered rest front | rest side | a posed frame front | side, with
+the drape's seconds and how deep any cloth vertex sits in the body in each view.
 
     python bench/draped_garments.py --out docs/draped_garments.png           # 2 dresses + 2 skirts, full drape
     python bench/draped_garments.py --dresses 1 --skirts 1 --drape coarse    # quicker look
+    python bench/draped_garments.py --dresses 0 --skirts 0 --trousers 3 --tile 512 --out docs/draped_trousers.png
+    python bench/draped_garments.py ... --trousers 3 --swap-trousers   # shell-trousers wearers put in draped ones
 
 In: the dataset seed (the generator's subject order: `sample_recipe(rng_for(seed, "character", s))`), how many
 subjects of each kind, the drape level (`drape.DRAPE_LEVELS`). Out: a PNG sheet (a row per subject, 256 px tiles,
 Open Image Denoise on 32 spp: a look, not a dataset frame) and, printed, per subject: its index, garments, drape
 wall seconds (0 when the drape cache already held it), worst cloth depth under the skin (mm, > 0 inside) at rest
-and posed, and the load average. The posed frame is skinned (the draft and standard presets' cloth mode).
+and posed, the cloth's self-crossing edges (`cloth_pose.self_crossings`) at rest and posed, and the load average.
+The posed frame is skinned (the draft and standard presets' cloth mode). `--swap-trousers`: subjects whose recipe
+draws the shell `trousers` count as trousers wearers, in `draped_trousers` of the same colours (their recipes
+otherwise unmodified), for a seed whose recipes do not draw the draped kind.
 """
 from __future__ import annotations
 
@@ -23,15 +28,22 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200) -> list[tuple[int, object]]:
-    """(subject index, recipe) of the first `dresses` draped-dress and `skirts` draped-skirt wearers of `seed`."""
+def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200, trousers: int = 0,
+                   swap_trousers: bool = False) -> list[tuple[int, object]]:
+    """(subject index, recipe) of the first `dresses` draped-dress, `skirts` draped-skirt and `trousers`
+    draped-trousers wearers of `seed` (`swap_trousers`: shell-trousers wearers put in draped ones)."""
+    import dataclasses
+
     from rh_dataset.characters import sample_recipe
     from rh_dataset.generate.seeding import rng_for
 
-    want = {"draped_dress": dresses, "draped_skirt": skirts}
+    want = {"draped_dress": dresses, "draped_skirt": skirts, "draped_trousers": trousers}
     out = []
     for s in range(limit):
         r = sample_recipe(rng_for(seed, "character", s), pool="benchmark", index=s)
+        if swap_trousers and r.garment("trousers") is not None:
+            r = dataclasses.replace(r, garments=tuple(dataclasses.replace(g, kind="draped_trousers")
+                                                      if g.kind == "trousers" else g for g in r.garments))
         kind = next((g.kind for g in r.garments if g.kind in want), None)
         if kind is not None and want[kind] > 0:
             want[kind] -= 1
@@ -46,6 +58,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="dataset seed whose subjects are searched")
     ap.add_argument("--dresses", type=int, default=2)
     ap.add_argument("--skirts", type=int, default=2)
+    ap.add_argument("--trousers", type=int, default=0)
+    ap.add_argument("--swap-trousers", action="store_true",
+                    help="shell-trousers wearers count as draped-trousers wearers (in draped_trousers)")
     ap.add_argument("--drape", default="full", help="drape level (full: the benchmark's; coarse: draft's)")
     ap.add_argument("--tile", type=int, default=256, help="tile size in pixels")
     ap.add_argument("--out", type=Path, default=Path("/tmp/draped_garments.png"))
@@ -58,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.imageio import write_png
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body import body_topology, run_anny
+    from rh_dataset.characters.cloth_pose import self_crossings
     from rh_dataset.characters.drape import DRAPED_KINDS, penetration
     from rh_dataset.characters.preview import render_preview
     from rh_dataset.poses import sample_poses
@@ -67,12 +83,13 @@ def main(argv: list[str] | None = None) -> int:
     faces = body_topology().faces
     pose = next(p for p in sample_poses(np.random.default_rng(7), load_anny(), 8) if p.label == "walk")
     rows = []
-    for s, recipe in loose_subjects(args.seed, args.dresses, args.skirts):
+    for s, recipe in loose_subjects(args.seed, args.dresses, args.skirts, trousers=args.trousers,
+                                    swap_trousers=args.swap_trousers):
         t = time.perf_counter()
         character = build_character(recipe, 512, drape=args.drape)
         t_build = time.perf_counter() - t
         kind = next(p.name for p in character.parts if p.name in DRAPED_KINDS)
-        tiles, depth = [], []
+        tiles, depth, crossings = [], [], []
         for bones, root in (({}, None), (dict(pose.bones), pose.root_transform)):
             run = run_anny(recipe.phenotype, bones)
             body = run["vertices"] if root is None else run["vertices"] @ root[:3, :3].T + root[:3, 3]
@@ -83,6 +100,7 @@ def main(argv: list[str] | None = None) -> int:
                 if turn == 0.0:
                     cloth = next(m for m in posed if m.name == kind)
                     depth.append(1e3 * float(penetration(body, faces, cloth.vertices).max()))
+                    crossings.append(self_crossings(cloth.vertices, cloth.faces))
                 img = render_preview(posed, width=args.tile, height=args.tile, spp=32, seed=s)
                 guide = render_preview(posed, width=args.tile, height=args.tile, spp=4, seed=s, albedo=True)
                 img = pyoidn.denoise(np.ascontiguousarray(img), albedo=np.ascontiguousarray(guide), hdr=True)
@@ -90,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(np.concatenate(tiles, axis=1))
         print(f"subject {s:3d} {','.join(g.kind for g in recipe.garments):40s} build (drape {args.drape}) "
               f"{t_build:6.1f} s  cloth depth in the body: rest {depth[0]:6.2f} mm, {pose.label} {depth[1]:6.2f} mm  "
-              f"(load {load()})", flush=True)
+              f"self-crossing edges: rest {crossings[0]}, {pose.label} {crossings[1]}  (load {load()})", flush=True)
     write_png(args.out, np.concatenate(rows, axis=0))
     print(f"wrote {args.out}: rows = subjects, columns = rest front | rest side | {pose.label} front | side")
     return 0

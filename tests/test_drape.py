@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
-from rh_dataset.characters.drape import (DRAPED_KINDS, PUSH_CLEARANCE, bind_to_skeleton, collider_faces,
+from rh_dataset.characters.drape import (DRAPED_KINDS, PROFILES, PUSH_CLEARANCE, bind_to_skeleton, collider_faces,
                                          drape_garment, drape_settings, garment_pattern, penetration, push_out,
                                          skin_points)
 
@@ -25,6 +25,7 @@ REST_BOUND_M = 0.002
 POSED_BOUND_M = 0.0005
 SEATED_BOUND_M = 0.003
 SEATED_MAX_INSIDE = 10
+TUBE_KINDS = tuple(k for k in DRAPED_KINDS if not PROFILES[k].legs)  # one tube; trousers: test_drape_trousers.py
 
 
 def _a_pose_heads() -> dict[str, np.ndarray]:
@@ -34,7 +35,7 @@ def _a_pose_heads() -> dict[str, np.ndarray]:
     return {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
 
 
-@pytest.mark.parametrize("kind", DRAPED_KINDS)
+@pytest.mark.parametrize("kind", TUBE_KINDS)
 def test_pattern_is_an_outward_tube_outside_the_body(kind):
     verts, faces, uvs, pinned, circ = garment_pattern(kind, PHENO)
     st = drape_settings(kind)
@@ -128,7 +129,7 @@ def test_push_out_clears_points_sunk_into_the_skin():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("kind", DRAPED_KINDS)
+@pytest.mark.parametrize("kind", TUBE_KINDS)
 def test_drape_is_bit_identical_and_stays_outside_the_body(tmp_path, monkeypatch, kind):
     from rh_common.body_model import load_anny
     from rh_dataset.poses import sample_poses
@@ -192,7 +193,7 @@ def test_benchmark_recipes_draw_loose_garments():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("kind", DRAPED_KINDS)
+@pytest.mark.parametrize("kind", TUBE_KINDS)
 def test_character_wears_the_draped_skirt_in_every_pose(tmp_path, monkeypatch, kind):
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character

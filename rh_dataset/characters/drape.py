@@ -36,7 +36,7 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "bind_to_skeleton", "skin_points", "drape_cache_dir", "DRAPE_VERSION", "draped_part",
            "penetration", "push_out", "collider_faces", "cloth_model", "cloth_solver"]
 
-DRAPED_KINDS = ("draped_skirt", "draped_dress")
+DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -79,7 +79,9 @@ class DrapedGarment:
     (outward), uvs (V, 2) float32 in [0, 1], `pinned` (V,) bool (the waistband, held on the body). `pattern`
     (V, 3): the undraped cloth it was simulated from, whose triangles and bends are the cloth's rest shape (a
     simulation that goes on from `vertices` must keep them: taking the draped, gravity-stretched surface as the
-    rest shape would let the skirt sag further and keep its folds as memory)."""
+    rest shape would let the skirt sag further and keep its folds as memory). `pieces`: for kinds that are not one
+    tube (trousers), the tubes the cloth is made of, each a (rings, around) grid of vertex indices whose columns
+    wrap (None: one tube of `n_rings` x `n_around`)."""
 
     kind: str
     vertices: np.ndarray
@@ -88,6 +90,7 @@ class DrapedGarment:
     pinned: np.ndarray
     metres_per_uv: float
     pattern: np.ndarray | None = None
+    pieces: tuple[np.ndarray, ...] | None = None  # trousers: (rings, around) vertex grids (`_trouser_pattern`)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,14 +120,21 @@ class DrapeProfile:
     give way by ~15 cm under their weight (measured: the hem of a 0.9 pattern settled 17 cm lower, 9 cm under the
     knee), is cut shorter. Every ring stays `clearance` + 2 mm outside the convex hull of the trunk's, shoulders'
     and thighs' cross-section at its height, so the pattern starts clear of the body wherever the hips are wider
-    than the cloth above them."""
+    than the cloth above them.
+
+    `legs` (trousers, `_trouser_pattern`): the tube from the waist hangs straight (kept outside the hips) down to
+    just under the crotch, where it divides into two leg tubes along a crotch seam between the thighs; each leg
+    is a cone of half-angle `DrapeSettings.flare` whose top radius is `legs` times half the hips' width at the
+    split, its hem `hem` metres above the floor (`hem` is not a fraction for trousers)."""
 
     top: str
     flare_from: str
     hem: float = 0.9
+    legs: float = 0.0
 
 
-PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7)}
+PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7),
+            "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0)}
 # The simulation per (kind, level). "full": the benchmark's. The dress is about twice the skirt's length; 36 rings
 # (2 cm apart, the skirt's 1.6 cm) keep its drape to ~1.5x the skirt's particles. "coarse": half the particles
 # around and along, half the steps (~1/8 of the work): the draft preset's, for quick looks, the demo and tests
@@ -135,6 +145,10 @@ _SETTINGS = {
     ("draped_dress", "full"): DrapeSettings(n_rings=36, contact_ke=5.0e4),
     ("draped_skirt", "coarse"): DrapeSettings(n_around=36, n_rings=12, steps=150),
     ("draped_dress", "coarse"): DrapeSettings(n_around=36, n_rings=18, steps=150, contact_ke=5.0e4),
+    ("draped_trousers", "full"): DrapeSettings(n_around=64, n_rings=32, iterations=20, flare=0.06, tri_ke=1.0e5,
+                                               tri_ka=1.0e5, contact_ke=5.0e4),
+    ("draped_trousers", "coarse"): DrapeSettings(n_around=32, n_rings=16, steps=150, iterations=20, flare=0.06,
+                                                 tri_ke=1.0e5, tri_ka=1.0e5, contact_ke=5.0e4),
 }
 
 
@@ -188,6 +202,8 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     the first, which the texture's period hides)."""
     st = drape_settings(kind) if settings is None else settings
     prof = PROFILES[kind]
+    if prof.legs:
+        return _trouser_pattern(phenotype, st, prof)[:5]
     feats = body_features(phenotype)
     # Everything in the frame the cloth is simulated in: the A-pose body (the collider), whose pelvis anny puts at
     # the origin, 8-9 cm below where it is in the bind space `BodyFeatures` and its bone heads live (the skirt's
@@ -234,6 +250,166 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     pinned = np.zeros(len(verts), dtype=bool)
     pinned[:na] = True
     return verts, faces.astype(np.int32), np.clip(uvs.reshape(-1, 2), 0, 1).astype(np.float32), pinned, circ
+
+
+def _crotch_height(mesh, centre: np.ndarray, z_from: float) -> float:
+    """The lowest point of the body's underside on the midplane (x = centre's x): rays cast down from `z_from`
+    at depths across the pelvis (trimesh), the lowest hit. The thighs stand apart under it in the A-pose (at
+    least 1.5 cm each side of the midplane for every build measured), so the midplane below it is free."""
+    ys = centre[1] + np.linspace(-0.12, 0.12, 25)
+    origins = np.c_[np.full(len(ys), centre[0]), ys, np.full(len(ys), z_from)]
+    loc, _, _ = mesh.ray.intersects_location(
+        origins, np.tile([0.0, 0.0, -1.0], (len(ys), 1)), multiple_hits=True)
+    if len(loc) == 0:
+        raise ValueError("drape: no body under the waist on the midplane; is the phenotype's body complete?")
+    return float(np.asarray(loc)[:, 2].min())
+
+
+def _section(mesh, z: float, side: float = 0.0) -> np.ndarray:
+    """Points (P, 3) of the cross-sections of the collider mesh (trimesh) at heights z and z +- 1 cm, on one side
+    of the midplane (side +1: +X, anny's left leg; -1: the right; 0: both): the body's mesh rings are 2-3 cm
+    apart along the shin, so a band of vertices (`_hull_radii`) can miss a ring or be empty where a slice never
+    is."""
+    import trimesh
+
+    segs = [trimesh.intersections.mesh_plane(mesh, [0.0, 0.0, 1.0], [0.0, 0.0, z + dz]) for dz in (-0.01, 0.0, 0.01)]
+    pts = np.concatenate([np.asarray(q).reshape(-1, 3) for q in segs])
+    if side:
+        pts = pts[side * pts[:, 0] > 0]
+    if len(pts) < 3:
+        raise ValueError(f"drape: no body at height {z:.3f} m under the trousers; is the phenotype's body complete?")
+    return pts
+
+
+def _grid_faces(grid: np.ndarray) -> np.ndarray:
+    """Faces (F, 3) of a tube given as a grid (rings, around) of vertex indices, the columns wrapping around: with
+    angles growing from -Y towards +X and rings going down, (a, c, b) faces outwards."""
+    a, c = grid[:-1], grid[1:]
+    b, d = np.roll(a, -1, axis=1), np.roll(c, -1, axis=1)
+    return np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
+
+
+MIDPLANE_GAP = 0.01  # metres each leg tube's inner wall keeps off the midplane (and so off the other leg)
+
+
+def _trouser_pattern(phenotype: dict[str, float], st: DrapeSettings, prof: DrapeProfile):
+    """Undraped wide-leg trousers (`DrapeProfile.legs`), in the A-pose frame `garment_pattern` uses. Topology: a
+    waist tube (`st.n_around` particles around, even) from the pinned waistband down to the split ring just under
+    the crotch; a crotch seam of k particles on the midplane from the split ring's back point to its front point
+    (spaced as the ring is); two leg tubes, each starting from a D-shaped ring (half the split ring plus the seam,
+    which both legs share) and turning, over the first 10 cm, into a circle around the leg that flares at
+    `st.flare` to the hem (centred on the middle of the leg's cross-section, moved out where the circle would come
+    closer than `MIDPLANE_GAP` to the midplane). Every ring is kept `clearance` + 2 mm outside the convex hull of the body's
+    cross-section at its height (the waist tube: the whole collider, kept out further down as the skirt; a leg
+    ring: that leg's side; `_section`). Rings are spaced evenly in height, `st.n_rings` from waistband to hem.
+    Returns garment_pattern's five values plus the pieces: (rings, around) grids of vertex indices (waist, left
+    leg, right leg) whose columns wrap; the legs' first rows are split-ring and seam vertices."""
+    import trimesh
+
+    run = run_anny(phenotype)
+    body = run["vertices"]
+    heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
+    na = int(st.n_around)
+    if na % 2 or na < 8 or int(st.n_rings) < 6:
+        raise ValueError(f"drape: draped_trousers needs an even n_around >= 8 and n_rings >= 6 in DrapeSettings, "
+                         f"got {na} x {st.n_rings}")
+    gap = st.clearance + 0.002
+    centre = np.asarray(heads["root"], dtype=np.float64)
+    z_top = 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01
+    mesh = trimesh.Trimesh(body, collider_faces(phenotype), process=False)
+    z_split = _crotch_height(mesh, centre, z_top) - gap
+    z_hem = float(body[:, 2].min()) + prof.hem
+    h = (z_top - z_hem) / (int(st.n_rings) - 1)
+    n_w = max(2, int(round((z_top - z_split) / h)) + 1)
+    n_l = int(st.n_rings) - n_w + 1
+    # The waist tube: straight down, each ring pushed out where the hips reach it and kept out below (as the skirt).
+    ang = np.arange(na) * (2.0 * np.pi / na)
+    zw = np.linspace(z_top, z_split, n_w)
+    m = np.zeros(na)
+    rw = np.empty((n_w, na))
+    for i in range(n_w):
+        sec = _section(mesh, float(zw[i]))
+        idx, wt = hull_anchors(sec, np.arange(len(sec)), centre, ang)
+        m = np.maximum(m, np.linalg.norm((sec[idx, :2] * wt[..., None]).sum(1) - centre[:2], axis=1) + gap)
+        rw[i] = m
+    waist = np.stack([centre[0] + rw * np.sin(ang), centre[1] - rw * np.cos(ang),
+                      np.broadcast_to(zw[:, None], rw.shape)], -1).reshape(-1, 3)
+    split = waist[-na:]
+    front, back = split[0], split[na // 2]
+    spacing = 2.0 * np.pi * float(rw[-1].mean()) / na
+    k = max(2, int(round(abs(back[1] - front[1]) / spacing)) - 1)
+    t = np.linspace(0.0, 1.0, k + 2)[1:-1]
+    seam = np.c_[np.full(k, centre[0]), back[1] + t * (front[1] - back[1]), np.full(k, z_split)]  # back to front
+    s0 = n_w * na  # index of the first seam vertex
+    seam_bf = s0 + np.arange(k)
+    ring_w = (n_w - 1) * na + np.arange(na)
+    half_width = 0.5 * (float(np.abs(split[:, 0] - centre[0]).max()))
+    r_top = prof.legs * half_width
+    zl = np.linspace(z_split, z_hem, n_l)
+    verts = [waist, seam]
+    pieces = [np.arange(n_w * na).reshape(n_w, na)]
+    nxt = s0 + k
+    for side in (1.0, -1.0):
+        if side > 0:  # front, round the +X side to the back, then the seam forwards: angles grow about the leg
+            ring0 = np.concatenate([ring_w[:na // 2 + 1], seam_bf])
+        else:  # front, the seam backwards, the back, round the -X side to the front
+            ring0 = np.concatenate([ring_w[:1], seam_bf[::-1], ring_w[na // 2:]])
+        nl = len(ring0)
+        p0 = np.concatenate(verts)[ring0]
+        c0 = _section(mesh, z_split - 0.01, side)[:, :2].mean(0)
+        d0 = p0[:, :2] - c0
+        phi = np.unwrap(np.arctan2(d0[:, 0], -d0[:, 1]))  # from -Y towards +X, increasing along the ring
+        if phi[-1] < phi[0]:
+            raise RuntimeError("drape: the trousers' first leg ring does not run round its leg; report this body")
+        rho = np.linalg.norm(d0, axis=1)
+        even = np.arange(nl) * (2.0 * np.pi / nl)
+        psi = even + float(np.mean(phi - even))
+        rings = [p0]
+        for i in range(1, n_l):
+            z = float(zl[i])
+            r_leg = r_top + (z_split - z) * np.tan(st.flare)
+            sec = _section(mesh, z, side)
+            c = sec[:, :2].mean(0)  # inside the section's hull
+            # The leg's circle, moved out from the leg's middle as far as keeps it off the midplane; radii from
+            # the middle (inside the circle) to it, at the ring's angles.
+            off = np.array([side * max(side * c[0], r_leg + MIDPLANE_GAP) - c[0], 0.0])
+            w = float(_smoothstep_scalar((z_split - z) / 0.1))
+            a = (1.0 - w) * phi + w * psi
+            dirs = np.c_[np.sin(a), -np.cos(a)]
+            proj = dirs @ off
+            circle = proj + np.sqrt(np.maximum(proj ** 2 - off @ off + r_leg ** 2, 0.0))
+            idx, wt = hull_anchors(sec, np.arange(len(sec)), c, a)
+            hull = np.linalg.norm((sec[idx, :2] * wt[..., None]).sum(1) - c, axis=1)
+            r = np.maximum((1.0 - w) * rho + w * circle, hull + gap)
+            xy = c + r[:, None] * dirs
+            # The inner wall leaves the midplane at once (the seam is shared; a particle of each leg at one place
+            # would start in contact with itself).
+            xy[:, 0] = side * np.maximum(side * xy[:, 0], MIDPLANE_GAP * min(1.0, i / 2.0))
+            rings.append(np.c_[xy, np.full(nl, z)])
+        grid = np.empty((n_l, nl), dtype=np.int64)
+        grid[0] = ring0
+        grid[1:] = nxt + np.arange((n_l - 1) * nl).reshape(n_l - 1, nl)
+        nxt += (n_l - 1) * nl
+        verts.append(np.concatenate(rings[1:]))
+        pieces.append(grid)
+    verts = np.concatenate(verts)
+    faces = np.concatenate([_grid_faces(g) for g in pieces]).astype(np.int32)
+    # UVs: metres along the ring and up from the hem, over one scale that fits the longest ring and the whole
+    # length; each piece's columns from u = 0 (the render mesh duplicates the wrap column: `draped_part`).
+    circ = [float(np.linalg.norm(verts[g[-1]] - verts[np.roll(g[-1], -1)], axis=1).sum()) for g in pieces]
+    mpu = max(max(circ), z_top - z_hem)
+    uvs = np.zeros((len(verts), 2))
+    for g, cc in zip(pieces[::-1], circ[::-1]):  # the waist piece last: the split ring takes its UVs
+        uvs[g] = np.stack(np.broadcast_arrays(np.arange(g.shape[1])[None, :] / g.shape[1] * cc / mpu,
+                                              (verts[g][..., 2] - z_hem) / mpu), -1)
+    pinned = np.zeros(len(verts), dtype=bool)
+    pinned[:na] = True
+    return verts, faces, np.clip(uvs, 0, 1).astype(np.float32), pinned, mpu, pieces
+
+
+def _smoothstep_scalar(x: float) -> float:
+    x = min(max(float(x), 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
 
 
 def cloth_model(cloths, body_v, body_f, st: DrapeSettings):
@@ -345,7 +521,12 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
     """The draped rest-pose garment, from the cache or simulated (then cached, written atomically). `settings`:
     the kind's default (`drape_settings`) unless given."""
     settings = drape_settings(kind) if settings is None else settings
-    verts, faces, uvs, pinned, mpu = garment_pattern(kind, phenotype, settings)
+    pieces = None
+    if kind in PROFILES and PROFILES[kind].legs:
+        verts, faces, uvs, pinned, mpu, pieces = _trouser_pattern(phenotype, settings, PROFILES[kind])
+        pieces = tuple(pieces)
+    else:
+        verts, faces, uvs, pinned, mpu = garment_pattern(kind, phenotype, settings)
     path = drape_cache_dir() / f"{kind}-{_cache_key(kind, phenotype, settings, verts)}.npz"
     q = None
     if use_cache and path.is_file():
@@ -363,7 +544,7 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
             with atomic_path(path) as tmp:
                 with open(tmp, "wb") as fh:
                     np.savez(fh, vertices=q)
-    return DrapedGarment(kind, q, faces, uvs, pinned, mpu, verts)
+    return DrapedGarment(kind, q, faces, uvs, pinned, mpu, verts, pieces)
 
 
 def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones: int = 8,
@@ -423,18 +604,21 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
 
     settings = drape_settings(kind) if settings is None else settings
     g = drape_garment(kind, phenotype, settings)
-    na, nr = int(settings.n_around), int(settings.n_rings)
-    cols = np.concatenate([np.arange(na), [0]])
-    src = (np.arange(nr)[:, None] * na + cols[None, :]).ravel()  # render vertex -> simulated vertex
-    i, j = np.meshgrid(np.arange(nr - 1), np.arange(na), indexing="ij")
-    a = i * (na + 1) + j
-    b, c = a + 1, a + na + 1
-    d = c + 1
-    faces = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
-    ts = np.repeat(np.linspace(0.0, 1.0, nr), na + 1)
-    length = float(np.linalg.norm(np.diff(g.vertices[::na][:nr], axis=0), axis=1).sum())
-    u = np.tile(np.arange(na + 1) / na, nr)
-    uvs = np.clip(np.stack([u, (1.0 - ts) * length / g.metres_per_uv], 1), 0.0, 1.0)
+    if g.pieces is not None:
+        src, faces, uvs = _pieces_render_mesh(g)
+    else:
+        na, nr = int(settings.n_around), int(settings.n_rings)
+        cols = np.concatenate([np.arange(na), [0]])
+        src = (np.arange(nr)[:, None] * na + cols[None, :]).ravel()  # render vertex -> simulated vertex
+        i, j = np.meshgrid(np.arange(nr - 1), np.arange(na), indexing="ij")
+        a = i * (na + 1) + j
+        b, c = a + 1, a + na + 1
+        d = c + 1
+        faces = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
+        ts = np.repeat(np.linspace(0.0, 1.0, nr), na + 1)
+        length = float(np.linalg.norm(np.diff(g.vertices[::na][:nr], axis=0), axis=1).sum())
+        u = np.tile(np.arange(na + 1) / na, nr)
+        uvs = np.clip(np.stack([u, (1.0 - ts) * length / g.metres_per_uv], 1), 0.0, 1.0)
     binding = bind_to_skeleton(g.vertices, phenotype)
     dist, nn = cKDTree(run_anny(phenotype)["vertices"]).query(g.vertices)  # the A-pose the cloth was draped on
     near = dist < NEAR_BODY
@@ -452,6 +636,32 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
         skinning=skin,
         drape=settings,
     )
+
+
+def _pieces_render_mesh(g: DrapedGarment):
+    """The render mesh of a garment made of several tubes (`DrapedGarment.pieces`): each tube's grid with its first
+    column repeated at the end, so u runs from 0 to the tube's hem circumference over `metres_per_uv` without a
+    wrap; v is the pattern's (undraped) height over the hem, so the fabric's texture stays where it was cut.
+    Where tubes meet (the trousers' split ring and crotch seam) each keeps its own copies, at the same simulated
+    vertex. Returns (render vertex -> simulated vertex (R,), faces (F, 3), uvs (R, 2))."""
+    src, faces, uvs = [], [], []
+    z_hem = float(g.pattern[:, 2].min())
+    n = 0
+    for grid in g.pieces:
+        rows, cols = grid.shape
+        full = np.concatenate([grid, grid[:, :1]], axis=1)
+        local = n + np.arange(rows * (cols + 1)).reshape(rows, cols + 1)
+        a, c = local[:-1, :-1], local[1:, :-1]
+        b, d = local[:-1, 1:], local[1:, 1:]
+        faces.append(np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)]))
+        hem = g.pattern[grid[-1]]
+        circ = float(np.linalg.norm(hem - np.roll(hem, -1, axis=0), axis=1).sum())
+        u = np.broadcast_to(np.arange(cols + 1)[None, :] / cols * circ / g.metres_per_uv, full.shape)
+        v = (g.pattern[full][..., 2] - z_hem) / g.metres_per_uv
+        uvs.append(np.stack([u, v], -1).reshape(-1, 2))
+        src.append(full.ravel())
+        n += full.size
+    return np.concatenate(src), np.concatenate(faces), np.clip(np.concatenate(uvs), 0.0, 1.0)
 
 
 def _closest(body_vertices, body_faces, points, body_normals=None):

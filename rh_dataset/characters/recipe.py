@@ -37,12 +37,13 @@ __all__ = [
 
 RECIPE_FORMAT = "rh-character/1"  # headwear (optional key) kept the format: older recipes read back unchanged
 POOLS = ("benchmark", "pretrain")
-# draped_skirt, draped_dress: loose garments draped by newton's cloth solver (drape.py). A dress is worn instead of a
-# top and a bottom. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a recipe's choice.
+# draped_skirt, draped_dress, draped_trousers (wide-leg): loose garments draped by newton's cloth solver (drape.py).
+# A dress is worn instead of a top and a bottom. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt`
+# stays a recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
-                 "shoes")
+                 "draped_trousers", "shoes")
 TOPS = ("tshirt", "longsleeve")
-BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt")
+BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers")
 DRESSES = ("draped_dress",)
 PATTERNS = ("solid", "stripes", "checks", "noise")
 # Fabric finish (how the renderer's sheen lobe and the knit texture treat a garment; character.FABRIC_SHEEN):
@@ -53,8 +54,8 @@ HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 # Headwear (headwear.py): at most one covering piece (cap, brimmed_hat, headscarf) plus, independently, glasses.
 HEADWEAR_KINDS = ("cap", "brimmed_hat", "headscarf", "glasses")
 # Innermost first: shoes under trouser hems, bottoms under tops (a shirt hangs over the waistband), jacket outside.
-GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress", "tshirt", "longsleeve",
-                  "jacket")
+GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_dress", "tshirt",
+                  "longsleeve", "jacket")
 COVERINGS = ("cap", "brimmed_hat", "headscarf")
 
 
