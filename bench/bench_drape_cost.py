@@ -1,13 +1,14 @@
 """What loose garments cost the benchmark: drape seconds per kind and level, posing seconds per frame, how many
 subjects of each protocol wear them, and the arithmetic for the demo, the default test suite and the full benchmark.
 
-    python bench/bench_drape_cost.py              # ~4 min on a busy 2-core box (two full drapes, two coarse ones)
+    python bench/bench_drape_cost.py              # ~8 min on a busy 2-core box (three full drapes, three coarse)
+    python bench/bench_drape_cost.py --kinds draped_trousers    # time one kind's drapes only
 
 In: the dataset seed (default 0, the generator's and rh-demo's). Out, printed with the load average: (1) for the
-first dress and the first skirt wearer of the seed, the drape's wall seconds at each level (`drape.DRAPE_LEVELS`;
+first dress, skirt and wide-trousers wearer of the seed (`--kinds`), the drape's wall seconds at each level (`drape.DRAPE_LEVELS`;
 a cold cache in a temporary folder, Warp kernels compiled first by a one-step drape), and the skinned posing of a
 walk frame (`pose_character`, the draft and standard presets' cloth mode) against the first subject in shell
-clothes; (2) per protocol, its subjects wearing a dress or a skirt; (3) the totals: drapes run once per
+clothes; (2) per protocol, its subjects wearing a dress, a skirt or wide trousers; (3) the totals: drapes run once per
 (phenotype, kind, level) and are cached, so a protocol pays each loose subject's drape once, and protocols of one
 seed share subjects (and their cache).
 """
@@ -26,11 +27,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+KINDS = ("draped_dress", "draped_skirt", "draped_trousers")
+
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--protocols", nargs="+", default=["demo", "a", "b", "c"])
+    ap.add_argument("--kinds", nargs="+", default=list(KINDS), help=f"draped kinds timed (of {KINDS})")
     args = ap.parse_args(argv)
 
     from rh_common.body_model import load_anny
@@ -46,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     loose = [next((g.kind for g in r.garments if g.kind.startswith("draped_")), None) for r in recipes]
 
     print(f"seed {args.seed}; load at start {load()}")
-    first = {k: loose.index(k) for k in ("draped_dress", "draped_skirt") if k in loose}
+    first = {k: loose.index(k) for k in args.kinds if k in loose}
     os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_drape_cost_")  # cold: every drape is timed
     ph0 = recipes[next(iter(first.values()))].phenotype
     t = time.perf_counter()
@@ -78,17 +82,19 @@ def main(argv: list[str] | None = None) -> int:
               f"subject {loose.index(None)} in shell clothes {times['without']:.2f} s  (load {load()})")
         secs[kind, "pose"] = times["with"] - times["without"]
 
-    print("\nprotocol        subjects  dresses  skirts  frames/subject  drape (full / coarse)   posing added")
+    print("\nprotocol        subjects  dresses  skirts  trousers  frames/subject  drape (full / coarse)   posing added"
+          f"  (kinds timed: {', '.join(first)})")
     for p in args.protocols:
         spec = load_protocol(p)
         ks = loose[:spec.subjects]
-        nd, ns = ks.count("draped_dress"), ks.count("draped_skirt")
+        n = {k: ks.count(k) for k in KINDS}
         frames = sum(sp.frames for sp in spec.splits)
-        full = nd * secs.get(("draped_dress", "full"), 0.0) + ns * secs.get(("draped_skirt", "full"), 0.0)
-        coarse = nd * secs.get(("draped_dress", "coarse"), 0.0) + ns * secs.get(("draped_skirt", "coarse"), 0.0)
-        posing = (nd * secs.get(("draped_dress", "pose"), 0.0) + ns * secs.get(("draped_skirt", "pose"), 0.0)) * frames
-        print(f"{p:14s} {spec.subjects:9d} {nd:8d} {ns:7d} {frames:15d}  {full / 60:7.1f} / {coarse / 60:5.1f} min"
-              f"  {posing / 3600:9.2f} h (if every frame posed as the walk)")
+        full = sum(n[k] * secs.get((k, "full"), 0.0) for k in KINDS)
+        coarse = sum(n[k] * secs.get((k, "coarse"), 0.0) for k in KINDS)
+        posing = sum(n[k] * secs.get((k, "pose"), 0.0) for k in KINDS) * frames
+        print(f"{p:14s} {spec.subjects:9d} {n['draped_dress']:8d} {n['draped_skirt']:7d} {n['draped_trousers']:9d}"
+              f" {frames:15d}  {full / 60:7.1f} / {coarse / 60:5.1f} min  {posing / 3600:9.2f} h (if every frame "
+              "posed as the walk)")
     print(f"(load at the end {load()})")
     return 0
 

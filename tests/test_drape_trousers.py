@@ -126,3 +126,29 @@ def test_trousers_drape_is_bit_identical_hangs_and_stays_outside_the_body(tmp_pa
                        vertex_normals(run["vertices"], faces), faces)
         depth = penetration(run["vertices"], faces, pts)
         assert depth.max() < (SEATED_BOUND_M if pose.label == "sit" else POSED_BOUND_M), pose.label
+
+
+def test_benchmark_recipes_draw_wide_trousers_from_their_own_stream(monkeypatch):
+    """recipe_from_seed turns the drawn trousers into draped ones for WIDE_TROUSERS_P of the trousers wearers (women,
+    men), from a stream of their own: with the share set to zero every recipe is the same but for that kind, so no
+    other field of any seed changed. A recipe in them round-trips through JSON."""
+    import dataclasses
+
+    from rh_dataset.characters import recipe_draws
+    from rh_dataset.characters.recipe import CharacterRecipe
+    from rh_dataset.characters.recipe_draws import WIDE_TROUSERS_P, recipe_from_seed
+
+    rs = [recipe_from_seed(2 * i, "benchmark", i) for i in range(400)]
+    monkeypatch.setattr(recipe_draws, "WIDE_TROUSERS_P", (0.0, 0.0))
+    plain = [recipe_from_seed(2 * i, "benchmark", i) for i in range(400)]
+    wide = np.array([r.garment(KIND) is not None for r in rs])
+    had = np.array([p.garment("trousers") is not None for p in plain])
+    assert not (wide & ~had).any() and not any(p.garment(KIND) for p in plain)
+    for r, p in zip(rs, plain):
+        back = tuple(dataclasses.replace(g, kind="trousers") if g.kind == KIND else g for g in r.garments)
+        assert dataclasses.replace(r, garments=back) == p
+    women = np.array([r.phenotype["gender"] > 0.5 for r in rs])
+    for sex, p_wide in ((women, WIDE_TROUSERS_P[0]), (~women, WIDE_TROUSERS_P[1])):
+        assert abs(wide[sex & had].mean() - p_wide) < 0.1, (wide[sex & had].mean(), p_wide)
+    r = rs[int(np.flatnonzero(wide)[0])]
+    assert CharacterRecipe.from_json(r.to_json_text()) == r

@@ -1,7 +1,8 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
-In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a strapless dress; `PROFILES` cuts each from
-one pattern function, `garment_pattern`) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
+In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a strapless dress, wide-leg trousers; `PROFILES`
+cuts each from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
+`_trouser_pattern`) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
 static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights

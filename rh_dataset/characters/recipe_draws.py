@@ -19,7 +19,8 @@ from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, PATTERNS, 
 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
-           "iris_colour_name", "iris_weights", "EYES_STREAM", "DRESS_P", "DRESS_STREAM"]
+           "iris_colour_name", "iris_weights", "EYES_STREAM", "DRESS_P", "DRESS_STREAM", "WIDE_TROUSERS_P",
+           "WIDE_TROUSERS_STREAM"]
 
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 # Loose clothing (issue 17): the published dataset's subjects wear "long hair, loose clothing, jackets, hats, head
@@ -31,6 +32,11 @@ _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draw
 _LOOSE = {"skirt": "draped_skirt"}
 DRESS_STREAM = 1717
 DRESS_P = 0.25
+# Wide-leg trousers (palazzo, culottes: `draped_trousers`, draped like the skirt) instead of the drawn trousers, for
+# this share of the trousers wearers (women, men): our choice, not a census figure. Drawn from a stream of their own
+# (one draw for everyone), in the trousers' colours, pattern and fabric, so every other draw of a seed is unchanged.
+WIDE_TROUSERS_STREAM = 1718
+WIDE_TROUSERS_P = (0.35, 0.1)
 
 
 def derive_seed(pool: str, index: int, base: int) -> int:
@@ -146,6 +152,7 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
         kinds.add("jacket")
     garments = tuple(_sample_garment(rng, k) for k in sorted(kinds, key=GARMENT_LAYERS.index))
     garments = _dress(np.random.default_rng([int(seed), DRESS_STREAM]), female, garments)
+    garments = _wide_trousers(np.random.default_rng([int(seed), WIDE_TROUSERS_STREAM]), female, garments)
     skin, garments = _surface_detail(seed, skin, hair, garments)
     headwear = sample_headwear(np.random.default_rng([int(seed), HEADWEAR_STREAM]), female, phenotype["age"])
     eyes = sample_eyes(np.random.default_rng([int(seed), EYES_STREAM]), skin.melanin)
@@ -165,6 +172,15 @@ def _dress(rng: np.random.Generator, female: bool, garments: tuple[Garment, ...]
     return tuple(sorted(kept + [dress], key=lambda g: GARMENT_LAYERS.index(g.kind)))
 
 
+def _wide_trousers(rng: np.random.Generator, female: bool, garments: tuple[Garment, ...]) -> tuple[Garment, ...]:
+    """The drawn trousers made wide-leg draped ones with probability WIDE_TROUSERS_P (rng: their stream; one draw
+    for everyone, so the stream's use is fixed)."""
+    wide = rng.random() < WIDE_TROUSERS_P[0 if female else 1]
+    if not wide:
+        return garments
+    return tuple(dataclasses.replace(g, kind="draped_trousers") if g.kind == "trousers" else g for g in garments)
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Skin and cloth detail (issue 17, part 4): drawn from their own stream after everything else, so the draws above
 # (and any later field's own stream) are untouched by it.
@@ -176,6 +192,7 @@ _FABRIC_CHOICES = {
     "longsleeve": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),
     "jacket": (("plain", "knit", "velvet"), (0.75, 0.15, 0.10)),
     "trousers": (("plain", "velvet"), (0.92, 0.08)),  # denim / twill; velvet stands for corduroy and velour
+    "draped_trousers": (("plain", "velvet"), (0.92, 0.08)),  # the trousers' (so a drawn fabric stays the same)
     "skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
     "draped_skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
     "draped_dress": (("plain", "jersey", "velvet"), (0.6, 0.3, 0.1)),
