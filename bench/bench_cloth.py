@@ -1,11 +1,14 @@
-"""Draped skirt (newton's VBD cloth solver, rh_dataset/characters/drape.py): drape time, per-frame cost of the
-skinned path, and how far the cloth sinks into the body over sampled poses; optionally a draft render.
+"""Draped skirt (newton's VBD cloth solver, rh_dataset/characters/drape.py), or another draped kind (`--kind`):
+drape time, per-frame cost of the skinned path, and how far the cloth sinks into the body over sampled poses;
+optionally a draft render.
 
     python bench/bench_cloth.py                                   # drape + 8 poses (~2-3 min on a busy 2-core box)
+    python bench/bench_cloth.py --kind draped_trousers            # the wide trousers (~8 min: two full drapes)
     python bench/bench_cloth.py --image docs/draped_skirt.png   # also 256 px drafts: rest front | side | a walk
 
 Figures: drape wall seconds (uncached, Warp kernels already compiled; the first run ever adds their compilation,
-printed separately as `first drape`), the cached load, the skinning per frame against the shell skirt's posing
+printed separately as `first drape`), the cached load, the skinning per frame against the shell's posing (the
+skirt's, or the trousers' for draped trousers)
 (both after one anny run, which every frame pays anyway), and penetration = trimesh signed distance of the skinned
 cloth vertices into the posed body (metres, > 0 inside): the worst over all vertices, its 99th percentile, and the
 share of vertices inside, per pose label; and how many of the drape's edges pass through the cloth itself
@@ -25,15 +28,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-def draped_recipe(index: int, seed: int = 0):
-    """The first benchmark recipe from `index` on (dataset seed `seed`) that draws a skirt (the draped one: every
+def draped_recipe(index: int, seed: int = 0, kind: str = "draped_skirt"):
+    """The first benchmark recipe from `index` on (dataset seed `seed`) that draws `kind` (the draped skirt: every
     skirt recipe_from_seed draws is)."""
     from rh_dataset.characters.recipe_draws import derive_seed, recipe_from_seed
 
     i = index
     while True:
         r = recipe_from_seed(derive_seed("benchmark", i, seed), "benchmark", i)
-        if r.garment("draped_skirt") is not None:
+        if r.garment(kind) is not None:
             return r
         i += 1
 
@@ -43,6 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--index", type=int, default=0, help="first benchmark index searched for a skirt wearer")
     ap.add_argument("--poses", type=int, default=8, help="sampled poses the penetration is measured over")
     ap.add_argument("--image", type=Path, default=None, help="write a 256 px draft render of the character here")
+    ap.add_argument("--kind", default="draped_skirt", help="draped garment kind (drape.DRAPED_KINDS)")
     args = ap.parse_args(argv)
 
     from rh_common.body_model import load_anny
@@ -52,29 +56,30 @@ def main(argv: list[str] | None = None) -> int:
                                              push_out, skin_points)
     from rh_dataset.poses import sample_poses
 
-    recipe = draped_recipe(args.index)
+    kind = args.kind
+    recipe = draped_recipe(args.index, kind=kind)
     ph = recipe.phenotype
-    st = drape_settings("draped_skirt")
+    st = drape_settings(kind)
     load = lambda: " ".join(open("/proc/loadavg").read().split()[:3])  # noqa: E731
     print(f"character: benchmark index {recipe.index}, garments {[g.kind for g in recipe.garments]}")
     t = time.perf_counter()
-    drape_garment("draped_skirt", ph, dataclasses.replace(st, steps=1), use_cache=False)
+    drape_garment(kind, ph, dataclasses.replace(st, steps=1), use_cache=False)
     print(f"first drape (1 step; Warp kernel compile on a cold cache): {time.perf_counter() - t:.1f} s")
     import tempfile
 
     os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_cloth_")  # a cold cache: the drape is timed
     t = time.perf_counter()
-    g = drape_garment("draped_skirt", ph, st)
+    g = drape_garment(kind, ph, st)
     t_drape = time.perf_counter() - t
     n = len(g.vertices)
     print(f"drape: {n} particles, {len(g.faces)} triangles, {st.steps} steps of {st.dt} s, {st.iterations} VBD "
           f"iterations: {t_drape:.1f} s  (load {load()})")
     t = time.perf_counter()
-    drape_garment("draped_skirt", ph, st)
+    drape_garment(kind, ph, st)
     print(f"cached drape load: {1e3 * (time.perf_counter() - t):.1f} ms")
     from rh_dataset.characters.cloth_pose import self_crossings
 
-    plain = drape_garment("draped_skirt", ph, dataclasses.replace(st, self_contact=False), use_cache=False)
+    plain = drape_garment(kind, ph, dataclasses.replace(st, self_contact=False), use_cache=False)
     print(f"rest drape: {self_crossings(g.vertices, g.faces)} of its edges cross the cloth; draped without "
           f"self-contact: {self_crossings(plain.vertices, plain.faces)}")
     t = time.perf_counter()
@@ -91,7 +96,8 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.recipe import Garment
 
-    shell = build_garments((Garment("skirt", (0.5, 0.5, 0.5)),), body_features(ph))[0]
+    shell_kind = "trousers" if kind == "draped_trousers" else "skirt"
+    shell = build_garments((Garment(shell_kind, (0.5, 0.5, 0.5)),), body_features(ph))[0]
     from rh_dataset.characters.body import vertex_normals
 
     raw_worst = -np.inf
@@ -118,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{1e3 * np.percentile(pen, 99):6.2f} mm  inside {100 * (pen > 0).mean():5.2f} %")
     print(f"worst vertex penetration over {args.poses} poses: skinned only {1e3 * raw_worst:.2f} mm, "
           f"with push_out {1e3 * worst:.2f} mm")
-    print(f"per frame: skinned drape + push_out {1e3 * np.median(skin_t):.2f} ms, shell skirt anchors "
+    print(f"per frame: skinned drape + push_out {1e3 * np.median(skin_t):.2f} ms, shell {shell_kind} anchors "
           f"{1e3 * np.median(shell_t):.2f} ms (medians, body normals excluded from both; load {load()})")
 
     if args.image is not None:
