@@ -223,7 +223,8 @@ def main(argv: list[str] | None = None) -> int:
                     row.update(sim_mean=float(d.mean()), sim_max=float(d.max()))
                     ref = f"{100 * d.mean():6.1f} / {100 * d.max():5.1f}"
                 rows.append(row)
-                print(f"  {name:24s} {it:5d} {100 * pinch:8.1f} {100 * deficit:6.1f}% {1e3 * depth_raw:7.1f} "
+                label = "auto" if it < 0 else str(it)
+                print(f"  {name:24s} {label:>5s} {100 * pinch:8.1f} {100 * deficit:6.1f}% {1e3 * depth_raw:7.1f} "
                       f"{1e3 * row['worst']:8.2f} {1e3 * row['p99']:7.2f} {ms:6.0f} {ref:>16s}", flush=True)
             if sim is not None:
                 sp, sd = hem_split(sim, st.n_around)
@@ -241,7 +242,9 @@ def main(argv: list[str] | None = None) -> int:
         for it in variants:
             r = [x for x in sel if x["steps"] == it]
             sims = [x["sim_mean"] for x in r if "sim_mean" in x]
-            print(f"  {it:5d} {100 * max(x['pinch'] for x in r):12.1f} {100 * np.median([x['pinch'] for x in r]):7.1f}"
+            label = "auto" if it < 0 else str(it)
+            pinch = [x["pinch"] for x in r]
+            print(f"  {label:>5s} {100 * max(pinch):12.1f} {100 * np.median(pinch):7.1f}"
                   f" {100 * max(x['deficit'] for x in r):10.1f}% {100 * np.median([x['deficit'] for x in r]):6.1f}%"
                   f" {1e3 * max(x['worst'] for x in r):8.2f} {1e3 * max(x['p99'] for x in r):10.2f}"
                   f" {np.median([x['ms'] for x in r]):9.0f} {(100 * np.mean(sims)) if sims else float('nan'):11.1f}")

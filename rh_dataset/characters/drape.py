@@ -419,18 +419,23 @@ def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones:
 # LOOSE_BELOW metres under the A-pose hip joints down, fading to none LOOSE_FADE metres above that (the waist and
 # hips keep the body's own weights), in Jacobi steps of the cloth's graph Laplacian (each vertex moved towards the
 # mean of its edge neighbours). Steps = (LOOSE_REACH / mean edge length)^2, so the weights spread as far in metres at
-# either drape level (a random walk of n steps of length h reaches ~h sqrt(n)): 25 steps at the full drape's
-# ~22 mm edges, 6 at the coarse one's ~44 mm. bench/bench_skirt_stride.py chose the values.
+# either drape level (a random walk of n steps of length h reaches ~h sqrt(n)): 23-29 steps at the full drape's
+# 21-23 mm edges, ~6 at the coarse one's 41-45 mm. bench/bench_skirt_stride.py chose the values.
 LOOSE_REACH = 0.11
 LOOSE_BELOW = 0.05
 LOOSE_FADE = 0.15
 
 
+def _edges(faces: np.ndarray) -> np.ndarray:
+    """The unique edges (E, 2) int64 of a triangle mesh, each (low, high)."""
+    f = np.asarray(faces, np.int64)
+    return np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+
+
 def loose_iterations(garment: DrapedGarment) -> int:
     """The diffusion steps `bind_loose` takes for this garment's mesh by default (`LOOSE_REACH`)."""
     v = np.asarray(garment.vertices, np.float64)
-    f = np.asarray(garment.faces, np.int64)
-    e = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    e = _edges(garment.faces)
     return int(round((LOOSE_REACH / float(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean())) ** 2))
 
 
@@ -440,9 +445,10 @@ def bind_loose(garment: DrapedGarment, phenotype: dict[str, float], max_bones: i
     piece when the legs part: `bind_to_skeleton`'s closest-point weights would bind the hem's left half to the left
     thigh and its right half to the right one, so a stride splits the cloth around each leg like trouser legs.
     Here the dense weights are diffused over the cloth mesh (`iterations` steps of W <- W + a (mean of the edge
-    neighbours' W - W), a per vertex: 0 above the hips, rising to 1 `LOOSE_BELOW` under the hip joints), so the
-    front and back of the hem blend both thighs and the pelvis and the forward leg carries the cloth in front of it
-    with its neighbours; `push_out` keeps the legs inside afterwards. Deterministic (fixed-order sparse products).
+    neighbours' W - W), a per vertex: 0 on the pinned top ring and from `LOOSE_FADE` - `LOOSE_BELOW` above the
+    A-pose hip joints up, rising by a smoothstep to 1 at `LOOSE_BELOW` under them), so the front and back of the
+    hem blend both thighs and the pelvis and the forward leg carries the cloth in front of it with its neighbours;
+    `push_out` keeps the legs inside afterwards. Deterministic (fixed-order sparse products).
     `iterations`: default `loose_iterations(garment)`; 0 is `bind_to_skeleton` (the binding of before)."""
     import trimesh
     from scipy.sparse import coo_matrix, diags
@@ -456,8 +462,7 @@ def bind_loose(garment: DrapedGarment, phenotype: dict[str, float], max_bones: i
     x = np.clip((z_hip + LOOSE_FADE - LOOSE_BELOW - pts[:, 2]) / LOOSE_FADE, 0.0, 1.0)
     rate = x * x * (3.0 - 2.0 * x)  # smoothstep: no kink in the weights where the diffusion starts
     rate[np.asarray(garment.pinned, bool)] = 0.0
-    f = np.asarray(garment.faces, np.int64)
-    e = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    e = _edges(garment.faces)
     n = len(pts)
     adj = coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(n, n)).tocsr()
     mean = diags(1.0 / np.maximum(np.asarray(adj.sum(1)).ravel(), 1.0)) @ adj
