@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body import body_topology, run_anny
-    from rh_dataset.characters.drape import (bind_to_skeleton, drape_garment, drape_settings, penetration,
+    from rh_dataset.characters.drape import (bind_loose, drape_garment, drape_settings, penetration,
                                              push_out, skin_points)
     from rh_dataset.poses import sample_poses
 
@@ -83,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"rest drape: {self_crossings(g.vertices, g.faces)} of its edges cross the cloth; draped without "
           f"self-contact: {self_crossings(plain.vertices, plain.faces)}")
     t = time.perf_counter()
-    b = bind_to_skeleton(g.vertices, ph)
+    b = bind_loose(g, ph)
     print(f"skinning transfer (once per character): {time.perf_counter() - t:.2f} s")
 
     faces = body_topology().faces

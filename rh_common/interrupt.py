@@ -230,6 +230,11 @@ def command(prog: str, *, not_on_resume: tuple[str, ...] = ()
                 _active.remove(cmd)
                 if outer:
                     _received.clear()
+                if outer and argv is None and previous is not None:
+                    # A console script whose work is done: the interpreter exits next. A Ctrl-C during its
+                    # teardown (Ray, Warp, Mitsuba shutting down) would otherwise print a KeyboardInterrupt
+                    # traceback and replace the exit status, for a run that finished.
+                    previous = {s: signal.SIG_IGN for s in previous}
                 if previous is not None:
                     for s, h in previous.items():
                         signal.signal(s, h if h is not None else signal.SIG_DFL)

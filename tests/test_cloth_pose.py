@@ -251,3 +251,82 @@ def test_a_thigh_swung_into_the_draped_skirt(tmp_path, monkeypatch, kind):
     assert self_crossings(sim, g.faces) <= self_crossings(skinned, g.faces) // 10
     assert np.linalg.norm(sim - skinned, axis=1).max() > 0.05  # the two paths really differ here
     assert stats["move_steps"] > 16 and stats["settle_steps"] == ClothPoseSettings().settle_steps
+
+
+def test_loose_binding_is_the_closest_points_above_the_hips_and_reruns_bit_identically():
+    """bind_loose on a real (coarse, undraped) skirt: with no diffusion it is bind_to_skeleton; the diffusion leaves
+    the waistband and everything above the hips as bound, changes the hem, keeps weights convex, reruns to the same
+    bits, and gives the drape back in the rest pose. A bad step count names the fix."""
+    from rh_dataset.characters.drape import LOOSE_BELOW, LOOSE_FADE, bind_loose, loose_iterations
+
+    g = _tiny_skirt()
+    b0, b = bind_loose(g, PHENO, iterations=0), bind_loose(g, PHENO)
+    ref = bind_to_skeleton(g.vertices, PHENO)
+    assert all(np.array_equal(x, y) for x, y in ((b0.bind, ref.bind), (b0.bones, ref.bones), (b0.weights, ref.weights)))
+    b2 = bind_loose(g, PHENO)
+    assert all(np.array_equal(x, y) for x, y in ((b.bind, b2.bind), (b.bones, b2.bones), (b.weights, b2.weights)))
+    assert loose_iterations(g) > 0 and np.allclose(b.weights.sum(1), 1.0, atol=1e-6) and b.weights.min() >= 0
+    heads = run_anny(PHENO)["bone_poses"][[body_topology().bone_labels.index(f"upperleg01.{s}") for s in "LR"], 2, 3]
+    above = g.pinned | (g.vertices[:, 2] >= heads.mean() + LOOSE_FADE - LOOSE_BELOW)  # the waistband is pinned
+    assert g.pinned.any() and not above.all()
+    assert np.array_equal(b.weights[above], ref.weights[above]) and np.array_equal(b.bones[above], ref.bones[above])
+    assert not np.array_equal(b.weights[~above], ref.weights[~above])
+    rest = run_anny(PHENO)
+    np.testing.assert_allclose(skin_points(b, rest["bone_poses"], rest["rest_bone_poses"]), g.vertices, atol=1e-9)
+    with pytest.raises(ValueError, match="iterations must be >= 0"):
+        bind_loose(g, PHENO, iterations=-1)
+
+
+@pytest.mark.slow
+def test_loose_binding_keeps_a_skirt_one_piece_in_a_stride():
+    """A real subject (benchmark subject 2 of seed 0, who wears the draped skirt; coarse drape) in its first test pose
+    with a stride (test pose 2: a walk, thighs 39 degrees apart). The closest-point binding (bind_loose with no
+    diffusion: bind_to_skeleton's) takes each half of the hem with the thigh on its side, so the hem folds back
+    between the legs; bind_loose keeps it near convex seen from below. Measured (bench/bench_skirt_stride.py, full
+    drape): hem pinch 5.5 -> 1.4 cm (the rest drape's own 2.1 cm), deficit 14 -> 4 % (5 %); here, coarse, 7.4 ->
+    5.1 cm (rest 5.0 cm: the coarse drape's hem is less round) and 19 -> 11 % (13 %). Bound: within 1 cm / 2 % of
+    the rest drape's after, over 2 cm / 5 % beyond it before. Penetration after push_out within test_drape's
+    POSED_BOUND_M; same bits twice; the rest pose round-trips; the waistband keeps its weights."""
+    from rh_common.body_model import load_anny
+    from rh_dataset.characters import sample_recipe
+    from rh_dataset.characters.body import vertex_normals
+    from rh_dataset.characters.cloth_pose import hem_split
+    from rh_dataset.characters.drape import bind_loose, drape_garment, drape_settings, push_out
+    from rh_dataset.generate import rng_for
+    from rh_dataset.poses import sample_pose
+
+    recipe = sample_recipe(rng_for(0, "character", 2), pool="benchmark", index=2)
+    assert recipe.garment("draped_skirt") is not None
+    ph = recipe.phenotype
+    st = drape_settings("draped_skirt", "coarse")
+    g = drape_garment("draped_skirt", ph, st, use_cache=False)
+    pose = sample_pose(rng_for(0, "pose", 2, "test", 2), load_anny())
+    assert pose.label == "walk"
+    run = run_anny(ph, dict(pose.bones))
+    faces = body_topology().faces
+    normals = vertex_normals(run["vertices"], faces)
+    rest = run_anny(ph)
+
+    def posed(b):
+        return push_out(skin_points(b, run["bone_poses"], run["rest_bone_poses"]), run["vertices"], normals, faces)
+
+    before = posed(bind_loose(g, ph, iterations=0))
+    b = bind_loose(g, ph)
+    after = posed(b)
+    pinch_before, deficit_before = hem_split(before, st.n_around)
+    pinch_after, deficit_after = hem_split(after, st.n_around)
+    print(f"pinch {100 * pinch_before:.1f} -> {100 * pinch_after:.1f} cm, deficit {100 * deficit_before:.1f} -> "
+          f"{100 * deficit_after:.1f} %")
+    pinch_rest, deficit_rest = hem_split(g.vertices, st.n_around)
+    assert pinch_before > pinch_rest + 0.02 and deficit_before > deficit_rest + 0.05  # the old binding splits it
+    assert pinch_after < pinch_rest + 0.01 and deficit_after < deficit_rest + 0.02
+    assert penetration(run["vertices"], faces, after).max() < 0.0005
+    # Deterministic: the same binding and posed cloth, bit for bit.
+    b2 = bind_loose(g, ph)
+    for x, y in ((b.bind, b2.bind), (b.bones, b2.bones), (b.weights, b2.weights)):
+        assert np.array_equal(x, y)
+    assert np.array_equal(posed(b2), after)
+    # The rest pose gives back the drape; the waistband keeps the closest-point weights it is held by.
+    np.testing.assert_allclose(skin_points(b, rest["bone_poses"], rest["rest_bone_poses"]), g.vertices, atol=1e-9)
+    b0 = bind_to_skeleton(g.vertices[g.pinned], ph)
+    assert np.array_equal(b.bones[g.pinned], b0.bones) and np.array_equal(b.weights[g.pinned], b0.weights)

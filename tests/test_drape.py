@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
-from rh_dataset.characters.drape import (DRAPED_KINDS, PROFILES, PUSH_CLEARANCE, bind_to_skeleton, collider_faces,
-                                         drape_garment, drape_settings, garment_pattern, penetration, push_out,
-                                         skin_points)
+from rh_dataset.characters.drape import (DRAPED_KINDS, PROFILES, PUSH_CLEARANCE, bind_loose, bind_to_skeleton,
+                                         collider_faces, drape_garment, drape_settings, garment_pattern, penetration,
+                                         push_out, skin_points)
 
 PHENO = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5, "proportions": 0.5}
 # Worst cloth-vertex depth under the skin (metres) allowed. newton keeps the particles `clearance` (4 mm) off the
@@ -152,7 +152,7 @@ def test_drape_is_bit_identical_and_stays_outside_the_body(tmp_path, monkeypatch
         knee = _a_pose_heads()["lowerleg01.L"][2]
         assert abs(g1.vertices[-st.n_around:, 2].mean() - knee) < 0.05
     np.testing.assert_allclose(g1.vertices[:st.n_around], pattern[:st.n_around], atol=1e-6)  # float32 particles
-    b = bind_to_skeleton(g1.vertices, PHENO)
+    b = bind_loose(g1, PHENO)  # the binding the skinned path poses draped garments with
     for pose in sample_poses(np.random.default_rng(7), load_anny(), 6):
         run = run_anny(PHENO, dict(pose.bones))
         pts = skin_points(b, run["bone_poses"], run["rest_bone_poses"])

@@ -116,6 +116,31 @@ def test_a_stop_lost_in_a_c_callback_still_stops_before_anything_is_kept(tmp_pat
     assert not (tmp_path / "result.png").exists() and not list(tmp_path.glob(".*.tmp"))
 
 
+def test_a_ctrl_c_after_a_console_script_finished_changes_nothing(tmp_path):
+    """Between a finished main and the process's end (libraries shutting down) a Ctrl-C is ignored: no traceback,
+    exit status 0."""
+    script = tmp_path / "done.py"
+    script.write_text(textwrap.dedent("""
+        import sys, time
+        from rh_common.interrupt import command
+
+        @command("done")
+        def main(argv=None):
+            return 0
+
+        rc = main()
+        print("DONE", flush=True)
+        time.sleep(1.0)  # a library's teardown
+        sys.exit(rc)
+    """))
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=ENV)
+    assert proc.stdout.readline().strip() == "DONE"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0 and err == ""
+
+
 def test_a_second_ctrl_c_while_stopping_leaves_no_temporary_file(tmp_path):
     for _ in range(5):  # different moments inside the writes
         proc = _toy(tmp_path)

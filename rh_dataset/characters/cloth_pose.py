@@ -4,7 +4,8 @@ In: the character's draped garments (`drape.DrapedGarment`, inner first, each se
 phenotype and the frame's anny bone deltas ('local-ref', as `pose_character` takes them). Out: the posed vertices
 (V, 3) float64 of each garment, in anny's posed space (before a pose's `root_transform`), by one of `CLOTH_MODES`:
 
-  "skinned"    each cloth vertex follows the body's linear-blend skinning (`drape.bind_to_skeleton`), then
+  "skinned"    each cloth vertex follows the body's linear-blend skinning (`drape.bind_loose`: the closest body
+               point's weights, diffused over the cloth below the hips so a stride does not split it), then
                `drape.push_out` moves what a limb swung into back onto the skin. The fold pattern of the rest drape
                is carried into every pose: a thigh lifted into a skirt stretches the cloth with it.
   "simulated"  `simulate_into_pose`: newton's VBD cloth solver runs from the draped rest state while the body
@@ -27,11 +28,11 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .body import body_topology, run_anny, vertex_normals
-from .drape import (DRAPED_KINDS, DrapedGarment, DrapeSettings, bind_to_skeleton, cloth_model, cloth_solver,
-                    collider_faces, drape_garment, push_out, skin_points)
+from .drape import (DRAPED_KINDS, DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, cloth_model,
+                    cloth_solver, collider_faces, drape_garment, push_out, skin_points)
 
 __all__ = ["CLOTH_MODES", "ClothPoseSettings", "BodyMotion", "body_motion", "simulate_into_pose", "skin_into_pose",
-           "simulated_parts", "self_crossings"]
+           "simulated_parts", "self_crossings", "hem_split"]
 
 CLOTH_MODES = ("skinned", "simulated")
 
@@ -258,7 +259,7 @@ def skin_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str, fl
     normals = vertex_normals(run["vertices"], faces)
     out = []
     for g in garments:
-        v = skin_points(bind_to_skeleton(g.vertices, phenotype), run["bone_poses"], run["rest_bone_poses"])
+        v = skin_points(bind_loose(g, phenotype), run["bone_poses"], run["rest_bone_poses"])
         out.append(push_out(v, run["vertices"], normals, faces))
     return out
 
@@ -317,3 +318,23 @@ def self_crossings(vertices: np.ndarray, faces: np.ndarray) -> int:
     shares = (corners == e[ray, :1]).any(1) | (corners == e[ray, 1:]).any(1)
     inside = ~shares & (t > 1e-9) & (t < length[ray] - 1e-9)
     return int(len(np.unique(ray[inside])))
+
+
+def hem_split(vertices: np.ndarray, n_around: int) -> tuple[float, float]:
+    """How far a draped garment's hem (its last ring of `n_around` vertices, `DrapeSettings.n_around`) has split
+    around the legs, seen from below: (pinch, deficit). pinch (metres): how deep the deepest hem vertex lies inside
+    the convex hull of the hem's ground-plane (XY) projection, the hem first averaged over 1/12 of its way around
+    so that the drape's own folds (a few cm, a few vertices wide) do not count; deficit in [0, 1]: 1 - the area
+    the averaged hem encloses / its hull's. A hem wrapped round each leg like a trouser leg folds back between the
+    legs (deep pinch, large deficit); one piece of cloth round both legs is near convex."""
+    from scipy.spatial import ConvexHull
+
+    hem = np.asarray(vertices, np.float64)[-int(n_around):, :2]
+    k = max(1, int(n_around) // 12)
+    hem = np.mean([np.roll(hem, i, axis=0) for i in range(-(k // 2), k - k // 2)], axis=0)
+    hull = ConvexHull(hem)
+    eq = hull.equations  # a x + b y + c <= 0 inside, (a, b) unit
+    depth = -(hem @ eq[:, :2].T + eq[:, 2]).max(1)
+    x, y = hem[:, 0], hem[:, 1]
+    area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    return float(depth.max()), float(1.0 - area / hull.volume)

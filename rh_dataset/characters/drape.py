@@ -6,8 +6,9 @@ cuts each from one pattern function, `garment_pattern`: the trousers' waist tube
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
 static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
-transferred from the closest body point, the garment expressed in anny's bind space) and `push_out`, which puts
-skinned cloth that a limb swung into back on the skin. `penetration` measures.
+transferred from the closest body point and, below the hips, diffused over the cloth so it stays one piece in a
+stride (`bind_loose`); the garment expressed in anny's bind space) and `push_out`, which puts skinned cloth that a
+limb swung into back on the skin. `penetration` measures.
 
 Why a solver, not a shell: a skirt's hem is longer than the body it hangs around, so it folds; only a cloth
 simulation finds where. The drape runs once per (phenotype, kind, settings) and is cached in a content-hashed
@@ -34,8 +35,8 @@ from .geometry import hull_anchors
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
-           "bind_to_skeleton", "skin_points", "drape_cache_dir", "DRAPE_VERSION", "draped_part",
-           "penetration", "push_out", "collider_faces", "cloth_model", "cloth_solver"]
+           "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
+           "draped_part", "penetration", "push_out", "collider_faces", "cloth_model", "cloth_solver"]
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
@@ -548,30 +549,27 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
     return DrapedGarment(kind, q, faces, uvs, pinned, mpu, verts, pieces)
 
 
-def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones: int = 8,
-                     in_bind_space: bool = False) -> SkinBinding:
-    """Skinning weights of rest-pose points from the closest point of the rest-pose body (trimesh), the three
-    corner vertices' weights blended by barycentrics; the points mapped to anny's bind space by inverting the
-    blended rest-pose transform, so `skin_points` with the rest pose returns them. `in_bind_space`: the points
-    are already in anny's bind space (its `rest_vertices`, where `BodyFeatures` live; headwear is designed there),
-    so the weights come from the closest point of that mesh and the points are kept as they are."""
+def _closest_weights(mesh, points: np.ndarray) -> np.ndarray:
+    """Dense bone weights (P, J) of `points` from their closest point on `mesh` (a trimesh of anny's topology
+    restricted to the collider): the three corner vertices' linear-blend weights blended by barycentrics."""
     import trimesh
 
     topo = body_topology()
-    run = run_anny(phenotype)
-    mesh = trimesh.Trimesh(run["rest_vertices" if in_bind_space else "vertices"], collider_faces(phenotype),
-                           process=False)
-    pts = np.asarray(points, dtype=np.float64)
-    closest, _, tri = trimesh.proximity.closest_point(mesh, pts)
+    closest, _, tri = trimesh.proximity.closest_point(mesh, points)
     corners = np.asarray(mesh.faces)[tri]  # (P, 3)
     bary = trimesh.triangles.points_to_barycentric(mesh.vertices[corners], closest)
     bary = np.clip(bary, 0.0, None)
     bary /= bary.sum(1, keepdims=True)
-    n_bones = len(topo.bone_labels)
-    dense = np.zeros((len(pts), n_bones))
-    rows = np.arange(len(pts))[:, None]
+    dense = np.zeros((len(points), len(topo.bone_labels)))
+    rows = np.arange(len(points))[:, None]
     for c in range(3):
         np.add.at(dense, (rows, topo.bone_indices[corners[:, c]]), bary[:, c:c + 1] * topo.bone_weights[corners[:, c]])
+    return dense
+
+
+def _binding(dense: np.ndarray, pts: np.ndarray, run: dict, max_bones: int, in_bind_space: bool) -> SkinBinding:
+    """The `max_bones` largest of the dense weights (P, J), renormalised, and the points in anny's bind space (the
+    blended rest-pose transform inverted, unless they already are there)."""
     bones = np.argsort(-dense, axis=1, kind="stable")[:, :max_bones]
     w = np.take_along_axis(dense, bones, axis=1)
     w /= w.sum(1, keepdims=True)
@@ -581,6 +579,86 @@ def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones:
     M = np.einsum("pk,pkij->pij", w, T[bones])
     bind = np.einsum("pij,pj->pi", np.linalg.inv(M), np.c_[pts, np.ones(len(pts))])[:, :3]
     return SkinBinding(bind, bones.astype(np.int64), w.astype(np.float32))
+
+
+def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones: int = 8,
+                     in_bind_space: bool = False) -> SkinBinding:
+    """Skinning weights of rest-pose points from the closest point of the rest-pose body (trimesh), the three
+    corner vertices' weights blended by barycentrics; the points mapped to anny's bind space by inverting the
+    blended rest-pose transform, so `skin_points` with the rest pose returns them. `in_bind_space`: the points
+    are already in anny's bind space (its `rest_vertices`, where `BodyFeatures` live; headwear is designed there),
+    so the weights come from the closest point of that mesh and the points are kept as they are."""
+    import trimesh
+
+    run = run_anny(phenotype)
+    mesh = trimesh.Trimesh(run["rest_vertices" if in_bind_space else "vertices"], collider_faces(phenotype),
+                           process=False)
+    pts = np.asarray(points, dtype=np.float64)
+    return _binding(_closest_weights(mesh, pts), pts, run, max_bones, in_bind_space)
+
+
+# The loose garments' binding (`bind_loose`): the closest-point weights diffused over the cloth, fully from
+# LOOSE_BELOW metres under the A-pose hip joints down, fading to none LOOSE_FADE metres above that (the waist and
+# hips keep the body's own weights), in Jacobi steps of the cloth's graph Laplacian (each vertex moved towards the
+# mean of its edge neighbours). Steps = (LOOSE_REACH / mean edge length)^2, so the weights spread as far in metres at
+# either drape level (a random walk of n steps of length h reaches ~h sqrt(n)): 23-29 steps at the full drape's
+# 21-23 mm edges, ~6 at the coarse one's 41-45 mm. bench/bench_skirt_stride.py chose the values.
+LOOSE_REACH = 0.11
+LOOSE_BELOW = 0.05
+LOOSE_FADE = 0.15
+
+
+def _edges(faces: np.ndarray) -> np.ndarray:
+    """The unique edges (E, 2) int64 of a triangle mesh, each (low, high)."""
+    f = np.asarray(faces, np.int64)
+    return np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+
+
+def loose_iterations(garment: DrapedGarment) -> int:
+    """The diffusion steps `bind_loose` takes for this garment's mesh by default (`LOOSE_REACH`)."""
+    v = np.asarray(garment.vertices, np.float64)
+    e = _edges(garment.faces)
+    return int(round((LOOSE_REACH / float(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean())) ** 2))
+
+
+def bind_loose(garment: DrapedGarment, phenotype: dict[str, float], max_bones: int = 8,
+               iterations: int | None = None) -> SkinBinding:
+    """The skinning of a draped garment (`DrapedGarment`, rest pose), made so the cloth below the hips stays one
+    piece when the legs part: `bind_to_skeleton`'s closest-point weights would bind the hem's left half to the left
+    thigh and its right half to the right one, so a stride splits the cloth around each leg like trouser legs.
+    Here the dense weights are diffused over the cloth mesh (`iterations` steps of W <- W + a (mean of the edge
+    neighbours' W - W), a per vertex: 0 on the pinned top ring and from `LOOSE_FADE` - `LOOSE_BELOW` above the
+    A-pose hip joints up, rising by a smoothstep to 1 at `LOOSE_BELOW` under them), so the front and back of the
+    hem blend both thighs and the pelvis and the forward leg carries the cloth in front of it with its neighbours;
+    `push_out` keeps the legs inside afterwards. Deterministic (fixed-order sparse products).
+    `iterations`: default `loose_iterations(garment)`; 0 is `bind_to_skeleton` (the binding of before)."""
+    import trimesh
+    from scipy.sparse import coo_matrix, diags
+
+    run = run_anny(phenotype)
+    pts = np.asarray(garment.vertices, dtype=np.float64)
+    mesh = trimesh.Trimesh(run["vertices"], collider_faces(phenotype), process=False)
+    dense = _closest_weights(mesh, pts)
+    labels = body_topology().bone_labels
+    z_hip = 0.5 * sum(float(run["bone_poses"][labels.index(b), 2, 3]) for b in ("upperleg01.L", "upperleg01.R"))
+    x = np.clip((z_hip + LOOSE_FADE - LOOSE_BELOW - pts[:, 2]) / LOOSE_FADE, 0.0, 1.0)
+    rate = x * x * (3.0 - 2.0 * x)  # smoothstep: no kink in the weights where the diffusion starts
+    rate[np.asarray(garment.pinned, bool)] = 0.0
+    e = _edges(garment.faces)
+    n = len(pts)
+    adj = coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(n, n)).tocsr()
+    mean = diags(1.0 / np.maximum(np.asarray(adj.sum(1)).ravel(), 1.0)) @ adj
+    step = diags(1.0 - rate) + diags(rate) @ mean  # rows sum to 1: weights stay convex
+    iterations = loose_iterations(garment) if iterations is None else int(iterations)
+    if iterations < 0:
+        raise ValueError(f"bind_loose: iterations must be >= 0, got {iterations}")
+    used = np.flatnonzero(dense.any(0))  # bones with any weight on the cloth: diffusing the rest is a no-op
+    w = dense[:, used]
+    for _ in range(iterations):
+        w = step @ w
+    dense = np.zeros_like(dense)
+    dense[:, used] = w
+    return _binding(dense, pts, run, max_bones, False)
 
 
 def skin_points(binding: SkinBinding, bone_poses: np.ndarray, rest_bone_poses: np.ndarray) -> np.ndarray:
@@ -620,7 +698,7 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
         length = float(np.linalg.norm(np.diff(g.vertices[::na][:nr], axis=0), axis=1).sum())
         u = np.tile(np.arange(na + 1) / na, nr)
         uvs = np.clip(np.stack([u, (1.0 - ts) * length / g.metres_per_uv], 1), 0.0, 1.0)
-    binding = bind_to_skeleton(g.vertices, phenotype)
+    binding = bind_loose(g, phenotype)
     dist, nn = cKDTree(run_anny(phenotype)["vertices"]).query(g.vertices)  # the A-pose the cloth was draped on
     near = dist < NEAR_BODY
     np.maximum.at(under, nn[near], dist[near] + LAYER_GAP_DRAPE)
