@@ -5,10 +5,10 @@ subjects of each protocol wear them, and the arithmetic for the demo, the defaul
     python bench/bench_drape_cost.py --kinds draped_trousers    # time one kind's drapes only
 
 In: the dataset seed (default 0, the generator's and rh-demo's). Out, printed with the load average: (1) for the
-first dress, skirt and wide-trousers wearer of the seed (`--kinds`), the drape's wall seconds at each level (`drape.DRAPE_LEVELS`;
-a cold cache in a temporary folder, Warp kernels compiled first by a one-step drape), and the skinned posing of a
-walk frame (`pose_character`, the draft and standard presets' cloth mode) against the first subject in shell
-clothes; (2) per protocol, its subjects wearing a dress, a skirt or wide trousers; (3) the totals: drapes run once per
+first dress, skirt and wide-trousers wearer of the seed (`--kinds`), the drape's wall seconds at each level
+(`drape.DRAPE_LEVELS`; a cold cache in a temporary folder, Warp kernels compiled first by a one-step drape), and
+the skinned posing of a walk frame (`pose_character`, the draft and standard presets' cloth mode) against the first
+subject in shell clothes; (2) per protocol, its subjects wearing a dress, a skirt or wide trousers; (3) the totals: drapes run once per
 (phenotype, kind, level) and are cached, so a protocol pays each loose subject's drape once, and protocols of one
 seed share subjects (and their cache).
 """

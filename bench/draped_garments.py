@@ -10,11 +10,11 @@ the drape's seconds and how deep any cloth vertex sits in the body in each view.
 In: the dataset seed (the generator's subject order: `sample_recipe(rng_for(seed, "character", s))`), how many
 subjects of each kind, the drape level (`drape.DRAPE_LEVELS`). Out: a PNG sheet (a row per subject, 256 px tiles,
 Open Image Denoise on 32 spp: a look, not a dataset frame) and, printed, per subject: its index, garments, drape
-wall seconds (0 when the drape cache already held it), worst cloth depth under the skin (mm, > 0 inside) at rest
-and posed, the cloth's self-crossing edges (`cloth_pose.self_crossings`) at rest and posed, and the load average.
-The posed frame is skinned (the draft and standard presets' cloth mode). `--swap-trousers`: subjects whose recipe
-draws the shell `trousers` count as trousers wearers, in `draped_trousers` of the same colours (their recipes
-otherwise unmodified), for a seed whose recipes do not draw the draped kind.
+wall seconds (0 when the drape cache already held it), the cloth's depth under the skin (mm, > 0 inside: worst
+vertex and 99th percentile) at rest and posed, the cloth's self-crossing edges (`cloth_pose.self_crossings`) at
+rest and posed, and the load average. The posed frame is skinned (the draft and standard presets' cloth mode).
+`--swap-trousers`: subjects whose recipe draws the shell `trousers` count as trousers wearers, in `draped_trousers`
+of the same colours (their recipes otherwise unmodified), for a seed whose recipes do not draw the draped kind.
 """
 from __future__ import annotations
 
@@ -99,7 +99,8 @@ def main(argv: list[str] | None = None) -> int:
                 posed = pose_character(character, bones, world)
                 if turn == 0.0:
                     cloth = next(m for m in posed if m.name == kind)
-                    depth.append(1e3 * float(penetration(body, faces, cloth.vertices).max()))
+                    d = penetration(body, faces, cloth.vertices)
+                    depth.append((1e3 * float(d.max()), 1e3 * float(np.percentile(d, 99))))
                     crossings.append(self_crossings(cloth.vertices, cloth.faces))
                 img = render_preview(posed, width=args.tile, height=args.tile, spp=32, seed=s)
                 guide = render_preview(posed, width=args.tile, height=args.tile, spp=4, seed=s, albedo=True)
@@ -107,7 +108,8 @@ def main(argv: list[str] | None = None) -> int:
                 tiles.append(quantize8(srgb_encode(np.clip(img, 0, None) * 1.3)))
         rows.append(np.concatenate(tiles, axis=1))
         print(f"subject {s:3d} {','.join(g.kind for g in recipe.garments):40s} build (drape {args.drape}) "
-              f"{t_build:6.1f} s  cloth depth in the body: rest {depth[0]:6.2f} mm, {pose.label} {depth[1]:6.2f} mm  "
+              f"{t_build:6.1f} s  cloth depth in the body (worst / 99th percentile): rest {depth[0][0]:6.2f} / "
+              f"{depth[0][1]:6.2f} mm, {pose.label} {depth[1][0]:6.2f} / {depth[1][1]:6.2f} mm  "
               f"self-crossing edges: rest {crossings[0]}, {pose.label} {crossings[1]}  (load {load()})", flush=True)
     write_png(args.out, np.concatenate(rows, axis=0))
     print(f"wrote {args.out}: rows = subjects, columns = rest front | rest side | {pose.label} front | side")

@@ -62,7 +62,8 @@ def test_pattern_is_a_pair_of_trousers_outside_the_body(pheno, level):
         radial = tri.mean(1) - mid[ring]
         radial[:, 2] = 0.0
         assert ((n * radial).sum(1) > 0).mean() > 0.97
-    assert (verts[left.ravel(), 0] >= verts[0, 0] - 1e-9).all() and (verts[right.ravel(), 0] <= verts[0, 0] + 1e-9).all()
+    mid = verts[0, 0]
+    assert (verts[left.ravel(), 0] >= mid - 1e-9).all() and (verts[right.ravel(), 0] <= mid + 1e-9).all()
     run = run_anny(pheno)
     body = run["vertices"]
     assert penetration(body, body_topology().faces, verts).max() < -st.clearance  # every particle clear

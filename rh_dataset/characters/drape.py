@@ -301,8 +301,8 @@ def _trouser_pattern(phenotype: dict[str, float], st: DrapeSettings, prof: Drape
     (spaced as the ring is); two leg tubes, each starting from a D-shaped ring (half the split ring plus the seam,
     which both legs share) and turning, over the first 10 cm, into a circle around the leg that flares at
     `st.flare` to the hem (centred on the middle of the leg's cross-section, moved out where the circle would come
-    closer than `MIDPLANE_GAP` to the midplane). Every ring is kept `clearance` + 2 mm outside the convex hull of the body's
-    cross-section at its height (the waist tube: the whole collider, kept out further down as the skirt; a leg
+    closer than `MIDPLANE_GAP` to the midplane). Every ring is kept `clearance` + 2 mm outside the convex hull of the
+    body's cross-section at its height (the waist tube: the whole collider, kept out further down as the skirt; a leg
     ring: that leg's side; `_section`). Rings are spaced evenly in height, `st.n_rings` from waistband to hem.
     Returns garment_pattern's five values plus the pieces: (rings, around) grids of vertex indices (waist, left
     leg, right leg) whose columns wrap; the legs' first rows are split-ring and seam vertices."""
