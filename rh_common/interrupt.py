@@ -91,9 +91,29 @@ def checkpoint() -> None:
         raise Stopped(_received[-1])
 
 
+def _quiet_lost_stops(previous_hook):
+    """A `sys.unraisablehook` that says nothing of a `Stopped` lost in a C callback (Python would print "Exception
+    ignored" and its traceback beside the one-line stop): the signal is remembered and raised again at the next
+    `checkpoint`. Everything else goes to `previous_hook`."""
+
+    def hook(unraisable) -> None:
+        if isinstance(unraisable.exc_value, Stopped):
+            return
+        previous_hook(unraisable)
+
+    hook.quiets_lost_stops = True
+    return hook
+
+
+def _install_quiet_hook() -> None:
+    if not getattr(sys.unraisablehook, "quiets_lost_stops", False):
+        sys.unraisablehook = _quiet_lost_stops(sys.unraisablehook)
+
+
 def worker_signals() -> None:
     """In a worker process: SIGINT and SIGTERM raise `Stopped`, so the worker unwinds (and removes its temporary
     files) instead of dying mid-write."""
+    _install_quiet_hook()
     for s in _SIGNALS:
         signal.signal(s, _raise_stopped)
 
@@ -193,7 +213,9 @@ def command(prog: str, *, not_on_resume: tuple[str, ...] = ()
             previous = None
             if outer:
                 _received.clear()
+            hook_before = sys.unraisablehook
             if outer and _is_main_thread():
+                _install_quiet_hook()
                 previous = {s: signal.signal(s, _raise_stopped) for s in _SIGNALS}
             try:
                 return main(argv)
@@ -230,6 +252,8 @@ def command(prog: str, *, not_on_resume: tuple[str, ...] = ()
                 _active.remove(cmd)
                 if outer:
                     _received.clear()
+                if outer and argv is not None:
+                    sys.unraisablehook = hook_before  # called from Python (a test, rh-demo): leave it as it was
                 if outer and argv is None and previous is not None:
                     # A console script whose work is done: the interpreter exits next. A Ctrl-C during its
                     # teardown (Ray, Warp, Mitsuba shutting down) would otherwise print a KeyboardInterrupt
