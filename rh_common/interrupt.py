@@ -39,7 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator
 
-__all__ = ["command", "on_stop", "Stopped", "checkpoint", "stop_received", "worker_signals", "signals_kept", "add_debug_flag", "resume_command", "disk_error_line",
+__all__ = ["command", "on_stop", "Stopped", "checkpoint", "worker_signals", "signals_kept", "add_debug_flag", "resume_command", "disk_error_line",
            "human_bytes", "nearest_folder", "EXIT_DISK", "DISK_ERRNOS"]
 
 EXIT_DISK = 1
@@ -77,11 +77,6 @@ def _raise_stopped(signum: int, frame) -> None:
         signal.signal(s, signal.SIG_IGN)
     _received.append(signum)
     raise Stopped(signum)
-
-
-def stop_received() -> int | None:
-    """The stopping signal this process has received (while a command or a worker runs), or None."""
-    return _received[-1] if _received else None
 
 
 def checkpoint() -> None:
@@ -229,18 +224,12 @@ def command(prog: str, *, not_on_resume: tuple[str, ...] = ()
                     # exit code by "killed by SIGINT".
                     previous = None
                 return _stopped(prog, cmd, signum)
-            except OSError as raised:
-                exc = _disk_error(raised)
-                if outer and not debug and exc is None and _received:  # as below, for a non-disk OSError
-                    if argv is None:
-                        previous = None
-                    return _stopped(prog, cmd, _received[-1])
-                if debug or not outer or exc is None:
-                    raise
-                _say(disk_error_line(prog, exc, resume=resume_command(prog, cmd.argv), finished=_finished(cmd, ""),
-                                     remaining_bytes=_call(cmd.remaining_bytes)))
-                return EXIT_DISK
-            except Exception:
+            except Exception as raised:
+                exc = _disk_error(raised) if isinstance(raised, OSError) else None
+                if exc is not None and outer and not debug:
+                    _say(disk_error_line(prog, exc, resume=resume_command(prog, cmd.argv),
+                                         finished=_finished(cmd, ""), remaining_bytes=_call(cmd.remaining_bytes)))
+                    return EXIT_DISK
                 # After a stop whose exception was lost in a C callback, the library fails in its own way: that
                 # failure is the stop's doing, and the user asked for the stop.
                 if debug or not outer or not _received:

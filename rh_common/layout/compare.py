@@ -147,7 +147,10 @@ def _psnr(x: np.ndarray, y: np.ndarray) -> float:
 def _diverged(x: np.ndarray, y: np.ndarray, is_8bit: bool) -> np.ndarray:
     """Per pixel (H, W): does any channel differ by more than rounding allows one pixel (module docstring)?"""
     d = np.abs(x - y).reshape(x.shape[0], x.shape[1], -1).max(axis=-1)
-    limit = TOLERANCE["max_8bit_levels"] if is_8bit else 10 ** (-TOLERANCE["min_psnr_db"] / 20) * float(np.max(np.abs(x)))
+    if is_8bit:
+        limit = TOLERANCE["max_8bit_levels"]
+    else:
+        limit = 10 ** (-TOLERANCE["min_psnr_db"] / 20) * float(np.max(np.abs(x)))
     return d > limit
 
 
