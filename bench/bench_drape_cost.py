@@ -3,6 +3,7 @@ subjects of each protocol wear them, and the arithmetic for the demo, the defaul
 
     python bench/bench_drape_cost.py              # ~8 min on a busy 2-core box (three full drapes, three coarse)
     python bench/bench_drape_cost.py --kinds draped_trousers    # time one kind's drapes only
+    python bench/bench_drape_cost.py --posing-only --repeats 7  # the per-frame posing only (drapes from the cache)
 
 In: the dataset seed (default 0, the generator's and rh-demo's). Out, printed with the load average: (1) for the
 first dress, skirt and wide-trousers wearer of the seed (`--kinds`), the drape's wall seconds at each level
@@ -35,6 +36,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--protocols", nargs="+", default=["demo", "a", "b", "c"])
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), help=f"draped kinds timed (of {KINDS})")
+    ap.add_argument("--posing-only", action="store_true",
+                    help="time the per-frame posing only, with the drapes from the usual cache (RH_DRAPE_CACHE or "
+                         "~/.cache; draped there first if missing, untimed)")
+    ap.add_argument("--repeats", type=int, default=3, help="posings per subject whose median is printed")
     args = ap.parse_args(argv)
 
     from rh_common.body_model import load_anny
@@ -51,14 +56,16 @@ def main(argv: list[str] | None = None) -> int:
 
     print(f"seed {args.seed}; load at start {load()}")
     first = {k: loose.index(k) for k in args.kinds if k in loose}
-    os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_drape_cost_")  # cold: every drape is timed
-    ph0 = recipes[next(iter(first.values()))].phenotype
-    t = time.perf_counter()
-    drape_garment("draped_skirt", ph0, dataclasses.replace(drape_settings("draped_skirt"), steps=1), use_cache=False)
-    print(f"Warp/newton kernels (one-step drape, compiled or loaded): {time.perf_counter() - t:.1f} s")
     secs = {}
+    if not args.posing_only:
+        os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_drape_cost_")  # cold: every drape is timed
+        ph0 = recipes[next(iter(first.values()))].phenotype
+        t = time.perf_counter()
+        drape_garment("draped_skirt", ph0, dataclasses.replace(drape_settings("draped_skirt"), steps=1),
+                      use_cache=False)
+        print(f"Warp/newton kernels (one-step drape, compiled or loaded): {time.perf_counter() - t:.1f} s")
     for kind, s in first.items():
-        for level in DRAPE_LEVELS:
+        for level in DRAPE_LEVELS if not args.posing_only else ():
             st = drape_settings(kind, level)
             t = time.perf_counter()
             drape_garment(kind, recipes[s].phenotype, st)
@@ -70,16 +77,18 @@ def main(argv: list[str] | None = None) -> int:
         r = recipes[s]
         ch = build_character(r, 64, drape="full")
         bare = build_character(recipes[loose.index(None)], 64)  # the first subject in shell clothes only
-        times = {}
+        times, cpu = {}, {}
         for name, c in (("with", ch), ("without", bare)):
-            ts = []
-            for _ in range(3):
-                t = time.perf_counter()
+            ts, cs = [], []
+            for _ in range(args.repeats):
+                t, tc = time.perf_counter(), time.process_time()
                 pose_character(c, dict(pose.bones), pose.root_transform)
                 ts.append(time.perf_counter() - t)
-            times[name] = statistics.median(ts)
-        print(f"subject {s:2d} {kind:13s} posing a walk frame (skinned, median of 3): {times['with']:.2f} s, "
-              f"subject {loose.index(None)} in shell clothes {times['without']:.2f} s  (load {load()})")
+                cs.append(time.process_time() - tc)
+            times[name], cpu[name] = statistics.median(ts), statistics.median(cs)
+        print(f"subject {s:2d} {kind:13s} posing a walk frame (skinned, median of {args.repeats}): {times['with']:.2f} s "
+              f"({cpu['with']:.2f} CPU s), subject {loose.index(None)} in shell clothes {times['without']:.2f} s "
+              f"({cpu['without']:.2f} CPU s)  (load {load()})")
         secs[kind, "pose"] = times["with"] - times["without"]
 
     print("\nprotocol        subjects  dresses  skirts  trousers  frames/subject  drape (full / coarse)   posing added"
@@ -93,7 +102,8 @@ def main(argv: list[str] | None = None) -> int:
         coarse = sum(n[k] * secs.get((k, "coarse"), 0.0) for k in KINDS)
         posing = sum(n[k] * secs.get((k, "pose"), 0.0) for k in KINDS) * frames
         print(f"{p:14s} {spec.subjects:9d} {n['draped_dress']:8d} {n['draped_skirt']:7d} {n['draped_trousers']:9d}"
-              f" {frames:15d}  {full / 60:7.1f} / {coarse / 60:5.1f} min  {posing / 3600:9.2f} h (if every frame "
+              f" {frames:15d}  " + (f"{full / 60:7.1f} / {coarse / 60:5.1f} min" if not args.posing_only else
+                                   f"{'(not timed)':>19s}") + f"  {posing / 3600:9.2f} h (if every frame "
               "posed as the walk)")
     print(f"(load at the end {load()})")
     return 0

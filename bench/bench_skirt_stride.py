@@ -18,6 +18,9 @@ lifted knee (a thigh >= 40 degrees off the vertical). Per (subject, pose, bindin
             lap, where its ground-plane projection folds over itself: read the walks.
   raw       worst cloth-vertex depth under the posed skin before push_out (mm; > 0 inside);
   worst/p99 the same after push_out (`drape.penetration`, what a frame renders);
+  inward    cloth vertices push_out moved against their cloth's outward normal by more than 5 mm: cloth put behind
+            the limb that swung into it (the closest skin of a vertex deep in a lifted thigh is often the thigh's
+            underside), where the limb can show through;
   sim       (the first --reference poses) the mean / max vertex distance to newton's simulated cloth
             (`cloth_pose.simulate_into_pose`, the reference preset's way), whose own pinch is printed beside.
   ms        skinning + push_out per frame (the binding itself is made once per character: printed per subject).
@@ -40,6 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 STRIDE_DEG = 30.0  # thighs at least this far apart
 LIFT_DEG = 40.0  # or a thigh at least this far off the vertical
+INWARD = 0.005  # metres against the cloth's outward normal: a pushed vertex counted as put behind the limb
 
 
 def load() -> str:
@@ -194,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{loose_iterations(g)} steps; rest drape pinch {100 * rest_pinch:.1f} cm); "
               f"binding s: " + ", ".join(f"{it}: {bind_s[it]:.2f}" for it in variants) + f"  [load {load()}]")
         print(f"  {'pose':24s} {'steps':>5s} {'pinch cm':>8s} {'deficit':>7s} {'raw mm':>7s} {'worst mm':>8s} "
-              f"{'p99 mm':>7s} {'ms':>6s} {'sim mean/max cm':>16s}")
+              f"{'p99 mm':>7s} {'inward':>6s} {'ms':>6s} {'sim mean/max cm':>16s}")
         for j, pose, label, spread, lift in stride_poses(args.seed, s, source.name, ph, args.poses):
             bones = dict(pose.bones)
             run = run_anny(ph, bones)
@@ -215,8 +219,9 @@ def main(argv: list[str] | None = None) -> int:
                 pinch, deficit = hem_split(v, st.n_around)
                 depth_raw = float(penetration(run["vertices"], faces, raw).max())
                 depth = penetration(run["vertices"], faces, v)
+                inward = int((((v - raw) * vertex_normals(raw, g.faces)).sum(1) < -INWARD).sum())
                 row = dict(subject=s, kind=kind, pose=name, steps=it, pinch=pinch, deficit=deficit, raw=depth_raw,
-                           worst=float(depth.max()), p99=float(np.percentile(depth, 99)), ms=ms)
+                           worst=float(depth.max()), p99=float(np.percentile(depth, 99)), ms=ms, inward=inward)
                 ref = ""
                 if sim is not None:
                     d = np.linalg.norm(v - sim, axis=1)
@@ -225,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(row)
                 label = "auto" if it < 0 else str(it)
                 print(f"  {name:24s} {label:>5s} {100 * pinch:8.1f} {100 * deficit:6.1f}% {1e3 * depth_raw:7.1f} "
-                      f"{1e3 * row['worst']:8.2f} {1e3 * row['p99']:7.2f} {ms:6.0f} {ref:>16s}", flush=True)
+                      f"{1e3 * row['worst']:8.2f} {1e3 * row['p99']:7.2f} {inward:6d} {ms:6.0f} {ref:>16s}", flush=True)
             if sim is not None:
                 sp, sd = hem_split(sim, st.n_around)
                 print(f"  {'':24s} {'sim':>5s} {100 * sp:8.1f} {100 * sd:6.1f}%   (newton VBD, {sim_s:.0f} s, "
@@ -238,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
             continue
         print(f"\n{group}: {len(sel) // len(variants)} (subject, pose) cases [load {load()}]")
         print(f"  {'steps':>5s} {'pinch cm max':>12s} {'median':>7s} {'deficit max':>11s} {'median':>7s} "
-              f"{'worst mm':>8s} {'p99 mm max':>10s} {'ms median':>9s} {'sim mean cm':>11s}")
+              f"{'worst mm':>8s} {'p99 mm max':>10s} {'inward sum':>10s} {'ms median':>9s} {'sim mean cm':>11s}")
         for it in variants:
             r = [x for x in sel if x["steps"] == it]
             sims = [x["sim_mean"] for x in r if "sim_mean" in x]
@@ -247,7 +252,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  {label:>5s} {100 * max(pinch):12.1f} {100 * np.median(pinch):7.1f}"
                   f" {100 * max(x['deficit'] for x in r):10.1f}% {100 * np.median([x['deficit'] for x in r]):6.1f}%"
                   f" {1e3 * max(x['worst'] for x in r):8.2f} {1e3 * max(x['p99'] for x in r):10.2f}"
-                  f" {np.median([x['ms'] for x in r]):9.0f} {(100 * np.mean(sims)) if sims else float('nan'):11.1f}")
+                  f" {sum(x['inward'] for x in r):10d} {np.median([x['ms'] for x in r]):9.0f} {(100 * np.mean(sims)) if sims else float('nan'):11.1f}")
     return 0
 
 

@@ -121,6 +121,15 @@ def test_push_out_clears_points_sunk_into_the_skin():
     np.testing.assert_allclose(depth[:40], ref, atol=1e-9)
     out = push_out(sunk, v, n, faces)
     assert penetration(v, faces, out).max() < 0.0
+    # push_out searches only the skin near the points (one search tree, PUSH_REACH): the closest points on the whole
+    # body, but for a point equally close to two faces, which the smaller search may order otherwise (1e-18 m seen).
+    from rh_dataset.characters.drape import _closest
+
+    d, closest, cn = _closest(v, faces, sunk, n)
+    bad = d > -PUSH_CLEARANCE + 1e-6
+    whole = sunk.copy()
+    whole[bad] = closest[bad] + PUSH_CLEARANCE * cn[bad]
+    np.testing.assert_allclose(push_out(sunk, v, n, faces, rounds=1), whole, rtol=0, atol=1e-12)
     far = v[idx] + 0.05 * n[idx]
     far = far[penetration(v, faces, far) < -0.02]  # already clear (not between the thighs): untouched
     assert len(far) > 200

@@ -493,17 +493,41 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
     their closest skin point plus `clearance` along the interpolated normal there (a second round catches a point
     moved out of one thigh into the other). Linear-blend skinning cannot make a hanging skirt give way to a thigh
     that swings into it; this puts the cloth back on the skin instead, which removes the penetration but not the
-    stretch. Exact closest points for every point: a tangent-plane pre-test missed a few deep ones."""
+    stretch. Exact closest points for every point: a tangent-plane pre-test missed a few deep ones.
+
+    Only the skin within PUSH_REACH of the points' box is searched, with one search tree for every round: building
+    trimesh's tree over the whole body was most of a frame's posing (bench/bench_drape_cost.py --posing-only). The
+    result is the whole body's closest points (a point whose closest skin lies farther than PUSH_REACH is outside,
+    since no point of the body lies that deep, and clear), to the bit but where a point is equally close to two
+    faces, which the smaller search may visit in another order (1e-18 m apart, seen once in 300 test points). Tried and not kept (2 December): moving a point under the skin out
+    along its cloth's outward normal instead, so a thigh lifted into a skirt carries the panel over it rather than
+    the closest skin (its underside) taking the panel behind it: it put 3-5x fewer vertices behind a limb
+    (bench_skirt_stride.py's `inward`), but neighbours that took different ways made spikes of cloth on the shins."""
+    import trimesh
+
     p = np.array(points, dtype=np.float64)
+    if not len(p):
+        return p
+    v = np.asarray(body_vertices, np.float64)
+    f = np.asarray(body_faces)
+    corners = v[f]
+    lo, hi = p.min(axis=0) - PUSH_REACH, p.max(axis=0) + PUSH_REACH
+    local = f[((corners.max(axis=1) >= lo) & (corners.min(axis=1) <= hi)).all(axis=1)]
+    if not len(local):
+        return p
+    mesh = trimesh.Trimesh(v, local, process=False)
     todo = np.arange(len(p))
     for _ in range(rounds):
-        depth, closest, n = _closest(body_vertices, body_faces, p[todo], body_normals)
-        bad = depth > -clearance + 1e-6
+        depth, closest, n = _closest(v, local, p[todo], body_normals, mesh=mesh)
+        bad = (depth > -clearance + 1e-6) & (np.abs(depth) < PUSH_REACH)
         if not bad.any():
             break
         todo = todo[bad]
         p[todo] = closest[bad] + clearance * n[bad]
     return p
+
+
+PUSH_REACH = 0.2  # metres: deeper than any point of the body lies under its skin
 
 
 def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, pattern: np.ndarray) -> str:
@@ -743,8 +767,9 @@ def _pieces_render_mesh(g: DrapedGarment):
     return np.concatenate(src), np.concatenate(faces), np.clip(np.concatenate(uvs), 0.0, 1.0)
 
 
-def _closest(body_vertices, body_faces, points, body_normals=None):
-    """(depth (P,) > 0 inside, closest surface points (P, 3), unit interpolated normals there (P, 3))."""
+def _closest(body_vertices, body_faces, points, body_normals=None, mesh=None):
+    """(depth (P,) > 0 inside, closest surface points (P, 3), unit interpolated normals there (P, 3)). `mesh`: the
+    trimesh of (body_vertices, body_faces) if the caller has one (its search tree is reused)."""
     import trimesh
 
     from .body import vertex_normals
@@ -753,7 +778,9 @@ def _closest(body_vertices, body_faces, points, body_normals=None):
     f = np.asarray(body_faces)
     vn = vertex_normals(v, f) if body_normals is None else np.asarray(body_normals, np.float64)
     p = np.asarray(points, np.float64)
-    closest, dist, tri = trimesh.proximity.closest_point(trimesh.Trimesh(v, f, process=False), p)
+    if mesh is None:
+        mesh = trimesh.Trimesh(v, f, process=False)
+    closest, dist, tri = trimesh.proximity.closest_point(mesh, p)
     bary = trimesh.triangles.points_to_barycentric(v[f[tri]], closest)
     n = (vn[f[tri]] * bary[..., None]).sum(1)
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
