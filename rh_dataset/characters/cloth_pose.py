@@ -29,7 +29,7 @@ import numpy as np
 
 from .body import body_topology, run_anny, vertex_normals
 from .drape import (DRAPED_KINDS, DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, cloth_model,
-                    cloth_solver, collider_faces, drape_garment, push_out, skin_points)
+                    cloth_solver, collider_faces, drape_garment, push_clearance, push_out, skin_points)
 
 __all__ = ["CLOTH_MODES", "ClothPoseSettings", "BodyMotion", "body_motion", "simulate_into_pose", "skin_into_pose",
            "simulated_parts", "self_crossings", "hem_split"]
@@ -260,7 +260,7 @@ def skin_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str, fl
     out = []
     for g in garments:
         v = skin_points(bind_loose(g, phenotype), run["bone_poses"], run["rest_bone_poses"])
-        out.append(push_out(v, run["vertices"], normals, faces))
+        out.append(push_out(v, run["vertices"], normals, faces, push_clearance(g.kind)))
     return out
 
 
