@@ -28,7 +28,8 @@ from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body import body_topology
 from .body_features import BodyFeatures
-from .drape import DRAPED_KINDS, DrapeSettings, SkinBinding, coat_shell_hem, draped_part, drape_settings
+from .drape import (COAT_OVERLAP, DRAPED_KINDS, DrapeSettings, SkinBinding, coat_shell_hem, draped_part,
+                    drape_settings)
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
@@ -50,6 +51,7 @@ BASE_OFFSET = {
 # the shell's hem) widening by COAT_LAPEL metres per metre up to the collar, so the coat reads as open from the
 # neck down and the yoke's front edges meet the panels' front edges.
 COAT_LAPEL = 0.25
+COAT_TUCK = 0.009  # metres: the coat shell's offset where the panels overlap it (`_shell`)
 LAYER_GAP = 0.003  # minimum distance between two layers (well above ray-tracing epsilon at body scale)
 TAPER_WIDTH = 0.025  # metres over which the offset falls towards an open edge
 TAPER_MIN = 0.3  # fraction of the offset left at the very edge
@@ -216,6 +218,14 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     split = split_faces(face_ids, topology, level=level)
     dist = boundary_distance(split, feats.rest_vertices)
     off = BASE_OFFSET[kind] * (TAPER_MIN + (1.0 - TAPER_MIN) * _smoothstep(dist / TAPER_WIDTH))
+    if kind == "coat":
+        # Tucked under the draped panels: at most COAT_TUCK off the skin up to 5 mm above their pinned ring
+        # (COAT_OVERLAP above the hem; the drape keeps the ring >= ~13 mm off the skin), rising smoothly to the full
+        # offset 2 cm above that. The 5 mm: bind space is the A-pose frame turned by ~1.5 degrees about X as well as
+        # raised, so at the back a bind-space height is a few millimetres off the ring's.
+        z = split.points(feats.rest_vertices)[:, 2]
+        cap = COAT_TUCK + (BASE_OFFSET[kind] - COAT_TUCK) * _smoothstep((z - hem - COAT_OVERLAP - 0.005) / 0.02)
+        off = np.minimum(off, cap)
     t = split.cut_t
     need = np.where(under > 0, under + LAYER_GAP, 0.0)
     off = np.maximum(off, (1.0 - t) * need[split.body_vertex] + t * need[split.cut_vertex])
