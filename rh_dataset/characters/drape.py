@@ -44,9 +44,11 @@ DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are p
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
 # The coat's panels are the outermost layer: they hang over the shell trousers (7 mm), shorts and the tops' hems
-# (up to ~10 mm where a top lies over a waistband), so push_out keeps them this far off the skin instead, as far as
-# the drape's particle radius keeps them in the rest pose (`drape_settings("draped_coat").clearance`).
+# (up to ~10 mm where a top lies over a waistband), so push_out keeps them this far off the skin instead; a little
+# less than the drape keeps them at rest (its particle radius, COAT_CLEARANCE), so that push_out leaves the rest
+# drape as it settled and moves only what a limb swung into.
 PUSH_CLEARANCES = {"draped_coat": 0.012}
+COAT_CLEARANCE = 0.014
 
 
 @dataclasses.dataclass(frozen=True)
@@ -165,9 +167,9 @@ _SETTINGS = {
     ("draped_trousers", "coarse"): DrapeSettings(n_around=32, n_rings=16, steps=150, iterations=20, flare=0.06,
                                                  tri_ke=1.0e5, tri_ka=1.0e5, contact_ke=5.0e4),
     # The coat: the dress's cut from the chest, longer, kept further off the skin (the layers under it).
-    ("draped_coat", "full"): DrapeSettings(n_rings=40, contact_ke=5.0e4, clearance=PUSH_CLEARANCES["draped_coat"]),
+    ("draped_coat", "full"): DrapeSettings(n_rings=40, contact_ke=5.0e4, clearance=COAT_CLEARANCE),
     ("draped_coat", "coarse"): DrapeSettings(n_around=36, n_rings=20, steps=150, contact_ke=5.0e4,
-                                             clearance=PUSH_CLEARANCES["draped_coat"]),
+                                             clearance=COAT_CLEARANCE),
 }
 
 
@@ -539,9 +541,13 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
     their closest skin point plus `clearance` along the interpolated normal there (a second round catches a point
     moved out of one thigh into the other). Linear-blend skinning cannot make a hanging skirt give way to a thigh
     that swings into it; this puts the cloth back on the skin instead, which removes the penetration but not the
-    stretch. Exact closest points for every point: a tangent-plane pre-test missed a few deep ones."""
+    stretch. Exact closest points for every point: a tangent-plane pre-test missed a few deep ones. A `clearance`
+    above PUSH_CLEARANCE (the coat's) ends with the same rounds at PUSH_CLEARANCE: where two limbs pinch the cloth
+    closer than twice the clearance (an arm hanging against the trunk), a point pushed out of one lands inside the
+    other's clearance and the rounds leave it inside the body; the narrower pass puts it back on the skin."""
     p = np.array(points, dtype=np.float64)
     todo = np.arange(len(p))
+    moved = np.zeros(len(p), bool)
     for _ in range(rounds):
         depth, closest, n = _closest(body_vertices, body_faces, p[todo], body_normals)
         bad = depth > -clearance + 1e-6
@@ -549,6 +555,10 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
             break
         todo = todo[bad]
         p[todo] = closest[bad] + clearance * n[bad]
+        moved[todo] = True
+    if clearance > PUSH_CLEARANCE and moved.any():  # points never moved are `clearance` off: nothing to redo
+        idx = np.flatnonzero(moved)
+        p[idx] = push_out(p[idx], body_vertices, body_normals, body_faces, PUSH_CLEARANCE, rounds)
     return p
 
 
