@@ -9,8 +9,8 @@ In: the dataset seed (default 0, the generator's and rh-demo's). Out, printed wi
 first dress, skirt, wide-trousers and coat wearer of the seed (`--kinds`), the drape's wall seconds at each level
 (`drape.DRAPE_LEVELS`; a cold cache in a temporary folder, Warp kernels compiled first by a one-step drape), and
 the skinned posing of a walk frame (`pose_character`, the draft and standard presets' cloth mode) against the first
-subject in shell clothes; (2) per protocol, its subjects wearing a dress, a skirt, wide trousers or a coat (a coat is worn over shell bottoms
-only, so a subject wears at most one draped kind); (3) the totals: drapes run once per
+subject in shell clothes; (2) per protocol, its subjects wearing a dress, a skirt, wide trousers or a coat (a coat is worn over
+shell bottoms only, so a subject wears at most one draped kind); (3) the totals: drapes run once per
 (phenotype, kind, level) and are cached, so a protocol pays each loose subject's drape once, and protocols of one
 seed share subjects (and their cache).
 """
@@ -84,7 +84,8 @@ def main(argv: list[str] | None = None) -> int:
               f"subject {loose.index(None)} in shell clothes {times['without']:.2f} s  (load {load()})")
         secs[kind, "pose"] = times["with"] - times["without"]
 
-    print("\nprotocol        subjects  dresses  skirts  trousers  coats  frames/subject  drape (full / coarse)   posing added"
+    print("\nprotocol        subjects  dresses  skirts  trousers  coats  frames/subject  drape (full / coarse)   "
+          "posing added"
           f"  (kinds timed: {', '.join(first)})")
     for p in args.protocols:
         spec = load_protocol(p)
@@ -95,7 +96,8 @@ def main(argv: list[str] | None = None) -> int:
         coarse = sum(n[k] * secs.get((k, "coarse"), 0.0) for k in KINDS)
         posing = sum(n[k] * secs.get((k, "pose"), 0.0) for k in KINDS) * frames
         print(f"{p:14s} {spec.subjects:9d} {n['draped_dress']:8d} {n['draped_skirt']:7d} {n['draped_trousers']:9d}"
-              f" {n['draped_coat']:6d} {frames:15d}  {full / 60:7.1f} / {coarse / 60:5.1f} min  {posing / 3600:9.2f} h (if every frame "
+              f" {n['draped_coat']:6d}"
+              f" {frames:15d}  {full / 60:7.1f} / {coarse / 60:5.1f} min  {posing / 3600:9.2f} h (if every frame "
               "posed as the walk)")
     print(f"(load at the end {load()})")
     return 0

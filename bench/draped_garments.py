@@ -1,12 +1,12 @@
 """Benchmark subjects in loose garments: the first draped-dress, draped-skirt, draped-trousers and draped-coat wearers
-among a dataset seed's subjects, draped at a drape level, rendered rest front | rest side | a posed frame front | side, with
-the drape's seconds and how deep any cloth vertex sits in the body in each view.
+among a dataset seed's subjects, draped at a drape level, rendered rest front | rest side | a posed frame front | side,
+with the drape's seconds and how deep any cloth vertex sits in the body in each view.
 
     python bench/draped_garments.py --out docs/draped_garments.png           # 2 dresses + 2 skirts, full drape
     python bench/draped_garments.py --dresses 1 --skirts 1 --drape coarse    # quicker look
     python bench/draped_garments.py --dresses 0 --skirts 0 --trousers 3 --tile 512 --out docs/draped_trousers.png
     python bench/draped_garments.py ... --trousers 3 --swap-trousers   # shell-trousers wearers put in draped ones
-    python bench/draped_garments.py --dresses 0 --skirts 0 --coats 2 --tile 512 --drape coarse --out docs/draped_coat.png
+    python bench/draped_garments.py --dresses 0 --skirts 0 --coats 2 --tile 512 --out docs/draped_coat.png
 
 In: the dataset seed (the generator's subject order: `sample_recipe(rng_for(seed, "character", s))`), how many
 subjects of each kind, the drape level (`drape.DRAPE_LEVELS`). Out: a PNG sheet (a row per subject, 256 px tiles,

@@ -59,14 +59,18 @@ def test_coat_pattern_is_open_at_the_front_and_pinned_under_the_arms(pheno, leve
     body = run_anny(pheno)["vertices"]
     assert heads["spine03"][2] <= ring[0, 2] < heads["spine01"][2] and np.ptp(ring[:, 2]) < 1e-9
     assert penetration(body, body_topology().faces, verts).max() < -0.5 * st.clearance
-    assert heads["lowerleg01.L"][2] - 0.15 < verts[-1, 2] < heads["upperleg01.L"][2] and verts[:, 2].min() > body[:, 2].min()
+    assert heads["lowerleg01.L"][2] - 0.15 < verts[-1, 2] < heads["upperleg01.L"][2]
+    assert verts[:, 2].min() > body[:, 2].min()
     assert uvs.min() >= 0.0 and uvs.max() <= 1.0 and circ > 0.5
     # The shell's hem (bind space) is COAT_OVERLAP under the ring: bind space is the A-pose raised by spine02's offset.
     from rh_dataset.characters.body_features import body_features
 
     shift = body_features(pheno).bone_heads["spine02"][2] - heads["spine02"][2]
     assert coat_shell_hem(pheno, st) == pytest.approx(ring[0, 2] + shift - COAT_OVERLAP, abs=1e-9)
-    assert push_clearance(KIND) == st.clearance > push_clearance("draped_skirt")
+    # push_out keeps the skinned panels a little nearer than the drape's particle radius (the rest drape is left as it
+    # settled), and farther off the skin than the other kinds (the layers under the coat).
+    assert st.clearance - 0.003 <= push_clearance(KIND) < st.clearance and push_clearance(KIND) > push_clearance(
+        "draped_skirt")
 
 
 def test_coat_shell_is_a_jacket_cut_at_the_chest_with_an_open_front():

@@ -16,6 +16,9 @@ phenotype and the frame's anny bone deltas ('local-ref', as `pose_character` tak
                `pose_character` then applies `push_out` as for skinned cloth: newton's penalty contact can leave a
                vertex a few millimetres inside a limb that pressed the cloth.
 
+Measures of posed cloth: `self_crossings` (cloth through itself), `hem_split` (a hem wrapped round each leg),
+`layer_depth` (an outer layer under an inner garment's surface).
+
 Which preset uses which is decided by bench/bench_cloth_pose.py (docs/TRADEOFFS.md, "Skinned or simulated cloth").
 Determinism: Warp's CPU kernels run in a fixed order, so the same inputs give the same bits on one machine
 (tests/test_cloth_pose.py); other machines and Warp/newton versions are not promised the same bits.

@@ -1,14 +1,17 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
-In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a strapless dress, wide-leg trousers; `PROFILES`
-cuts each from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
-`_trouser_pattern`) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
+In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a strapless dress, wide-leg trousers, an open
+coat's panels; `PROFILES` cuts each from one pattern function, `garment_pattern`: the trousers' waist tube divides
+into two leg tubes, `_trouser_pattern`; the coat's tube is cut open at the front, `DrapeProfile.opening`, and its
+shoulders and sleeves are a shell, garments.py, whose hem `coat_shell_hem` places) and its `DrapeSettings` (per
+kind and drape level: `drape_settings`).
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
 static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
 transferred from the closest body point and, below the hips, diffused over the cloth so it stays one piece in a
 stride (`bind_loose`); the garment expressed in anny's bind space) and `push_out`, which puts skinned cloth that a
-limb swung into back on the skin. `penetration` measures.
+limb swung into back on the skin (`push_clearance` off it: the coat, worn over other clothes, farther).
+`penetration` measures.
 
 Why a solver, not a shell: a skirt's hem is longer than the body it hangs around, so it folds; only a cloth
 simulation finds where. The drape runs once per (phenotype, kind, settings) and is cached in a content-hashed
@@ -36,8 +39,8 @@ from .geometry import hull_anchors
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
-           "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces", "cloth_model",
-           "cloth_solver", "coat_shell_hem", "COAT_OVERLAP"]
+           "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
+           "cloth_model", "cloth_solver", "coat_shell_hem", "COAT_OVERLAP", "COAT_CLEARANCE"]
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)

@@ -33,8 +33,8 @@ from .drape import (COAT_OVERLAP, DRAPED_KINDS, DrapeSettings, SkinBinding, coat
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
-__all__ = ["PartGeometry", "build_garments", "garment_level", "garment_parts", "SHELL_KINDS", "BASE_OFFSET", "LAYER_GAP",
-           "GARMENT_PARTS"]
+__all__ = ["PartGeometry", "build_garments", "garment_level", "garment_parts", "SHELL_KINDS", "BASE_OFFSET",
+           "LAYER_GAP", "GARMENT_PARTS", "COAT_LAPEL", "COAT_TUCK"]
 
 # Cloth thickness above the skin, metres (outer garments thicker: a jacket stands off the body more than a tee).
 BASE_OFFSET = {
