@@ -137,6 +137,23 @@ def test_benchmark_recipes_draw_coats_from_their_own_stream(monkeypatch):
             dataclasses.replace(r, garments=gs)
 
 
+def test_layer_depth_is_signed_under_a_sheet_and_blank_beyond_its_edges():
+    """cloth_pose.layer_depth: points under an outward (+Z) square sheet get their depth, points above it minus
+    their height, points farther than `near` or whose closest point is on the sheet's edge NaN."""
+    from rh_dataset.characters.cloth_pose import layer_depth
+
+    g = np.stack(np.meshgrid(np.linspace(0.0, 1.0, 11), np.linspace(0.0, 1.0, 11), indexing="ij"), -1).reshape(-1, 2)
+    verts = np.c_[g, np.zeros(len(g))]
+    idx = np.arange(121).reshape(11, 11)
+    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[:-1, 1:], idx[1:, 1:]
+    faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    assert (np.cross(verts[faces[:, 1]] - verts[faces[:, 0]], verts[faces[:, 2]] - verts[faces[:, 0]])[:, 2] > 0).all()
+    pts = np.array([[0.52, 0.47, -0.004], [0.31, 0.66, 0.006], [0.5, 0.5, 0.05], [1.01, 0.5, -0.004]])
+    got = layer_depth(pts, verts, faces)
+    np.testing.assert_allclose(got[:2], [0.004, -0.006], atol=1e-12)
+    assert np.isnan(got[2:]).all()
+
+
 # Bounds (metres, vertices) for PHENO in the test recipe below, full drape, skinned into 6 sampled poses (rng 7).
 # At rest newton keeps the panels about COAT_CLEARANCE (14 mm) off the body to within its contact stiffness
 # (measured 10.9 mm for PHENO, 13.0 mm for bench_cloth's subject). Skinned (`bind_loose`) and pushed out
