@@ -4,6 +4,8 @@ optionally a draft render.
 
     python bench/bench_cloth.py                                   # drape + 8 poses (~2-3 min on a busy 2-core box)
     python bench/bench_cloth.py --kind draped_trousers            # the wide trousers (~8 min: two full drapes)
+    python bench/bench_cloth.py --kind draped_coat                # the open coat, and how deep it sinks into the
+                                                                  # layers under it and its shell into it
     python bench/bench_cloth.py --image docs/draped_skirt.png   # also 256 px drafts: rest front | side | a walk
 
 Figures: drape wall seconds (uncached, Warp kernels already compiled; the first run ever adds their compilation,
@@ -13,6 +15,11 @@ skirt's, or the trousers' for draped trousers)
 cloth vertices into the posed body (metres, > 0 inside): the worst over all vertices, its 99th percentile, and the
 share of vertices inside, per pose label; and how many of the drape's edges pass through the cloth itself
 (`cloth_pose.self_crossings`), with and without the drape's self-contact. The load average is printed with the times.
+The skinned cloth is pushed out to its kind's clearance (`drape.push_clearance`: the coat's is larger). For the coat
+(the outermost layer), per pose also: the character's posed garments (`pose_character`, skinned), the worst depth of
+a panel vertex under any garment under it (`cloth_pose.layer_depth`, vertices within 2 cm of that garment; sleeves
+apart, where a forearm on the lap presses through the panel), and how
+many vertices of its shell below the panels' pinned ring lie outside the panels (the shell poking through them).
 """
 from __future__ import annotations
 
@@ -41,6 +48,62 @@ def draped_recipe(index: int, seed: int = 0, kind: str = "draped_skirt"):
         i += 1
 
 
+def coat_overlap(ch, z_ring: float) -> np.ndarray:
+    """(V,) bool over the vertices of a character's coat shell: its trunk (not sleeves) under the panels' pinned
+    ring `z_ring` in the rest pose, but for the front opening's 4 cm either side of the middle."""
+    from rh_dataset.characters import pose_character
+    from rh_dataset.characters.body_features import body_features
+
+    part = ch.part("coat")
+    rest = {m.name: m for m in pose_character(ch, {})}["coat"].vertices
+    torso = body_features(ch.phenotype).in_groups("torso")[part.body_vertex]
+    return torso & (rest[:, 2] < z_ring) & ((np.abs(rest[:, 0]) > 0.04) | (rest[:, 1] > 0.0))
+
+
+def coat_layers(recipe, poses, g, level: str = "full") -> tuple[float, int]:
+    """The coat against the layers under it and its own shell, in the rest pose and each pose (module docstring);
+    `g`: its drape at `level`. Returns (worst panel depth under a layer below (m), shell vertices through the
+    panels over all poses)."""
+    from rh_dataset.characters import build_character, pose_character
+    from rh_dataset.characters.body_features import body_features
+    from rh_dataset.characters.cloth_pose import layer_depth
+
+    ch = build_character(recipe, 64, drape=level)
+    inner = [gm.kind for gm in recipe.garments if gm.kind != "draped_coat"]
+    z_ring = float(g.vertices[g.pinned, 2].mean())
+    # The shell's trunk vertices under the ring in the rest pose (its overlap; not the sleeves, and not within 4 cm
+    # of the front's middle, where the panels are open and the closest panel point is an edge), followed into each
+    # pose by index.
+    low = coat_overlap(ch, z_ring)
+    # The layers' faces off the arms, and on them (sleeves): a forearm laid on the lap presses its sleeve through
+    # the panel over the thigh (the skinned cloth cannot give way to it), which is an arm-against-coat contact.
+    arm = body_features(ch.phenotype).in_groups("upperarm", "lowerarm", "hand")
+    on_arm = {k: arm[ch.part(k).body_vertex][ch.part(k).faces].all(1) for k in inner}
+    worst, poked = -np.inf, 0
+    for label, bones in [("rest", {})] + [(p.label, dict(p.bones)) for p in poses]:
+        posed = {m.name: m for m in pose_character(ch, bones)}
+        panel = posed["draped_coat"].vertices.astype(np.float64)
+        under, count = {}, {}
+        for k in inner:
+            for name, sel in ((k, ~on_arm[k]), (f"{k} sleeves", on_arm[k])):
+                if sel.any():
+                    d = layer_depth(panel, posed[k].vertices, posed[k].faces[sel])
+                    under[name] = float(np.nanmax(d)) if np.isfinite(d).any() else -np.inf
+                    count[name] = int((np.nan_to_num(d, nan=-1.0) > 0.001).sum())
+        d = layer_depth(posed["coat"].vertices[low].astype(np.float64), panel, posed["draped_coat"].faces)
+        out = int((d < 0).sum())
+        worst = max(worst, max(v for k, v in under.items() if not k.endswith("sleeves")))
+        poked += out
+        print(f"  {label:12s} panel depth under the layers below (mm, worst; vertices > 1 mm): "
+              + ", ".join(f"{k} {1e3 * v:.2f} ({count[k]})" for k, v in under.items() if np.isfinite(v))
+              + f";  coat shell vertices under the ring outside the panels: {out} of {int(low.sum())} "
+                f"(worst {1e3 * max(0.0, -float(np.nanmin(d, initial=0.0))):.2f} mm)")
+    print(f"coat: worst panel depth under a layer below (sleeves aside) over rest + {len(poses)} poses "
+          f"{1e3 * worst:.2f} mm; shell "
+          f"vertices poking through the panels, all poses: {poked}")
+    return worst, poked
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--index", type=int, default=0, help="first benchmark index searched for a skirt wearer")
@@ -53,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body import body_topology, run_anny
     from rh_dataset.characters.drape import (bind_loose, drape_garment, drape_settings, penetration,
-                                             push_out, skin_points)
+                                             push_clearance, push_out, skin_points)
     from rh_dataset.poses import sample_poses
 
     kind = args.kind
@@ -96,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.recipe import Garment
 
-    shell_kind = "trousers" if kind == "draped_trousers" else "skirt"
+    shell_kind = {"draped_trousers": "trousers", "draped_coat": "jacket"}.get(kind, "skirt")
     shell = build_garments((Garment(shell_kind, (0.5, 0.5, 0.5)),), body_features(ph))[0]
     from rh_dataset.characters.body import vertex_normals
 
@@ -107,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
         nrm = vertex_normals(run["vertices"], faces)  # every frame computes these for the body anyway
         t = time.perf_counter()
         raw = skin_points(b, run["bone_poses"], run["rest_bone_poses"])
-        pts = push_out(raw, run["vertices"], nrm, faces)
+        pts = push_out(raw, run["vertices"], nrm, faces, push_clearance(kind))
         skin_t.append(time.perf_counter() - t)
         t = time.perf_counter()
         w = shell.blend_weights.astype(np.float64)[..., None]
@@ -126,6 +189,8 @@ def main(argv: list[str] | None = None) -> int:
           f"with push_out {1e3 * worst:.2f} mm")
     print(f"per frame: skinned drape + push_out {1e3 * np.median(skin_t):.2f} ms, shell {shell_kind} anchors "
           f"{1e3 * np.median(shell_t):.2f} ms (medians, body normals excluded from both; load {load()})")
+    if kind == "draped_coat":
+        coat_layers(recipe, poses, g)
 
     if args.image is not None:
         import pyoidn

@@ -1,11 +1,12 @@
-"""Benchmark subjects in loose garments: the first draped-dress, draped-skirt and draped-trousers wearers among a
-dataset seed's subjects, draped at a drape level, rendered rest front | rest side | a posed frame front | side, with
-the drape's seconds and how deep any cloth vertex sits in the body in each view.
+"""Benchmark subjects in loose garments: the first draped-dress, draped-skirt, draped-trousers and draped-coat wearers
+among a dataset seed's subjects, draped at a drape level, rendered rest front | rest side | a posed frame front | side,
+with the drape's seconds and how deep any cloth vertex sits in the body in each view.
 
     python bench/draped_garments.py --out docs/draped_garments.png           # 2 dresses + 2 skirts, full drape
     python bench/draped_garments.py --dresses 1 --skirts 1 --drape coarse    # quicker look
     python bench/draped_garments.py --dresses 0 --skirts 0 --trousers 3 --tile 512 --out docs/draped_trousers.png
     python bench/draped_garments.py ... --trousers 3 --swap-trousers   # shell-trousers wearers put in draped ones
+    python bench/draped_garments.py --dresses 0 --skirts 0 --coats 2 --tile 512 --out docs/draped_coat.png
 
 In: the dataset seed (the generator's subject order: `sample_recipe(rng_for(seed, "character", s))`), how many
 subjects of each kind, the drape level (`drape.DRAPE_LEVELS`). Out: a PNG sheet (a row per subject, 256 px tiles,
@@ -29,22 +30,23 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200, trousers: int = 0,
-                   swap_trousers: bool = False) -> list[tuple[int, object]]:
-    """(subject index, recipe) of the first `dresses` draped-dress, `skirts` draped-skirt and `trousers`
-    draped-trousers wearers of `seed` (`swap_trousers`: shell-trousers wearers put in draped ones)."""
+                   swap_trousers: bool = False, coats: int = 0) -> list[tuple[int, object]]:
+    """(subject index, recipe) of the first `dresses` draped-dress, `skirts` draped-skirt, `trousers`
+    draped-trousers and `coats` draped-coat wearers of `seed` (`swap_trousers`: shell-trousers wearers put in
+    draped ones)."""
     import dataclasses
 
     from rh_dataset.characters import sample_recipe
     from rh_dataset.generate.seeding import rng_for
 
-    want = {"draped_dress": dresses, "draped_skirt": skirts, "draped_trousers": trousers}
+    want = {"draped_dress": dresses, "draped_skirt": skirts, "draped_trousers": trousers, "draped_coat": coats}
     out = []
     for s in range(limit):
         r = sample_recipe(rng_for(seed, "character", s), pool="benchmark", index=s)
         if swap_trousers and r.garment("trousers") is not None:
             r = dataclasses.replace(r, garments=tuple(dataclasses.replace(g, kind="draped_trousers")
                                                       if g.kind == "trousers" else g for g in r.garments))
-        kind = next((g.kind for g in r.garments if g.kind in want), None)
+        kind = next((g.kind for g in r.garments if g.kind in want and want[g.kind] > 0), None)
         if kind is not None and want[kind] > 0:
             want[kind] -= 1
             out.append((s, r))
@@ -59,6 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dresses", type=int, default=2)
     ap.add_argument("--skirts", type=int, default=2)
     ap.add_argument("--trousers", type=int, default=0)
+    ap.add_argument("--coats", type=int, default=0)
     ap.add_argument("--swap-trousers", action="store_true",
                     help="shell-trousers wearers count as draped-trousers wearers (in draped_trousers)")
     ap.add_argument("--drape", default="full", help="drape level (full: the benchmark's; coarse: draft's)")
@@ -84,11 +87,11 @@ def main(argv: list[str] | None = None) -> int:
     pose = next(p for p in sample_poses(np.random.default_rng(7), load_anny(), 8) if p.label == "walk")
     rows = []
     for s, recipe in loose_subjects(args.seed, args.dresses, args.skirts, trousers=args.trousers,
-                                    swap_trousers=args.swap_trousers):
+                                    swap_trousers=args.swap_trousers, coats=args.coats):
         t = time.perf_counter()
         character = build_character(recipe, 512, drape=args.drape)
         t_build = time.perf_counter() - t
-        kind = next(p.name for p in character.parts if p.name in DRAPED_KINDS)
+        kind = next(p.name for p in character.parts[::-1] if p.name in DRAPED_KINDS)  # the outermost
         tiles, depth, crossings = [], [], []
         for bones, root in (({}, None), (dict(pose.bones), pose.root_transform)):
             run = run_anny(recipe.phenotype, bones)

@@ -28,10 +28,10 @@ from rh_common.body_model import ANNY_TOPOLOGY
 from rh_common.colourspace import srgb_decode
 
 from .body import body_topology, run_anny, vertex_normals
-from .garments import PartGeometry, build_garments, shoe_height_map
+from .garments import PartGeometry, build_garments, garment_parts, shoe_height_map
 from .body_features import body_features
 from .cloth_pose import CLOTH_MODES, ClothPoseSettings, simulated_parts
-from .drape import DRAPE_LEVELS, DrapeSettings, SkinBinding, penetration, push_out, skin_points
+from .drape import DRAPE_LEVELS, DrapeSettings, SkinBinding, penetration, push_clearance, push_out, skin_points
 from .eyes import eye_geometry
 from .geometry import split_faces
 from .hair import build_hair
@@ -327,8 +327,10 @@ def _build_cached(recipe_json: str, res: int, drape: str = "full") -> Character:
     under = np.zeros(len(feats.rest_vertices))
     geos = build_garments(recipe.garments, feats, topology, under=under, phenotype=recipe.phenotype, drape=drape)
     body_coords = None
-    for i, (g, geo) in enumerate(zip(recipe.garments, geos)):
-        rng = np.random.default_rng([seed, _STREAM_GARMENT0 + i])
+    owner = [i for i, g in enumerate(recipe.garments) for _ in garment_parts(g.kind)]  # part -> its garment
+    for i, geo in zip(owner, geos):
+        g = recipe.garments[i]
+        rng = np.random.default_rng([seed, _STREAM_GARMENT0 + i])  # a garment's parts: the same texture draws
         if geo.uv_layout == "body":
             if body_coords is None:
                 body_coords = body_layout_coords(feats, res, topology, positions)
@@ -477,7 +479,7 @@ def pose_character(
                 depth = float(penetration(verts, topo.faces, v).max())
                 cloth_stats["depth_before_push_m"] = max(cloth_stats.get("depth_before_push_m", -np.inf), depth)
             if part.collide:
-                v = push_out(v, verts, normals, topo.faces)
+                v = push_out(v, verts, normals, topo.faces, push_clearance(part.name))
             n = _welded_normals(v, part.faces)
         elif part.blend_vertices is None:
             p = verts[part.body_vertex]

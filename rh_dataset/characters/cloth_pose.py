@@ -16,6 +16,9 @@ phenotype and the frame's anny bone deltas ('local-ref', as `pose_character` tak
                `pose_character` then applies `push_out` as for skinned cloth: newton's penalty contact can leave a
                vertex a few millimetres inside a limb that pressed the cloth.
 
+Measures of posed cloth: `self_crossings` (cloth through itself), `hem_split` (a hem wrapped round each leg),
+`layer_depth` (an outer layer under an inner garment's surface).
+
 Which preset uses which is decided by bench/bench_cloth_pose.py (docs/TRADEOFFS.md, "Skinned or simulated cloth").
 Determinism: Warp's CPU kernels run in a fixed order, so the same inputs give the same bits on one machine
 (tests/test_cloth_pose.py); other machines and Warp/newton versions are not promised the same bits.
@@ -29,10 +32,10 @@ import numpy as np
 
 from .body import body_topology, run_anny, vertex_normals
 from .drape import (DRAPED_KINDS, DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, cloth_model,
-                    cloth_solver, collider_faces, drape_garment, push_out, skin_points)
+                    cloth_solver, collider_faces, drape_garment, push_clearance, push_out, skin_points)
 
 __all__ = ["CLOTH_MODES", "ClothPoseSettings", "BodyMotion", "body_motion", "simulate_into_pose", "skin_into_pose",
-           "simulated_parts", "self_crossings", "hem_split"]
+           "simulated_parts", "self_crossings", "hem_split", "layer_depth"]
 
 CLOTH_MODES = ("skinned", "simulated")
 
@@ -260,7 +263,7 @@ def skin_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str, fl
     out = []
     for g in garments:
         v = skin_points(bind_loose(g, phenotype), run["bone_poses"], run["rest_bone_poses"])
-        out.append(push_out(v, run["vertices"], normals, faces))
+        out.append(push_out(v, run["vertices"], normals, faces, push_clearance(g.kind)))
     return out
 
 
@@ -338,3 +341,28 @@ def hem_split(vertices: np.ndarray, n_around: int) -> tuple[float, float]:
     x, y = hem[:, 0], hem[:, 1]
     area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
     return float(depth.max()), float(1.0 - area / hull.volume)
+
+
+def layer_depth(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, near: float = 0.02) -> np.ndarray:
+    """Depth (metres, > 0 under it) of `points` (an outer layer's vertices) under a garment surface (`vertices`,
+    `faces`, outward), as `drape.penetration` measures cloth under the skin: the distance to the closest surface
+    point signed by the surface's interpolated normals. NaN for points farther than `near` from the surface, and
+    for points whose closest surface point is on the surface's open edge (a hem, a cuff, a sheet's edge): beyond an
+    edge the side a point is on says nothing about whether it is under the cloth."""
+    from .drape import _closest
+
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces)
+    depth, closest, _ = _closest(v, f, points)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    edges, counts = np.unique(e, axis=0, return_counts=True)
+    rim = edges[counts == 1]
+    on_rim = np.zeros(len(closest), bool)
+    if len(rim):
+        a, d = v[rim[:, 0]], v[rim[:, 1]] - v[rim[:, 0]]
+        for i in range(0, len(closest), 512):  # (points x rim edges) distances, in blocks
+            c = closest[i:i + 512, None, :]
+            t = np.clip(((c - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-18), 0.0, 1.0)
+            on_rim[i:i + 512] = (np.linalg.norm(c - (a + t[..., None] * d), axis=-1).min(1) < 1e-6)
+    far = np.linalg.norm(np.asarray(points, np.float64) - closest, axis=1) > near
+    return np.where(far | on_rim, np.nan, depth)

@@ -1,14 +1,17 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
-In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a strapless dress, wide-leg trousers; `PROFILES`
-cuts each from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
-`_trouser_pattern`) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
+In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a strapless dress, wide-leg trousers, an open
+coat's panels; `PROFILES` cuts each from one pattern function, `garment_pattern`: the trousers' waist tube divides
+into two leg tubes, `_trouser_pattern`; the coat's tube is cut open at the front, `DrapeProfile.opening`, and its
+shoulders and sleeves are a shell, garments.py, whose hem `coat_shell_hem` places) and its `DrapeSettings` (per
+kind and drape level: `drape_settings`).
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
 static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
 transferred from the closest body point and, below the hips, diffused over the cloth so it stays one piece in a
 stride (`bind_loose`); the garment expressed in anny's bind space) and `push_out`, which puts skinned cloth that a
-limb swung into back on the skin. `penetration` measures.
+limb swung into back on the skin (`push_clearance` off it: the coat, worn over other clothes, farther).
+`penetration` measures.
 
 Why a solver, not a shell: a skirt's hem is longer than the body it hangs around, so it folds; only a cloth
 simulation finds where. The drape runs once per (phenotype, kind, settings) and is cached in a content-hashed
@@ -36,12 +39,19 @@ from .geometry import hull_anchors
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
-           "draped_part", "penetration", "push_out", "collider_faces", "cloth_model", "cloth_solver"]
+           "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
+           "cloth_model", "cloth_solver", "coat_shell_hem", "COAT_OVERLAP", "COAT_CLEARANCE"]
 
-DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers")
+DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
+# The coat's panels are the outermost layer: they hang over the shell trousers (7 mm), shorts and the tops' hems
+# (up to ~10 mm where a top lies over a waistband), so push_out keeps them this far off the skin instead; a little
+# less than the drape keeps them at rest (its particle radius, COAT_CLEARANCE), so that push_out leaves the rest
+# drape as it settled and moves only what a limb swung into.
+PUSH_CLEARANCES = {"draped_coat": 0.012}
+COAT_CLEARANCE = 0.014
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,16 +137,24 @@ class DrapeProfile:
     `legs` (trousers, `_trouser_pattern`): the tube from the waist hangs straight (kept outside the hips) down to
     just under the crotch, where it divides into two leg tubes along a crotch seam between the thighs; each leg
     is a cone of half-angle `DrapeSettings.flare` whose top radius is `legs` times half the hips' width at the
-    split, its hem `hem` metres above the floor (`hem` is not a fraction for trousers)."""
+    split, its hem `hem` metres above the floor (`hem` is not a fraction for trousers).
+
+    `opening` (the coat): metres between the two front edges at the top ring; the tube is cut open there (no
+    particles in the front sector that width subtends at the ring's front radius, all the way down), so the two
+    front panels hang free. The coat's cloth is only its lower body: the shell "coat" (garments.py) makes its
+    shoulders, yoke and sleeves down to just below the pinned ring (`COAT_OVERLAP`)."""
 
     top: str
     flare_from: str
     hem: float = 0.9
     legs: float = 0.0
+    opening: float = 0.0
 
 
 PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7),
-            "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0)}
+            "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),
+            "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=0.05)}
+COAT_OVERLAP = 0.015  # metres the coat's shell reaches below the panels' pinned ring, inside them
 # The simulation per (kind, level). "full": the benchmark's. The dress is about twice the skirt's length; 36 rings
 # (2 cm apart, the skirt's 1.6 cm) keep its drape to ~1.5x the skirt's particles. "coarse": half the particles
 # around and along, half the steps (~1/8 of the work): the draft preset's, for quick looks, the demo and tests
@@ -151,6 +169,10 @@ _SETTINGS = {
                                                tri_ka=1.0e5, contact_ke=5.0e4),
     ("draped_trousers", "coarse"): DrapeSettings(n_around=32, n_rings=16, steps=150, iterations=20, flare=0.06,
                                                  tri_ke=1.0e5, tri_ka=1.0e5, contact_ke=5.0e4),
+    # The coat: the dress's cut from the chest, longer, kept further off the skin (the layers under it).
+    ("draped_coat", "full"): DrapeSettings(n_rings=40, contact_ke=5.0e4, clearance=COAT_CLEARANCE),
+    ("draped_coat", "coarse"): DrapeSettings(n_around=36, n_rings=20, steps=150, contact_ke=5.0e4,
+                                             clearance=COAT_CLEARANCE),
 }
 
 
@@ -195,6 +217,28 @@ def _under_the_arms(feats, body: np.ndarray, heads: dict, centre: np.ndarray, ga
     return z_low
 
 
+def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float) -> float:
+    """Height (A-pose frame) of a profile's pinned top ring: the waist (`DrapeProfile.top`), or the chest under the
+    arms (`_under_the_arms`)."""
+    if prof.top == "waist":
+        return 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01
+    return _under_the_arms(feats, body, heads, centre, gap)
+
+
+def coat_shell_hem(phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:
+    """Height in anny's bind space (where `BodyFeatures` and the shells' level sets live) of the coat shell's hem:
+    `COAT_OVERLAP` under the coat panels' pinned ring, so the shell's lower edge lies inside the panels and no gap
+    opens between them. The trunk's bind space is the A-pose frame the cloth is cut in raised by 8-9 cm (spine02's
+    offset, the same for every spine bone to a millimetre)."""
+    st = drape_settings("draped_coat") if settings is None else settings
+    feats = body_features(phenotype)
+    run = run_anny(phenotype)
+    heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
+    z = _top_height(PROFILES["draped_coat"], feats, run["vertices"], heads, np.asarray(heads["root"], np.float64),
+                    st.clearance + 0.002)
+    return z + float(feats.bone_heads["spine02"][2] - heads["spine02"][2]) - COAT_OVERLAP
+
+
 def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None):
     """The undraped cloth of a draped kind (`PROFILES`): a closed tube of `n_rings` rings of `n_around` particles,
     its top ring on the body (pinned), hanging straight down to the profile's `flare_from` and then a cone at
@@ -216,14 +260,16 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     na, nr = int(st.n_around), int(st.n_rings)
     gap = st.clearance + 0.002
     centre = np.asarray(heads["root"], dtype=np.float64)
-    z_waist = 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01
-    z_top = z_waist if prof.top == "waist" else _under_the_arms(feats, body, heads, centre, gap)
+    z_top = _top_height(prof, feats, body, heads, centre, gap)
     z_flare = z_top if prof.flare_from == "top" else \
         0.5 * (float(heads["upperleg01.L"][2]) + float(heads["upperleg01.R"][2]))
     z_knee = 0.5 * (float(heads["lowerleg01.L"][2]) + float(heads["lowerleg01.R"][2]))
     straight = z_top - z_flare  # path length of the part hanging straight down
     length = straight + prof.hem * (z_flare - z_knee)  # the flared part's slant length
     ang = np.arange(na) * (2.0 * np.pi / na)
+    if prof.opening:  # open at the front: na columns from one front edge round the back to the other
+        half = 0.5 * prof.opening / float(_hull_radii(feats, body, z_top, centre, np.zeros(1))[0] + gap)
+        ang = half + np.arange(na) * ((2.0 * np.pi - 2.0 * half) / (na - 1))
     ts = np.linspace(0.0, 1.0, nr)
     s = ts * length
     cone = np.maximum(s - straight, 0.0)  # path length along the flared part
@@ -241,14 +287,10 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     y = centre[1] - rr * np.cos(ang)[None, :]
     zz = np.broadcast_to(zs[:, None], rr.shape)
     verts = np.stack([x, y, zz], -1).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(nr - 1), np.arange(na), indexing="ij")
-    a = i * na + j
-    b = i * na + (j + 1) % na
-    c, d = a + na, b + na
-    # Angles grow from -Y towards +X (clockwise seen from above) and rings go down: (a, c, b) faces outwards.
-    faces = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
+    faces = _grid_faces(np.arange(nr * na).reshape(nr, na), wrap=not prof.opening)
     circ = float(2.0 * np.pi * rr[-1].mean())
-    uvs = np.stack(np.broadcast_arrays(ang[None, :] / (2.0 * np.pi), (1.0 - ts[:, None]) * length / circ), -1)
+    uvs = np.stack(np.broadcast_arrays((ang[None, :] - ang[0]) / (2.0 * np.pi), (1.0 - ts[:, None]) * length / circ),
+                   -1)
     pinned = np.zeros(len(verts), dtype=bool)
     pinned[:na] = True
     return verts, faces.astype(np.int32), np.clip(uvs.reshape(-1, 2), 0, 1).astype(np.float32), pinned, circ
@@ -283,11 +325,14 @@ def _section(mesh, z: float, side: float = 0.0) -> np.ndarray:
     return pts
 
 
-def _grid_faces(grid: np.ndarray) -> np.ndarray:
-    """Faces (F, 3) of a tube given as a grid (rings, around) of vertex indices, the columns wrapping around: with
-    angles growing from -Y towards +X and rings going down, (a, c, b) faces outwards."""
+def _grid_faces(grid: np.ndarray, wrap: bool = True) -> np.ndarray:
+    """Faces (F, 3) of a tube given as a grid (rings, around) of vertex indices, the columns wrapping around (or,
+    `wrap` False, an open sheet: no faces between the last column and the first): with angles growing from -Y
+    towards +X and rings going down, (a, c, b) faces outwards."""
     a, c = grid[:-1], grid[1:]
     b, d = np.roll(a, -1, axis=1), np.roll(c, -1, axis=1)
+    if not wrap:
+        a, b, c, d = a[:, :-1], b[:, :-1], c[:, :-1], d[:, :-1]
     return np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
 
 
@@ -487,22 +532,32 @@ def collider_faces(phenotype: dict[str, float]) -> np.ndarray:
     return faces[~arm[faces].any(axis=1)]
 
 
+def push_clearance(kind: str) -> float:
+    """How far `push_out` keeps a draped kind's skinned cloth off the posed skin (`PUSH_CLEARANCES`, else
+    `PUSH_CLEARANCE`)."""
+    return PUSH_CLEARANCES.get(kind, PUSH_CLEARANCE)
+
+
 def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.ndarray, body_faces: np.ndarray,
              clearance: float = PUSH_CLEARANCE, rounds: int = 2) -> np.ndarray:
     """The skinned path's collision fix: points closer than `clearance` to the posed skin, or under it, moved to
     their closest skin point plus `clearance` along the interpolated normal there (a second round catches a point
     moved out of one thigh into the other). Linear-blend skinning cannot make a hanging skirt give way to a thigh
     that swings into it; this puts the cloth back on the skin instead, which removes the penetration but not the
-    stretch. Exact closest points for every point: a tangent-plane pre-test missed a few deep ones.
+    stretch. Exact closest points for every point: a tangent-plane pre-test missed a few deep ones. A `clearance`
+    above PUSH_CLEARANCE (the coat's) ends with the same rounds at PUSH_CLEARANCE: where two limbs pinch the cloth
+    closer than twice the clearance (an arm hanging against the trunk), a point pushed out of one lands inside the
+    other's clearance and the rounds leave it inside the body; the narrower pass puts it back on the skin.
 
     Only the skin within PUSH_REACH of the points' box is searched, with one search tree for every round: building
     trimesh's tree over the whole body was most of a frame's posing (bench/bench_drape_cost.py --posing-only). The
     result is the whole body's closest points (a point whose closest skin lies farther than PUSH_REACH is outside,
     since no point of the body lies that deep, and clear), to the bit but where a point is equally close to two
-    faces, which the smaller search may visit in another order (1e-18 m apart, seen once in 300 test points). Tried and not kept (2 December): moving a point under the skin out
-    along its cloth's outward normal instead, so a thigh lifted into a skirt carries the panel over it rather than
-    the closest skin (its underside) taking the panel behind it: it put 3-5x fewer vertices behind a limb
-    (bench_skirt_stride.py's `inward`), but neighbours that took different ways made spikes of cloth on the shins."""
+    faces, which the smaller search may visit in another order (1e-18 m apart, seen once in 300 test points).
+    Tried and not kept (2 December): moving a point under the skin out along its cloth's outward normal instead, so
+    a thigh lifted into a skirt carries the panel over it rather than the closest skin (its underside) taking the
+    panel behind it: it put 3-5x fewer vertices behind a limb (bench_skirt_stride.py's `inward`), but neighbours
+    that took different ways made spikes of cloth on the shins."""
     import trimesh
 
     p = np.array(points, dtype=np.float64)
@@ -517,6 +572,7 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
         return p
     mesh = trimesh.Trimesh(v, local, process=False)
     todo = np.arange(len(p))
+    moved = np.zeros(len(p), bool)
     for _ in range(rounds):
         depth, closest, n = _closest(v, local, p[todo], body_normals, mesh=mesh)
         bad = (depth > -clearance + 1e-6) & (np.abs(depth) < PUSH_REACH)
@@ -524,6 +580,10 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
             break
         todo = todo[bad]
         p[todo] = closest[bad] + clearance * n[bad]
+        moved[todo] = True
+    if clearance > PUSH_CLEARANCE and moved.any():  # points never moved are `clearance` off: nothing to redo
+        idx = np.flatnonzero(moved)
+        p[idx] = push_out(p[idx], body_vertices, body_normals, body_faces, PUSH_CLEARANCE, rounds)
     return p
 
 
@@ -711,16 +771,13 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
         src, faces, uvs = _pieces_render_mesh(g)
     else:
         na, nr = int(settings.n_around), int(settings.n_rings)
-        cols = np.concatenate([np.arange(na), [0]])
+        opened = PROFILES[kind].opening > 0  # the coat: an open sheet, no seam column to duplicate
+        cols = np.arange(na) if opened else np.concatenate([np.arange(na), [0]])
         src = (np.arange(nr)[:, None] * na + cols[None, :]).ravel()  # render vertex -> simulated vertex
-        i, j = np.meshgrid(np.arange(nr - 1), np.arange(na), indexing="ij")
-        a = i * (na + 1) + j
-        b, c = a + 1, a + na + 1
-        d = c + 1
-        faces = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
-        ts = np.repeat(np.linspace(0.0, 1.0, nr), na + 1)
+        faces = _grid_faces(np.arange(nr * len(cols)).reshape(nr, len(cols)), wrap=False)
+        ts = np.repeat(np.linspace(0.0, 1.0, nr), len(cols))
         length = float(np.linalg.norm(np.diff(g.vertices[::na][:nr], axis=0), axis=1).sum())
-        u = np.tile(np.arange(na + 1) / na, nr)
+        u = np.tile(g.uvs[:na, 0].astype(np.float64) if opened else np.arange(na + 1) / na, nr)
         uvs = np.clip(np.stack([u, (1.0 - ts) * length / g.metres_per_uv], 1), 0.0, 1.0)
     binding = bind_loose(g, phenotype)
     dist, nn = cKDTree(run_anny(phenotype)["vertices"]).query(g.vertices)  # the A-pose the cloth was draped on

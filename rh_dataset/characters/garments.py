@@ -13,7 +13,8 @@ the offset of the layers under it plus a gap, so an outer garment never dips und
 towards a garment's open edges so a hem closes onto the skin (no visible gap between cloth and body at cuffs and
 collars).
 
-In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first.
+In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first
+(the draped coat: two, its shell "coat" and its draped panels, `garment_parts`).
 """
 from __future__ import annotations
 
@@ -27,11 +28,13 @@ from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body import body_topology
 from .body_features import BodyFeatures
-from .drape import DRAPED_KINDS, DrapeSettings, SkinBinding, draped_part, drape_settings
+from .drape import (COAT_OVERLAP, DRAPED_KINDS, DrapeSettings, SkinBinding, coat_shell_hem, draped_part,
+                    drape_settings)
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
-__all__ = ["PartGeometry", "build_garments", "garment_level", "SHELL_KINDS", "BASE_OFFSET", "LAYER_GAP"]
+__all__ = ["PartGeometry", "build_garments", "garment_level", "garment_parts", "SHELL_KINDS", "BASE_OFFSET",
+           "LAYER_GAP", "GARMENT_PARTS", "COAT_LAPEL", "COAT_TUCK"]
 
 # Cloth thickness above the skin, metres (outer garments thicker: a jacket stands off the body more than a tee).
 BASE_OFFSET = {
@@ -42,7 +45,13 @@ BASE_OFFSET = {
     "tshirt": 0.006,
     "longsleeve": 0.006,
     "jacket": 0.017,
+    "coat": 0.017,  # the draped coat's shoulders, yoke and sleeves (a jacket's cut down to the chest)
 }
+# The coat's front opening in its shell: a V from the panels' gap (drape.PROFILES["draped_coat"].opening wide at
+# the shell's hem) widening by COAT_LAPEL metres per metre up to the collar, so the coat reads as open from the
+# neck down and the yoke's front edges meet the panels' front edges.
+COAT_LAPEL = 0.25
+COAT_TUCK = 0.009  # metres: the coat shell's offset where the panels overlap it (`_shell`)
 LAYER_GAP = 0.003  # minimum distance between two layers (well above ray-tracing epsilon at body scale)
 TAPER_WIDTH = 0.025  # metres over which the offset falls towards an open edge
 TAPER_MIN = 0.3  # fraction of the offset left at the very edge
@@ -81,13 +90,14 @@ def _z(feats: BodyFeatures, bone: str) -> float:
     return float(feats.bone_heads[bone][2])
 
 
-def garment_level(kind: str, feats: BodyFeatures) -> np.ndarray:
+def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> np.ndarray:
     """A smooth field (V,) float64 over the body vertices (rest pose of this phenotype), in metres, negative where
     a shell garment covers the body: its zero level set is the garment's open edges (neckline, hem, cuffs, waist),
     along which `split_faces` cuts the body's triangles. Each edge is a level of a smooth function (height, a
     rounded scoop in front of the neck, distance along a limb's axis), so the cut is a smooth curve; bone-group
     labels only pick which function applies to a vertex (an arm takes the sleeve's, never the trunk's), so their
-    ragged borders never become an edge."""
+    ragged borders never become an edge. `hem` (bind-space height; the "coat" shell only, whose hem is where its
+    draped panels are pinned: `drape.coat_shell_hem`)."""
     v = feats.rest_vertices
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     z_neck = _z(feats, "neck01")
@@ -95,14 +105,24 @@ def garment_level(kind: str, feats: BodyFeatures) -> np.ndarray:
     z_hip = 0.5 * (_z(feats, "upperleg01.L") + _z(feats, "upperleg01.R"))
     z_waist = 0.5 * (_z(feats, "root") + _z(feats, "spine04")) + 0.02
     out = np.full(len(v), 1.0)  # vertices no part of the garment applies to: 1 m outside
-    if kind in ("tshirt", "longsleeve", "jacket"):
+    if kind in ("tshirt", "longsleeve", "jacket", "coat"):
         # A scoop at the front centre: the neckline drops in front of the neck, not behind it (smoothsteps, so
         # the collar's curve has no corners).
         front = _smoothstep(-(y - y_neck) / 0.07) * _smoothstep(1.0 - np.abs(x) / 0.1)
-        drop = {"tshirt": 0.04, "longsleeve": 0.03, "jacket": 0.06}[kind]
+        drop = {"tshirt": 0.04, "longsleeve": 0.03, "jacket": 0.06, "coat": 0.06}[kind]
         collar = z - (z_neck - 0.012 - drop * front)
-        z_hem = z_hip + {"tshirt": 0.0, "longsleeve": -0.005, "jacket": -0.02}[kind]
-        sleeve = {"tshirt": 0.3, "longsleeve": 0.95, "jacket": 0.97}[kind]
+        if kind == "coat":
+            if hem is None:
+                raise ValueError("garment_level: the coat's shell needs its hem height (drape.coat_shell_hem)")
+            from .drape import PROFILES
+
+            # The open front: a V, cut on the front half only (at the sides |x| is far wider than the V).
+            half = 0.5 * PROFILES["draped_coat"].opening + COAT_LAPEL * np.maximum(z - hem, 0.0)
+            collar = np.maximum(collar, np.where(y < y_neck, half - np.abs(x), -np.inf))
+            z_hem = float(hem)
+        else:
+            z_hem = z_hip + {"tshirt": 0.0, "longsleeve": -0.005, "jacket": -0.02}[kind]
+        sleeve = {"tshirt": 0.3, "longsleeve": 0.95, "jacket": 0.97, "coat": 0.97}[kind]
         # Hem: a horizontal cut through trunk and hips alike (upper-leg vertices included), above the crotch so a
         # top never turns into a bodysuit between the legs.
         trunk = feats.in_groups("torso", "shoulder", "neck", "upperleg")
@@ -128,7 +148,15 @@ def garment_level(kind: str, feats: BodyFeatures) -> np.ndarray:
     return out
 
 
-SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")
+SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe kinds (the coat's shell is a part)
+# Parts a recipe garment is built as, in build order (innermost first): the draped coat is a shell (shoulders, yoke,
+# sleeves) and the draped panels below it, both in the garment's fabric.
+GARMENT_PARTS = {"draped_coat": ("coat", "draped_coat")}
+
+
+def garment_parts(kind: str) -> tuple[str, ...]:
+    """The names of the parts (`PartGeometry.name`) `build_garments` makes of a recipe garment of this kind."""
+    return GARMENT_PARTS.get(kind, (kind,))
 LEVEL_MIN = 1e-5  # metres: no vertex sits on the level set itself (a cut there would make a zero-area face)
 
 
@@ -178,16 +206,26 @@ def _metres_per_uv(face_ids: np.ndarray, feats: BodyFeatures, topology: str) -> 
     return float(np.sqrt(a3 / max(a2, 1e-12)))
 
 
-def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str) -> PartGeometry:
-    """A shell cut from the body along `garment_level`'s zero level. Every vertex is a blend of the two ends of a
-    body edge (weight 1 on one end except on the cut), offset along the blended normal: the taper runs over the
-    surface distance from the cut, and layering compares with the layers below interpolated the same way."""
-    level = _clean_level(garment_level(kind, feats), topology)
+def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem: float | None = None
+           ) -> PartGeometry:
+    """A shell cut from the body along `garment_level`'s zero level (`hem`: the coat's). Every vertex is a blend of
+    the two ends of a body edge (weight 1 on one end except on the cut), offset along the blended normal: the taper
+    runs over the surface distance from the cut, and layering compares with the layers below interpolated the same
+    way."""
+    level = _clean_level(garment_level(kind, feats, hem), topology)
     topo = body_topology(topology)
     face_ids = np.flatnonzero((level[topo.faces] < 0).any(axis=1))
     split = split_faces(face_ids, topology, level=level)
     dist = boundary_distance(split, feats.rest_vertices)
     off = BASE_OFFSET[kind] * (TAPER_MIN + (1.0 - TAPER_MIN) * _smoothstep(dist / TAPER_WIDTH))
+    if kind == "coat":
+        # Tucked under the draped panels: at most COAT_TUCK off the skin up to 5 mm above their pinned ring
+        # (COAT_OVERLAP above the hem; the drape keeps the ring >= ~13 mm off the skin), rising smoothly to the full
+        # offset 2 cm above that. The 5 mm: bind space is the A-pose frame turned by ~1.5 degrees about X as well as
+        # raised, so at the back a bind-space height is a few millimetres off the ring's.
+        z = split.points(feats.rest_vertices)[:, 2]
+        cap = COAT_TUCK + (BASE_OFFSET[kind] - COAT_TUCK) * _smoothstep((z - hem - COAT_OVERLAP - 0.005) / 0.02)
+        off = np.minimum(off, cap)
     t = split.cut_t
     need = np.where(under > 0, under + LAYER_GAP, 0.0)
     off = np.maximum(off, (1.0 - t) * need[split.body_vertex] + t * need[split.cut_vertex])
@@ -525,7 +563,8 @@ def build_garments(
     phenotype: dict[str, float] | None = None,
     drape: str = "full",
 ) -> list[PartGeometry]:
-    """Geometry of every garment, innermost first, with layer offsets resolved.
+    """Geometry of every garment, innermost first, with layer offsets resolved: one part per garment, but for
+    kinds built of several (`garment_parts`: the draped coat's shell and panels).
 
     `under` (V,) float64, if given, holds per body vertex the outermost offset already used (zeros = bare skin);
     it is updated in place so that hair laid afterwards can stay outside the clothes. `phenotype` is needed by
@@ -543,7 +582,10 @@ def build_garments(
         elif g.kind in DRAPED_KINDS:
             if phenotype is None:
                 raise ValueError(f"build_garments: {g.kind} needs the phenotype (it is draped on the body)")
-            out.append(draped_part(g.kind, phenotype, feats, under, drape_settings(g.kind, drape)))
+            st = drape_settings(g.kind, drape)
+            if g.kind == "draped_coat":
+                out.append(_shell("coat", feats, under, topology, hem=coat_shell_hem(phenotype, st)))
+            out.append(draped_part(g.kind, phenotype, feats, under, st))
         else:
             out.append(_shell(g.kind, feats, under, topology))
     return out

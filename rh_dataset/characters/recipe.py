@@ -21,6 +21,7 @@ __all__ = [
     "POOLS",
     "GARMENT_KINDS",
     "DRESSES",
+    "UNDER_COAT",
     "PATTERNS",
     "FABRICS",
     "HAIR_STYLES",
@@ -37,14 +38,16 @@ __all__ = [
 
 RECIPE_FORMAT = "rh-character/1"  # headwear (optional key) kept the format: older recipes read back unchanged
 POOLS = ("benchmark", "pretrain")
-# draped_skirt, draped_dress, draped_trousers (wide-leg): loose garments draped by newton's cloth solver (drape.py).
-# A dress is worn instead of a top and a bottom. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt`
-# stays a recipe's choice.
+# draped_skirt, draped_dress, draped_trousers (wide-leg), draped_coat (open, long): loose garments draped by newton's
+# cloth solver (drape.py). A dress is worn instead of a top and a bottom; the coat is the outermost layer, instead of
+# a jacket, over close-fitting shell bottoms only (UNDER_COAT: its drape collides with the body, not with cloth under
+# it). `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
-                 "draped_trousers", "shoes")
+                 "draped_trousers", "shoes", "draped_coat")
 TOPS = ("tshirt", "longsleeve")
 BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers")
 DRESSES = ("draped_dress",)
+UNDER_COAT = ("trousers", "shorts")  # the bottoms a draped coat may be worn over
 PATTERNS = ("solid", "stripes", "checks", "noise")
 # Fabric finish (how the renderer's sheen lobe and the knit texture treat a garment; character.FABRIC_SHEEN):
 # plain = woven (cotton, denim: threads far below the pixel footprint, no sheen), jersey = fine knit (t-shirts),
@@ -55,7 +58,7 @@ HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 HEADWEAR_KINDS = ("cap", "brimmed_hat", "headscarf", "glasses")
 # Innermost first: shoes under trouser hems, bottoms under tops (a shirt hangs over the waistband), jacket outside.
 GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_dress", "tshirt",
-                  "longsleeve", "jacket")
+                  "longsleeve", "jacket", "draped_coat")
 COVERINGS = ("cap", "brimmed_hat", "headscarf")
 
 
@@ -287,6 +290,9 @@ class CharacterRecipe:
             raise ValueError(f"garments: exactly one of {TOPS} (or a dress, {DRESSES}) is required, got {kinds}")
         if not dresses and sum(k in BOTTOMS for k in kinds) != 1:
             raise ValueError(f"garments: exactly one of {BOTTOMS} (or a dress, {DRESSES}) is required, got {kinds}")
+        if "draped_coat" in kinds and ("jacket" in kinds or not any(k in UNDER_COAT for k in kinds)):
+            raise ValueError(f"garments: a draped_coat is worn instead of a jacket, over one of {UNDER_COAT}, "
+                             f"got {kinds}")
         layered = sorted(kinds, key=GARMENT_LAYERS.index)
         if kinds != layered:
             raise ValueError(f"garments must be listed innermost first, i.e. {layered}, got {kinds}")

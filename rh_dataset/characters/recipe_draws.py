@@ -14,13 +14,13 @@ import hashlib
 import numpy as np
 
 from .body import sample_phenotype
-from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, PATTERNS, POOLS, TOPS, CharacterRecipe,
-                     EyeSpec, Garment, HairSpec, Headwear, SkinTone)
+from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, PATTERNS, POOLS, TOPS, UNDER_COAT,
+                     CharacterRecipe, EyeSpec, Garment, HairSpec, Headwear, SkinTone)
 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
            "iris_colour_name", "iris_weights", "EYES_STREAM", "DRESS_P", "DRESS_STREAM", "WIDE_TROUSERS_P",
-           "WIDE_TROUSERS_STREAM"]
+           "WIDE_TROUSERS_STREAM", "COAT_P", "COAT_STREAM"]
 
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 # Loose clothing (issue 17): the published dataset's subjects wear "long hair, loose clothing, jackets, hats, head
@@ -37,6 +37,12 @@ DRESS_P = 0.25
 # (one draw for everyone), in the trousers' colours, pattern and fabric, so every other draw of a seed is unchanged.
 WIDE_TROUSERS_STREAM = 1718
 WIDE_TROUSERS_P = (0.35, 0.1)
+# An open long coat (`draped_coat`: a jacket's shoulders and sleeves over panels draped from the chest to below the
+# knee) instead of the drawn jacket, for this share of the jacket wearers whose bottom is one the coat may be worn
+# over (`recipe.UNDER_COAT`: shell trousers or shorts, after the wide-trousers draw). Our choice, not a census
+# figure. Its own stream (one draw for everyone), the jacket's colours, pattern and fabric: no other draw changes.
+COAT_STREAM = 1719
+COAT_P = 0.5
 
 
 def derive_seed(pool: str, index: int, base: int) -> int:
@@ -153,6 +159,7 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     garments = tuple(_sample_garment(rng, k) for k in sorted(kinds, key=GARMENT_LAYERS.index))
     garments = _dress(np.random.default_rng([int(seed), DRESS_STREAM]), female, garments)
     garments = _wide_trousers(np.random.default_rng([int(seed), WIDE_TROUSERS_STREAM]), female, garments)
+    garments = _coat(np.random.default_rng([int(seed), COAT_STREAM]), garments)
     skin, garments = _surface_detail(seed, skin, hair, garments)
     headwear = sample_headwear(np.random.default_rng([int(seed), HEADWEAR_STREAM]), female, phenotype["age"])
     eyes = sample_eyes(np.random.default_rng([int(seed), EYES_STREAM]), skin.melanin)
@@ -181,6 +188,16 @@ def _wide_trousers(rng: np.random.Generator, female: bool, garments: tuple[Garme
     return tuple(dataclasses.replace(g, kind="draped_trousers") if g.kind == "trousers" else g for g in garments)
 
 
+def _coat(rng: np.random.Generator, garments: tuple[Garment, ...]) -> tuple[Garment, ...]:
+    """The drawn jacket made a draped coat with probability COAT_P where the bottom is one of UNDER_COAT (rng: the
+    coat's stream; one draw for everyone, so the stream's use is fixed)."""
+    coat = rng.random() < COAT_P
+    kinds = {g.kind for g in garments}
+    if not (coat and "jacket" in kinds and kinds & set(UNDER_COAT)):
+        return garments
+    return tuple(dataclasses.replace(g, kind="draped_coat") if g.kind == "jacket" else g for g in garments)
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Skin and cloth detail (issue 17, part 4): drawn from their own stream after everything else, so the draws above
 # (and any later field's own stream) are untouched by it.
@@ -191,6 +208,7 @@ _FABRIC_CHOICES = {
     "tshirt": (("jersey", "plain"), (0.85, 0.15)),
     "longsleeve": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),
     "jacket": (("plain", "knit", "velvet"), (0.75, 0.15, 0.10)),
+    "draped_coat": (("plain", "knit", "velvet"), (0.75, 0.15, 0.10)),  # the jacket's (the drawn fabric stays)
     "trousers": (("plain", "velvet"), (0.92, 0.08)),  # denim / twill; velvet stands for corduroy and velour
     "draped_trousers": (("plain", "velvet"), (0.92, 0.08)),  # the trousers' (so a drawn fabric stays the same)
     "skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
