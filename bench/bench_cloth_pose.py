@@ -5,9 +5,12 @@ penetration and the image difference, and from them which preset poses cloth whi
     python bench/bench_cloth_pose.py --no-render                      # seconds, geometry, penetration only
     python bench/bench_cloth_pose.py --figure docs/cloth_pose.png     # also the picture of the most different pose
     python bench/bench_cloth_pose.py --subjects 1 --no-render --max-body-step 0.01   # another simulation setting
+    python bench/bench_cloth_pose.py --kind draped_coat               # another draped kind (DRAPED_KINDS)
 
-Subjects: the first benchmark-pool recipes that draw a skirt (recipe_from_seed(derive_seed("benchmark", i, --seed)),
-as bench/bench_cloth.py draws them: bench_cloth.draped_recipe; every skirt drawn is the draped one). Poses per
+Subjects: the first benchmark-pool recipes that draw `--kind` (default the skirt; recipe_from_seed(derive_seed(
+"benchmark", i, --seed)), as bench/bench_cloth.py draws them: bench_cloth.draped_recipe; every skirt drawn is the
+draped one). The geometry, body and self columns are that kind's part; the seconds and the image, the whole
+character's (every draped part it wears is posed the same way). Poses per
 subject: protocol a's turntable frame at 90 degrees (the rest A-pose turned) and the first --poses test poses the
 generator draws for that subject (`sample_pose` from `rng_for(seed, "pose", subject, "test", j)`).
 
@@ -92,7 +95,9 @@ def display(img: np.ndarray, exposure: float) -> np.ndarray:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--subjects", type=int, default=2, help="subjects (benchmark recipes that draw a skirt)")
+    ap.add_argument("--kind", default="draped_skirt",
+                    help="the draped garment kind measured (one of DRAPED_KINDS); subjects are recipes that draw it")
+    ap.add_argument("--subjects", type=int, default=2, help="subjects (benchmark recipes that draw --kind)")
     ap.add_argument("--poses", type=int, default=3, help="test poses of the pose prior per subject")
     ap.add_argument("--seed", type=int, default=0, help="dataset seed the recipes and poses come from")
     ap.add_argument("--resolution", type=int, default=512, help="render size")
@@ -120,6 +125,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from rh_dataset.characters.cloth_pose import ClothPoseSettings
 
+    if args.kind not in DRAPED_KINDS:
+        ap.error(f"--kind must be one of {DRAPED_KINDS}, got {args.kind!r}")
     changed = {k: v for k, v in (("max_body_step", args.max_body_step), ("iterations", args.iterations))
                if v is not None}
     cloth_settings = ClothPoseSettings(**changed)
@@ -128,12 +135,13 @@ def main(argv: list[str] | None = None) -> int:
     faces = body_topology().faces
     rows, figure_case = [], None
     index = 0
-    print(f"load average at start: {load()}; simulation settings {cloth_settings}")
+    print(f"load average at start: {load()}; kind {args.kind}; simulation settings {cloth_settings}")
     for _ in range(args.subjects):
-        recipe = draped_recipe(index, args.seed)
+        recipe = draped_recipe(index, args.seed, args.kind)
         index = recipe.index + 1
         character = build_character(recipe, 512)
         kinds = [p.name for p in character.parts if p.name in DRAPED_KINDS]
+        assert args.kind in kinds, (args.kind, kinds)
         pose_character(character, None, None, "simulated")  # the drape (cached on disk) and kernels, not timed
         scene = None if args.no_render else scene_for(character, args.resolution)
         poses = [("turntable", turntable(4)[1])]
@@ -157,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
                    "t_skin": out["skinned"][1], "t_sim": out["simulated"][1], "load": out["simulated"][2],
                    "steps": stats.get("move_steps", 0) + stats.get("settle_steps", 0),
                    "raw_mm": 1e3 * max(stats.get("depth_before_push_m", 0.0), 0.0)}
-            for kind in kinds:
+            for kind in (args.kind,):
                 part = next(p for p in character.parts if p.name == kind)
                 a = next(x for x in out["skinned"][0] if x.name == kind).vertices.astype(np.float64)
                 b = next(x for x in out["simulated"][0] if x.name == kind).vertices.astype(np.float64)
