@@ -6,6 +6,7 @@ penetration and the image difference, and from them which preset poses cloth whi
     python bench/bench_cloth_pose.py --figure docs/cloth_pose.png     # also the picture of the most different pose
     python bench/bench_cloth_pose.py --subjects 1 --no-render --max-body-step 0.01   # another simulation setting
     python bench/bench_cloth_pose.py --kind draped_coat               # another draped kind (DRAPED_KINDS)
+    python bench/bench_cloth_pose.py --kind draped_trousers --simulate-all   # a kind "simulated" leaves skinned
 
 Subjects: the first benchmark-pool recipes that draw `--kind` (default the skirt; recipe_from_seed(derive_seed(
 "benchmark", i, --seed)), as bench/bench_cloth.py draws them: bench_cloth.draped_recipe; every skirt drawn is the
@@ -28,6 +29,8 @@ Per (subject, pose), both ways of `pose_character(..., cloth=)`:
             frames the subject: rh-eval's PSNR (display space over the person's dilated box, over white) of the
             simulated render against the skinned one (same sampler seed), and the standard preset's noise as the
             PSNR of the skinned render at another seed (+3.01 dB = its estimated PSNR against a converged image).
+`--simulate-all`: the simulated side simulates every draped kind, also those `cloth_pose.SIMULATED_KINDS` leaves
+skinned in every mode (the wide-leg trousers; without it their two sides are the same).
 The decision printed last: a preset simulates the cloth where, on posed frames, the two renders differ by more than
 that preset's noise and the simulation costs at most the preset's own render of the frame (the cloth may at most
 double a frame's time). The reference preset's render seconds and noise are scaled from standard's measured ones by
@@ -106,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="ClothPoseSettings.max_body_step in metres (default: the setting's)")
     ap.add_argument("--iterations", type=int, default=None,
                     help="ClothPoseSettings.iterations (default: the setting's)")
+    ap.add_argument("--simulate-all", action="store_true",
+                    help="simulate every draped kind, also those cloth_pose.SIMULATED_KINDS leaves skinned")
     ap.add_argument("--figure", type=Path, default=None,
                     help="write skinned | simulated of the pose whose surfaces differ most (front, then its left side)")
     args = ap.parse_args(argv)
@@ -127,6 +132,11 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.kind not in DRAPED_KINDS:
         ap.error(f"--kind must be one of {DRAPED_KINDS}, got {args.kind!r}")
+    import rh_dataset.characters.cloth_pose as cloth_pose
+
+    simulated_kinds = cloth_pose.SIMULATED_KINDS
+    if args.simulate_all:
+        cloth_pose.SIMULATED_KINDS = DRAPED_KINDS  # read by simulated_parts at each call
     changed = {k: v for k, v in (("max_body_step", args.max_body_step), ("iterations", args.iterations))
                if v is not None}
     cloth_settings = ClothPoseSettings(**changed)
@@ -190,6 +200,9 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(row)
             print(_line(row), flush=True)
     _summary(rows, presets, standard)
+    if args.kind not in simulated_kinds:
+        print(f"note: the generator's \"simulated\" mode leaves {args.kind} skinned (cloth_pose.SIMULATED_KINDS "
+              f"{simulated_kinds}){'; measured here with --simulate-all' if args.simulate_all else ''}")
     if args.figure is not None and figure_case is not None:
         _figure(args.figure, figure_case, cloth_settings)
     return 0

@@ -212,6 +212,21 @@ def test_drape_level_is_a_render_setting_preset_field_and_cli_flag():
         build_character(recipe_from_seed(0, "benchmark", 0), 64, drape="fine")
 
 
+def test_simulated_mode_leaves_the_wide_trousers_skinned():
+    """SIMULATED_KINDS: the draped kinds "simulated" simulates; the wide-leg trousers, whose simulation lost the
+    legs in sitting poses (bench_cloth_pose.py --kind draped_trousers), are none of them, so a character whose only
+    draped part is its trousers has nothing simulated (pose_character then skins them)."""
+    import types
+
+    from rh_dataset.characters.cloth_pose import SIMULATED_KINDS, simulated_parts
+    from rh_dataset.characters.drape import DRAPED_KINDS
+
+    assert set(SIMULATED_KINDS) < set(DRAPED_KINDS) and "draped_trousers" not in SIMULATED_KINDS
+    parts = [types.SimpleNamespace(name=n) for n in ("body", "shoes", "draped_trousers", "tshirt")]
+    character = types.SimpleNamespace(parts=parts, phenotype=PHENO)
+    assert simulated_parts(character, {"upperleg01.L": np.eye(4)}) == {}
+
+
 def test_a_bad_preset_cloth_names_the_file(tmp_path):
     import json
 
