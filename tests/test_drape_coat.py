@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rh_dataset.characters.body import body_topology, run_anny
-from rh_dataset.characters.drape import (COAT_OVERLAP, DRAPE_LEVELS, PROFILES, coat_shell_hem, drape_garment,
+from rh_dataset.characters.drape import (SHELL_OVERLAP, DRAPE_LEVELS, PROFILES, drape_garment, shell_hem,
                                          drape_settings, garment_pattern, penetration, push_clearance)
 
 KIND = "draped_coat"
@@ -62,11 +62,11 @@ def test_coat_pattern_is_open_at_the_front_and_pinned_under_the_arms(pheno, leve
     assert heads["lowerleg01.L"][2] - 0.15 < verts[-1, 2] < heads["upperleg01.L"][2]
     assert verts[:, 2].min() > body[:, 2].min()
     assert uvs.min() >= 0.0 and uvs.max() <= 1.0 and circ > 0.5
-    # The shell's hem (bind space) is COAT_OVERLAP under the ring: bind space is the A-pose raised by spine02's offset.
+    # The shell's hem (bind space) is SHELL_OVERLAP under the ring: bind space is the A-pose raised by spine02's offset.
     from rh_dataset.characters.body_features import body_features
 
     shift = body_features(pheno).bone_heads["spine02"][2] - heads["spine02"][2]
-    assert coat_shell_hem(pheno, st) == pytest.approx(ring[0, 2] + shift - COAT_OVERLAP, abs=1e-9)
+    assert shell_hem("draped_coat", pheno, st) == pytest.approx(ring[0, 2] + shift - SHELL_OVERLAP, abs=1e-9)
     # push_out keeps the skinned panels a little nearer than the drape's particle radius (the rest drape is left as it
     # settled), and farther off the skin than the other kinds (the layers under the coat).
     assert st.clearance - 0.003 <= push_clearance(KIND) < st.clearance and push_clearance(KIND) > push_clearance(
@@ -74,13 +74,13 @@ def test_coat_pattern_is_open_at_the_front_and_pinned_under_the_arms(pheno, leve
 
 
 def test_coat_shell_is_a_jacket_cut_at_the_chest_with_an_open_front():
-    """The shell "coat": sleeves like the jacket's, its trunk ending at coat_shell_hem, open in front (a V from the
-    panels' gap up to the collar), its offset tucked to COAT_TUCK where the panels overlap it."""
+    """The shell "coat": sleeves like the jacket's, its trunk ending at shell_hem, open in front (a V from the
+    panels' gap up to the collar), its offset tucked to TUCK["coat"] where the panels overlap it."""
     from rh_dataset.characters.body_features import body_features
-    from rh_dataset.characters.garments import BASE_OFFSET, COAT_TUCK, garment_level
+    from rh_dataset.characters.garments import BASE_OFFSET, TUCK, garment_level
 
     feats = body_features(PHENO)
-    hem = coat_shell_hem(PHENO)
+    hem = shell_hem("draped_coat", PHENO)
     coat, jacket = garment_level("coat", feats, hem), garment_level("jacket", feats)
     v = feats.rest_vertices
     arm = feats.in_groups("upperarm", "lowerarm", "hand")
@@ -103,8 +103,8 @@ def test_coat_shell_is_a_jacket_cut_at_the_chest_with_an_open_front():
 
     shell = _shell("coat", feats, under, ANNY_TOPOLOGY, hem=hem)
     z = (v[shell.blend_vertices] * shell.blend_weights[..., None]).sum(1)[:, 2]
-    tucked = z < hem + COAT_OVERLAP
-    assert tucked.any() and shell.offset[tucked].max() <= COAT_TUCK + 0.003 + 1e-6  # over the top at most
+    tucked = z < hem + SHELL_OVERLAP
+    assert tucked.any() and shell.offset[tucked].max() <= TUCK["coat"] + 0.003 + 1e-6  # over the top at most
     assert shell.offset.max() == pytest.approx(BASE_OFFSET["coat"]) and len(top) == 1
 
 

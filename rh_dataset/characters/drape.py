@@ -1,10 +1,10 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
-In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a strapless dress, wide-leg trousers, an open
-coat's panels; `PROFILES` cuts each from one pattern function, `garment_pattern`: the trousers' waist tube divides
-into two leg tubes, `_trouser_pattern`; the coat's tube is cut open at the front, `DrapeProfile.opening`, and its
-shoulders and sleeves are a shell, garments.py, whose hem `coat_shell_hem` places) and its `DrapeSettings` (per
-kind and drape level: `drape_settings`).
+In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
+trousers, an open coat's panels; `PROFILES` cuts each from one pattern function, `garment_pattern`: the trousers'
+waist tube divides into two leg tubes, `_trouser_pattern`; the coat's tube is cut open at the front,
+`DrapeProfile.opening`, and its shoulders and sleeves are a shell, garments.py, whose hem `shell_hem` places, as it
+places the dress's bodice) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
 static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
@@ -40,7 +40,7 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
-           "cloth_model", "cloth_solver", "coat_shell_hem", "COAT_OVERLAP", "COAT_CLEARANCE"]
+           "cloth_model", "cloth_solver", "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE"]
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
@@ -125,7 +125,7 @@ def drape_cache_dir() -> Path:
 class DrapeProfile:
     """The cut of a draped kind, in body landmarks: the pinned top ring at `top` ("waist": between the pelvis and
     spine04, where a skirt's waistband sits; "chest": halfway between spine02 and spine01, under the arms, lowered
-    where the ring would touch the A-pose body, arms included (`_under_the_arms`): a strapless dress is held
+    where the ring would touch the A-pose body, arms included (`_under_the_arms`): a dress's cloth is held
     there), the cloth hanging straight down from there to `flare_from` ("top": at once; "hips": the hip joints),
     then flaring at `DrapeSettings.flare` for `hem` times the drop from there to the knee (measured along the
     cloth): the skirt's hem ends about 10 cm above the knee; the dress, whose 70 cm of cloth hang from the chest and
@@ -142,7 +142,7 @@ class DrapeProfile:
     `opening` (the coat): metres between the two front edges at the top ring; the tube is cut open there (no
     particles in the front sector that width subtends at the ring's front radius, all the way down), so the two
     front panels hang free. The coat's cloth is only its lower body: the shell "coat" (garments.py) makes its
-    shoulders, yoke and sleeves down to just below the pinned ring (`COAT_OVERLAP`)."""
+    shoulders, yoke and sleeves down to just below the pinned ring (`SHELL_OVERLAP`)."""
 
     top: str
     flare_from: str
@@ -154,7 +154,7 @@ class DrapeProfile:
 PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7),
             "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),
             "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=0.05)}
-COAT_OVERLAP = 0.015  # metres the coat's shell reaches below the panels' pinned ring, inside them
+SHELL_OVERLAP = 0.015  # metres a shell over draped cloth (SHELL_KINDS_OVER) reaches below its pinned ring, inside it
 # The simulation per (kind, level). "full": the benchmark's. The dress is about twice the skirt's length; 36 rings
 # (2 cm apart, the skirt's 1.6 cm) keep its drape to ~1.5x the skirt's particles. "coarse": half the particles
 # around and along, half the steps (~1/8 of the work): the draft preset's, for quick looks, the demo and tests
@@ -225,18 +225,26 @@ def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre
     return _under_the_arms(feats, body, heads, centre, gap)
 
 
-def coat_shell_hem(phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:
-    """Height in anny's bind space (where `BodyFeatures` and the shells' level sets live) of the coat shell's hem:
-    `COAT_OVERLAP` under the coat panels' pinned ring, so the shell's lower edge lies inside the panels and no gap
-    opens between them. The trunk's bind space is the A-pose frame the cloth is cut in raised by 8-9 cm (spine02's
-    offset, the same for every spine bone to a millimetre)."""
-    st = drape_settings("draped_coat") if settings is None else settings
+# Draped kinds whose cloth hangs from under the arms and whose top is a shell (garments.py) tucked under the
+# cloth's pinned ring: {draped kind: the shell's part name}. The coat's shoulders, yoke and sleeves; the dress's
+# bodice (without it the dress is strapless, its top edge across the bust).
+SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_dress": "bodice"}
+
+
+def shell_hem(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:
+    """Height in anny's bind space (where `BodyFeatures` and the shells' level sets live) of the hem of the shell
+    over a draped kind (`SHELL_KINDS_OVER`): `SHELL_OVERLAP` under the cloth's pinned ring, so the shell's lower edge
+    lies inside the cloth and no gap opens between them. The trunk's bind space is the A-pose frame the cloth is cut
+    in raised by 8-9 cm (spine02's offset, the same for every spine bone to a millimetre)."""
+    if kind not in SHELL_KINDS_OVER:
+        raise ValueError(f"shell_hem: kind must be one of {tuple(SHELL_KINDS_OVER)}, got {kind!r}")
+    st = drape_settings(kind) if settings is None else settings
     feats = body_features(phenotype)
     run = run_anny(phenotype)
     heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
-    z = _top_height(PROFILES["draped_coat"], feats, run["vertices"], heads, np.asarray(heads["root"], np.float64),
+    z = _top_height(PROFILES[kind], feats, run["vertices"], heads, np.asarray(heads["root"], np.float64),
                     st.clearance + 0.002)
-    return z + float(feats.bone_heads["spine02"][2] - heads["spine02"][2]) - COAT_OVERLAP
+    return z + float(feats.bone_heads["spine02"][2] - heads["spine02"][2]) - SHELL_OVERLAP
 
 
 def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None):

@@ -14,7 +14,8 @@ towards a garment's open edges so a hem closes onto the skin (no visible gap bet
 collars).
 
 In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first
-(the draped coat: two, its shell "coat" and its draped panels, `garment_parts`).
+(the draped coat and dress: two each, a shell over the cloth, "coat" or "bodice", then the draped cloth,
+`garment_parts`).
 """
 from __future__ import annotations
 
@@ -28,13 +29,13 @@ from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body import body_topology
 from .body_features import BodyFeatures
-from .drape import (COAT_OVERLAP, DRAPED_KINDS, DrapeSettings, SkinBinding, coat_shell_hem, draped_part,
-                    drape_settings)
+from .drape import (DRAPED_KINDS, SHELL_KINDS_OVER, SHELL_OVERLAP, DrapeSettings, SkinBinding, draped_part,
+                    drape_settings, shell_hem)
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
 __all__ = ["PartGeometry", "build_garments", "garment_level", "garment_parts", "SHELL_KINDS", "BASE_OFFSET",
-           "LAYER_GAP", "GARMENT_PARTS", "COAT_LAPEL", "COAT_TUCK"]
+           "LAYER_GAP", "GARMENT_PARTS", "COAT_LAPEL", "TUCK"]
 
 # Cloth thickness above the skin, metres (outer garments thicker: a jacket stands off the body more than a tee).
 BASE_OFFSET = {
@@ -46,12 +47,15 @@ BASE_OFFSET = {
     "longsleeve": 0.006,
     "jacket": 0.017,
     "coat": 0.017,  # the draped coat's shoulders, yoke and sleeves (a jacket's cut down to the chest)
+    "bodice": 0.006,  # the draped dress's top: a t-shirt's cut with cap sleeves and a scoop neck, down to the chest
 }
 # The coat's front opening in its shell: a V from the panels' gap (drape.PROFILES["draped_coat"].opening wide at
 # the shell's hem) widening by COAT_LAPEL metres per metre up to the collar, so the coat reads as open from the
 # neck down and the yoke's front edges meet the panels' front edges.
 COAT_LAPEL = 0.25
-COAT_TUCK = 0.009  # metres: the coat shell's offset where the panels overlap it (`_shell`)
+# Metres: a shell's offset where the draped cloth under its hem overlaps it (`_shell`): less than the cloth's own
+# distance from the skin there (the coat's panels >= ~13 mm, the dress's cloth >= its 4 mm particle radius).
+TUCK = {"coat": 0.009, "bodice": 0.003}
 LAYER_GAP = 0.003  # minimum distance between two layers (well above ray-tracing epsilon at body scale)
 TAPER_WIDTH = 0.025  # metres over which the offset falls towards an open edge
 TAPER_MIN = 0.3  # fraction of the offset left at the very edge
@@ -96,8 +100,8 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
     along which `split_faces` cuts the body's triangles. Each edge is a level of a smooth function (height, a
     rounded scoop in front of the neck, distance along a limb's axis), so the cut is a smooth curve; bone-group
     labels only pick which function applies to a vertex (an arm takes the sleeve's, never the trunk's), so their
-    ragged borders never become an edge. `hem` (bind-space height; the "coat" shell only, whose hem is where its
-    draped panels are pinned: `drape.coat_shell_hem`)."""
+    ragged borders never become an edge. `hem` (bind-space height; the "coat" and "bodice" shells only, whose hem
+    is where the draped cloth under them is pinned: `drape.shell_hem`)."""
     v = feats.rest_vertices
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     z_neck = _z(feats, "neck01")
@@ -105,24 +109,26 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
     z_hip = 0.5 * (_z(feats, "upperleg01.L") + _z(feats, "upperleg01.R"))
     z_waist = 0.5 * (_z(feats, "root") + _z(feats, "spine04")) + 0.02
     out = np.full(len(v), 1.0)  # vertices no part of the garment applies to: 1 m outside
-    if kind in ("tshirt", "longsleeve", "jacket", "coat"):
+    if kind in ("tshirt", "longsleeve", "jacket", "coat", "bodice"):
         # A scoop at the front centre: the neckline drops in front of the neck, not behind it (smoothsteps, so
         # the collar's curve has no corners).
         front = _smoothstep(-(y - y_neck) / 0.07) * _smoothstep(1.0 - np.abs(x) / 0.1)
-        drop = {"tshirt": 0.04, "longsleeve": 0.03, "jacket": 0.06, "coat": 0.06}[kind]
+        drop = {"tshirt": 0.04, "longsleeve": 0.03, "jacket": 0.06, "coat": 0.06, "bodice": 0.08}[kind]
         collar = z - (z_neck - 0.012 - drop * front)
+        if kind in TUCK and hem is None:
+            raise ValueError(f"garment_level: the {kind!r} shell needs its hem height (drape.shell_hem)")
         if kind == "coat":
-            if hem is None:
-                raise ValueError("garment_level: the coat's shell needs its hem height (drape.coat_shell_hem)")
             from .drape import PROFILES
 
             # The open front: a V, cut on the front half only (at the sides |x| is far wider than the V).
             half = 0.5 * PROFILES["draped_coat"].opening + COAT_LAPEL * np.maximum(z - hem, 0.0)
             collar = np.maximum(collar, np.where(y < y_neck, half - np.abs(x), -np.inf))
             z_hem = float(hem)
+        elif kind == "bodice":
+            z_hem = float(hem)
         else:
             z_hem = z_hip + {"tshirt": 0.0, "longsleeve": -0.005, "jacket": -0.02}[kind]
-        sleeve = {"tshirt": 0.3, "longsleeve": 0.95, "jacket": 0.97, "coat": 0.97}[kind]
+        sleeve = {"tshirt": 0.3, "longsleeve": 0.95, "jacket": 0.97, "coat": 0.97, "bodice": 0.12}[kind]
         # Hem: a horizontal cut through trunk and hips alike (upper-leg vertices included), above the crotch so a
         # top never turns into a bodysuit between the legs.
         trunk = feats.in_groups("torso", "shoulder", "neck", "upperleg")
@@ -149,9 +155,10 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
 
 
 SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe kinds (the coat's shell is a part)
-# Parts a recipe garment is built as, in build order (innermost first): the draped coat is a shell (shoulders, yoke,
-# sleeves) and the draped panels below it, both in the garment's fabric.
-GARMENT_PARTS = {"draped_coat": ("coat", "draped_coat")}
+# Parts a recipe garment is built as, in build order: the draped coat is a shell (shoulders, yoke, sleeves) and the
+# draped panels below it, the dress a shell (its bodice) and the draped skirt below it, both in the garment's fabric
+# (drape.SHELL_KINDS_OVER).
+GARMENT_PARTS = {kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()}
 
 
 def garment_parts(kind: str) -> tuple[str, ...]:
@@ -218,13 +225,13 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     split = split_faces(face_ids, topology, level=level)
     dist = boundary_distance(split, feats.rest_vertices)
     off = BASE_OFFSET[kind] * (TAPER_MIN + (1.0 - TAPER_MIN) * _smoothstep(dist / TAPER_WIDTH))
-    if kind == "coat":
-        # Tucked under the draped panels: at most COAT_TUCK off the skin up to 5 mm above their pinned ring
-        # (COAT_OVERLAP above the hem; the drape keeps the ring >= ~13 mm off the skin), rising smoothly to the full
-        # offset 2 cm above that. The 5 mm: bind space is the A-pose frame turned by ~1.5 degrees about X as well as
-        # raised, so at the back a bind-space height is a few millimetres off the ring's.
+    if kind in TUCK:
+        # Tucked under the draped cloth: at most TUCK off the skin up to 5 mm above its pinned ring (SHELL_OVERLAP
+        # above the hem; the drape keeps the ring its particle radius + 2 mm off the body's hull), rising smoothly to
+        # the full offset 2 cm above that. The 5 mm: bind space is the A-pose frame turned by ~1.5 degrees about X as
+        # well as raised, so at the back a bind-space height is a few millimetres off the ring's.
         z = split.points(feats.rest_vertices)[:, 2]
-        cap = COAT_TUCK + (BASE_OFFSET[kind] - COAT_TUCK) * _smoothstep((z - hem - COAT_OVERLAP - 0.005) / 0.02)
+        cap = TUCK[kind] + (BASE_OFFSET[kind] - TUCK[kind]) * _smoothstep((z - hem - SHELL_OVERLAP - 0.005) / 0.02)
         off = np.minimum(off, cap)
     t = split.cut_t
     need = np.where(under > 0, under + LAYER_GAP, 0.0)
@@ -583,8 +590,9 @@ def build_garments(
             if phenotype is None:
                 raise ValueError(f"build_garments: {g.kind} needs the phenotype (it is draped on the body)")
             st = drape_settings(g.kind, drape)
-            if g.kind == "draped_coat":
-                out.append(_shell("coat", feats, under, topology, hem=coat_shell_hem(phenotype, st)))
+            if g.kind in SHELL_KINDS_OVER:
+                out.append(_shell(SHELL_KINDS_OVER[g.kind], feats, under, topology,
+                                  hem=shell_hem(g.kind, phenotype, st)))
             out.append(draped_part(g.kind, phenotype, feats, under, st))
         else:
             out.append(_shell(g.kind, feats, under, topology))
