@@ -22,10 +22,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's code, not an installed copy's
 
 STUDIO_HDRI = Path("/usr/share/blender/datafiles/studiolights/world/studio.exr")
 COLOURS = {"black": (20, 16, 14), "brown": (80, 54, 36), "blonde": (205, 170, 110), "auburn": (130, 60, 32),
