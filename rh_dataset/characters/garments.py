@@ -14,7 +14,8 @@ towards a garment's open edges so a hem closes onto the skin (no visible gap bet
 collars).
 
 In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first
-(the draped coat: two, its shell "coat" and its draped panels, `garment_parts`).
+(the draped coat: two, its shell "coat" and its draped panels; the draped hoodie: the shell "hoodie", a longsleeve,
+and its draped hood; `garment_parts`).
 """
 from __future__ import annotations
 
@@ -46,6 +47,7 @@ BASE_OFFSET = {
     "longsleeve": 0.006,
     "jacket": 0.017,
     "coat": 0.017,  # the draped coat's shoulders, yoke and sleeves (a jacket's cut down to the chest)
+    "hoodie": 0.006,  # the hoodie's body and sleeves: the longsleeve's shell (its hood is draped: drape.py)
 }
 # The coat's front opening in its shell: a V from the panels' gap (drape.PROFILES["draped_coat"].opening wide at
 # the shell's hem) widening by COAT_LAPEL metres per metre up to the collar, so the coat reads as open from the
@@ -105,6 +107,8 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
     z_hip = 0.5 * (_z(feats, "upperleg01.L") + _z(feats, "upperleg01.R"))
     z_waist = 0.5 * (_z(feats, "root") + _z(feats, "spine04")) + 0.02
     out = np.full(len(v), 1.0)  # vertices no part of the garment applies to: 1 m outside
+    if kind == "hoodie":  # the draped hoodie's shell is the longsleeve's
+        kind = "longsleeve"
     if kind in ("tshirt", "longsleeve", "jacket", "coat"):
         # A scoop at the front centre: the neckline drops in front of the neck, not behind it (smoothsteps, so
         # the collar's curve has no corners).
@@ -150,8 +154,9 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
 
 SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe kinds (the coat's shell is a part)
 # Parts a recipe garment is built as, in build order (innermost first): the draped coat is a shell (shoulders, yoke,
-# sleeves) and the draped panels below it, both in the garment's fabric.
-GARMENT_PARTS = {"draped_coat": ("coat", "draped_coat")}
+# sleeves) and the draped panels below it, the draped hoodie the longsleeve's shell ("hoodie") and its draped hood,
+# both in the garment's fabric.
+GARMENT_PARTS = {"draped_coat": ("coat", "draped_coat"), "draped_hoodie": ("hoodie", "draped_hoodie")}
 
 
 def garment_parts(kind: str) -> tuple[str, ...]:
@@ -585,6 +590,8 @@ def build_garments(
             st = drape_settings(g.kind, drape)
             if g.kind == "draped_coat":
                 out.append(_shell("coat", feats, under, topology, hem=coat_shell_hem(phenotype, st)))
+            elif g.kind == "draped_hoodie":
+                out.append(_shell("hoodie", feats, under, topology))
             out.append(draped_part(g.kind, phenotype, feats, under, st))
         else:
             out.append(_shell(g.kind, feats, under, topology))
