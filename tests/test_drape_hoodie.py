@@ -67,9 +67,15 @@ def test_hood_pattern_is_a_bag_pinned_on_the_back_of_the_neckline_outside_the_bo
 
     dist = cKDTree(_neckline(pheno)).query(ring)[0]
     assert dist.max() < 0.035, dist.max()
+    # Faces outward: out of the bag (away from the middle of their row's C), as a render's normals are taken from
+    # them (inward, the hood's outside rendered dark).
+    body = run_anny(pheno)["vertices"]
+    tri = verts[faces]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    row_mid = verts.reshape(nr, na, 3).mean(1)[faces[:, 0] // na]
+    assert ((n * (tri.mean(1) - row_mid)).sum(1) > 0).mean() > 0.9
     # Every particle, ring included, keeps more than the hood's clearance off the whole body (arms too), so the
     # solver starts clear.
-    body = run_anny(pheno)["vertices"]
     depth = penetration(body, body_topology().faces, verts)
     assert depth.max() < -st.clearance, depth.max()
     # A bag, not a flap: the rest shape is curved, as a flat sheet's is not: the angle defects of the interior
@@ -165,9 +171,10 @@ def test_coarse_hood_lies_down_the_upper_back_outside_the_body(pheno, tmp_path, 
     assert len(low) > 0.3 * len(g.vertices) and (low[:, 1] > g.vertices[g.pinned, 1].max()).all()
 
 
-# The full drape (32 x 24), PHENO: worst particle 4.5 mm off the skin at rest (HEAVY: 6.4 mm); skinned into 6 sampled
-# poses (rng 7) and pushed out (`push_clearance`, then 3 mm), every hood vertex outside the body.
-REST_OFF_FULL_M = 0.003
+# The full drape (32 x 24), PHENO: worst particle 2.1 mm off the skin at rest (HEAVY: 6.4 mm; one particle of 768
+# nearer than the shell's 6 mm, which posing's push_out puts 10 mm off); skinned into 6 sampled poses (rng 7) and
+# pushed out (`push_clearance`, then 3 mm), every hood vertex outside the body (measured: 9.8 mm or more off it).
+REST_OFF_FULL_M = 0.0015
 POSED_BOUND_M = 0.0
 
 

@@ -171,10 +171,11 @@ class HoodCut:
 
     Row 0 lies on the longsleeve's neckline lowered by `drop` metres (so the hood's edge covers the shell's),
     `clearance` + 2 mm off the skin along its normal, from `front` radians off the front (-Y, about the neck's
-    centre) round the back to the other side: `front` = pi/2 pins the back half of the neckline. Going up, the rows reach `widen` radians further forward (the sides of the hood
-    round the cheeks; the face opening), and swell from the neckline to an ellipse of half-axes `width` (across) by
-    `depth` (front to back) around the head by 40 % of the way up, then close over the crown, `height` metres over
-    the neckline (measured along the hood-up axis). This shape is the cloth's rest shape: a bag, curved both ways,
+    centre) round the back to the other side: `front` = pi/2 pins the back half of the neckline. Going up, the rows
+    reach `widen` radians further forward (the sides of the hood round the cheeks; the face opening), and swell from
+    the neckline to an ellipse of half-axes `width` (across) by `depth` (front to back) around the head by 40 % of
+    the way up, then close over the crown, `height` metres over the neckline (measured along the hood-up axis). This
+    shape is the cloth's rest shape: a bag (a dome over the crown, a saddle where it swells from the neckline),
     which cannot lie flat, so it folds where it falls.
 
     Hood down: each row is then turned back about the horizontal line across the back of the neckline ring by
@@ -402,7 +403,8 @@ def _hood_pattern(phenotype: dict[str, float], st: DrapeSettings, cut: HoodCut =
     near = depth > -gap
     near[:na] = False
     verts[near] = closest[near] + gap * n[near]
-    faces = _grid_faces(np.arange(nr * na).reshape(nr, na), wrap=False)
+    # `_grid_faces` faces outwards for rows going down; the hood's rows go up (hood up), so its faces are flipped.
+    faces = _grid_faces(np.arange(nr * na).reshape(nr, na), wrap=False)[:, ::-1]
     along = np.concatenate([np.zeros((nr, 1)), np.cumsum(np.linalg.norm(np.diff(up, axis=1), axis=-1), 1)], 1)
     along -= along[:, na // 2 - 1:na // 2 + 1].mean(1, keepdims=True)
     height = np.concatenate([np.zeros((1, na)), np.cumsum(np.linalg.norm(np.diff(up, axis=0), axis=-1), 0)], 0)
