@@ -1,10 +1,11 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a strapless dress, wide-leg trousers, an open
-coat's panels; `PROFILES` cuts each from one pattern function, `garment_pattern`: the trousers' waist tube divides
-into two leg tubes, `_trouser_pattern`; the coat's tube is cut open at the front, `DrapeProfile.opening`, and its
-shoulders and sleeves are a shell, garments.py, whose hem `coat_shell_hem` places) and its `DrapeSettings` (per
-kind and drape level: `drape_settings`).
+coat's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on the back of the neckline, laid back
+and let fall down the upper back)); `PROFILES` cuts the others from one pattern function, `garment_pattern`: the
+trousers' waist tube divides into two leg tubes, `_trouser_pattern`; the coat's tube is cut open at the front,
+`DrapeProfile.opening`, and its shoulders and sleeves are a shell, garments.py, whose hem `coat_shell_hem` places)
+and its `DrapeSettings` (per kind and drape level: `drape_settings`).
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
 static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
@@ -54,8 +55,8 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_hoodie": 0.010}
 COAT_CLEARANCE = 0.014
 # The hood lies over the hoodie's shell (6 mm off the skin, a longsleeve's): its particles keep this far off the skin
-# at rest (the coat's: the hood's weight on the shoulders' slope presses it to ~8 mm), push_out a little less
-# (PUSH_CLEARANCES), as the coat.
+# at rest (the coat's; where its weight rests on the shoulders' slope the worst particle comes to 2-6 mm,
+# tests/test_drape_hoodie.py), push_out 10 mm (PUSH_CLEARANCES) when posed.
 HOOD_CLEARANCE = 0.014
 
 
@@ -216,7 +217,8 @@ _SETTINGS = {
     # apart), contact found every step and twice the dress's contact stiffness (it rests on the shoulders' slope; at
     # 5e4 particles came to 1.5 mm off the skin, under the shell), its collider keeping the upper arms
     # (`collider_faces`: without them a heavy body's hood corners sank 6 mm into the deltoids). The coarse level
-    # keeps 16 rows (with 12 a corner next to the pinned ring fell into the shoulder) and the full level's 300 steps
+    # keeps 16 rows (with 12 a corner next to the pinned ring fell 12 mm into the shoulder; measured before the ring
+    # was put on the neckline) and the full level's 300 steps
     # (256 particles; with 150 the hood was still falling).
     ("draped_hoodie", "full"): DrapeSettings(n_around=32, n_rings=24, collide_every=1, **_HOOD_FABRIC),
     ("draped_hoodie", "coarse"): DrapeSettings(n_around=16, n_rings=16, collide_every=1, **_HOOD_FABRIC),
@@ -845,7 +847,8 @@ def bind_loose(garment: DrapedGarment, phenotype: dict[str, float], max_bones: i
     neighbours' W - W), a per vertex: 0 on the pinned top ring and from `LOOSE_FADE` - `LOOSE_BELOW` above the
     A-pose hip joints up, rising by a smoothstep to 1 at `LOOSE_BELOW` under them), so the front and back of the
     hem blend both thighs and the pelvis and the forward leg carries the cloth in front of it with its neighbours;
-    `push_out` keeps the legs inside afterwards. Deterministic (fixed-order sparse products).
+    `push_out` keeps the legs inside afterwards. Kinds in LOOSE_EVERYWHERE (the hood) diffuse everywhere but on the
+    pinned ring. Deterministic (fixed-order sparse products).
     `iterations`: default `loose_iterations(garment)`; 0 is `bind_to_skeleton` (the binding of before)."""
     import trimesh
     from scipy.sparse import coo_matrix, diags
