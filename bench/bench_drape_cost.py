@@ -4,14 +4,16 @@ subjects of each protocol wear them, and the arithmetic for the demo, the defaul
     python bench/bench_drape_cost.py              # ~8 min on a busy 2-core box (three full drapes, three coarse)
     python bench/bench_drape_cost.py --kinds draped_trousers    # time one kind's drapes only
     python bench/bench_drape_cost.py --kinds draped_coat
+    python bench/bench_drape_cost.py --kinds draped_hoodie
     python bench/bench_drape_cost.py --posing-only --repeats 7  # the per-frame posing only (drapes from the cache)
 
 In: the dataset seed (default 0, the generator's and rh-demo's). Out, printed with the load average: (1) for the
-first dress, skirt, wide-trousers and coat wearer of the seed (`--kinds`), the drape's wall seconds at each level
-(`drape.DRAPE_LEVELS`; a cold cache in a temporary folder, Warp kernels compiled first by a one-step drape), and
+first dress, skirt, wide-trousers, coat and hoodie wearer of the seed (`--kinds`), the drape's wall seconds at each
+level (`drape.DRAPE_LEVELS`; a cold cache in a temporary folder, Warp kernels compiled first by a one-step drape), and
 the skinned posing of a walk frame (`pose_character`, the draft and standard presets' cloth mode) against the first
-subject in shell clothes; (2) per protocol, its subjects wearing a dress, a skirt, wide trousers or a coat (a coat is worn over
-shell bottoms only, so a subject wears at most one draped kind); (3) the totals: drapes run once per
+subject in shell clothes; (2) per protocol, its subjects wearing a dress, a skirt, wide trousers, a coat or a hoodie
+(a coat is worn over shell bottoms only; a hoodie, a top, may be worn over a draped skirt or wide trousers, so a
+subject wears at most two draped kinds, each counted); (3) the totals: drapes run once per
 (phenotype, kind, level) and are cached, so a protocol pays each loose subject's drape once, and protocols of one
 seed share subjects (and their cache).
 """
@@ -30,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-KINDS = ("draped_dress", "draped_skirt", "draped_trousers", "draped_coat")
+KINDS = ("draped_dress", "draped_skirt", "draped_trousers", "draped_coat", "draped_hoodie")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,10 +56,12 @@ def main(argv: list[str] | None = None) -> int:
     load = lambda: " ".join(open("/proc/loadavg").read().split()[:3])  # noqa: E731
     n_max = max(load_protocol(p).subjects for p in args.protocols)
     recipes = [sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s) for s in range(n_max)]
-    loose = [next((g.kind for g in r.garments if g.kind.startswith("draped_")), None) for r in recipes]
+    worn = [tuple(g.kind for g in r.garments if g.kind in KINDS) for r in recipes]
+    loose = [w[0] if w else None for w in worn]  # the first draped kind (the subject wearing a kind: `wears`)
+    wears = {k: [s for s, w in enumerate(worn) if k in w] for k in KINDS}
 
     print(f"seed {args.seed}; load at start {load()}")
-    first = {k: loose.index(k) for k in args.kinds if k in loose}
+    first = {k: wears[k][0] for k in args.kinds if wears[k]}
     secs = {}
     if not args.posing_only:
         os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_drape_cost_")  # cold: every drape is timed
@@ -93,19 +97,18 @@ def main(argv: list[str] | None = None) -> int:
               f"({cpu['without']:.2f} CPU s)  (load {load()})")
         secs[kind, "pose"] = times["with"] - times["without"]
 
-    print("\nprotocol        subjects  dresses  skirts  trousers  coats  frames/subject  drape (full / coarse)   "
-          "posing added"
+    print("\nprotocol        subjects  dresses  skirts  trousers  coats  hoodies  frames/subject  "
+          "drape (full / coarse)   posing added"
           f"  (kinds timed: {', '.join(first)})")
     for p in args.protocols:
         spec = load_protocol(p)
-        ks = loose[:spec.subjects]
-        n = {k: ks.count(k) for k in KINDS}
+        n = {k: sum(s < spec.subjects for s in wears[k]) for k in KINDS}
         frames = sum(sp.frames for sp in spec.splits)
         full = sum(n[k] * secs.get((k, "full"), 0.0) for k in KINDS)
         coarse = sum(n[k] * secs.get((k, "coarse"), 0.0) for k in KINDS)
         posing = sum(n[k] * secs.get((k, "pose"), 0.0) for k in KINDS) * frames
         print(f"{p:14s} {spec.subjects:9d} {n['draped_dress']:8d} {n['draped_skirt']:7d} {n['draped_trousers']:9d}"
-              f" {n['draped_coat']:6d}"
+              f" {n['draped_coat']:6d} {n['draped_hoodie']:8d}"
               f" {frames:15d}  " + (f"{full / 60:7.1f} / {coarse / 60:5.1f} min" if not args.posing_only else
                                    f"{'(not timed)':>19s}") + f"  {posing / 3600:9.2f} h (if every frame "
               "posed as the walk)")

@@ -1,5 +1,6 @@
-"""Benchmark subjects in loose garments: the first draped-dress, draped-skirt, draped-trousers and draped-coat wearers
-among a dataset seed's subjects, draped at a drape level, rendered rest front | rest side | a posed frame front | side,
+"""Benchmark subjects in loose garments: the first draped-dress, draped-skirt, draped-trousers, draped-coat and
+draped-hoodie wearers among a dataset seed's subjects, draped at a drape level, rendered rest front | rest side | a
+posed frame front | side (`--turns`: other views, e.g. from the back),
 with the drape's seconds and how deep any cloth vertex sits in the body in each view.
 
     python bench/draped_garments.py --out docs/draped_garments.png           # 2 dresses + 2 skirts, full drape
@@ -7,6 +8,8 @@ with the drape's seconds and how deep any cloth vertex sits in the body in each 
     python bench/draped_garments.py --dresses 0 --skirts 0 --trousers 3 --tile 512 --out docs/draped_trousers.png
     python bench/draped_garments.py ... --trousers 3 --swap-trousers   # shell-trousers wearers put in draped ones
     python bench/draped_garments.py --dresses 0 --skirts 0 --coats 2 --tile 512 --out docs/draped_coat.png
+    python bench/draped_garments.py --dresses 0 --skirts 0 --hoodies 1 --turns 180,135 --tile 512 \
+        --out docs/draped_hoodie.png                                      # the hood, from the back and back-left
 
 In: the dataset seed (the generator's subject order: `sample_recipe(rng_for(seed, "character", s))`), how many
 subjects of each kind, the drape level (`drape.DRAPE_LEVELS`). Out: a PNG sheet (a row per subject, 256 px tiles,
@@ -30,16 +33,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200, trousers: int = 0,
-                   swap_trousers: bool = False, coats: int = 0) -> list[tuple[int, object]]:
+                   swap_trousers: bool = False, coats: int = 0, hoodies: int = 0) -> list[tuple[int, object]]:
     """(subject index, recipe) of the first `dresses` draped-dress, `skirts` draped-skirt, `trousers`
-    draped-trousers and `coats` draped-coat wearers of `seed` (`swap_trousers`: shell-trousers wearers put in
-    draped ones)."""
+    draped-trousers, `coats` draped-coat and `hoodies` draped-hoodie wearers of `seed` (`swap_trousers`:
+    shell-trousers wearers put in draped ones)."""
     import dataclasses
 
     from rh_dataset.characters import sample_recipe
     from rh_dataset.generate.seeding import rng_for
 
-    want = {"draped_dress": dresses, "draped_skirt": skirts, "draped_trousers": trousers, "draped_coat": coats}
+    want = {"draped_dress": dresses, "draped_skirt": skirts, "draped_trousers": trousers, "draped_coat": coats,
+            "draped_hoodie": hoodies}
     out = []
     for s in range(limit):
         r = sample_recipe(rng_for(seed, "character", s), pool="benchmark", index=s)
@@ -62,6 +66,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--skirts", type=int, default=2)
     ap.add_argument("--trousers", type=int, default=0)
     ap.add_argument("--coats", type=int, default=0)
+    ap.add_argument("--hoodies", type=int, default=0)
+    ap.add_argument("--turns", default="0,90",
+                    help="the two views, degrees about +Z (0: from the front, 90: its left, 180: from the back)")
     ap.add_argument("--swap-trousers", action="store_true",
                     help="shell-trousers wearers count as draped-trousers wearers (in draped_trousers)")
     ap.add_argument("--drape", default="full", help="drape level (full: the benchmark's; coarse: draft's)")
@@ -83,11 +90,14 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.poses.pose import rotation_about_z
 
     load = lambda: " ".join(open("/proc/loadavg").read().split()[:3])  # noqa: E731
+    turns = tuple(float(t) for t in args.turns.split(","))
+    if len(turns) != 2:
+        raise SystemExit(f"--turns: two angles in degrees, comma-separated, got {args.turns!r}")
     faces = body_topology().faces
     pose = next(p for p in sample_poses(np.random.default_rng(7), load_anny(), 8) if p.label == "walk")
     rows = []
     for s, recipe in loose_subjects(args.seed, args.dresses, args.skirts, trousers=args.trousers,
-                                    swap_trousers=args.swap_trousers, coats=args.coats):
+                                    swap_trousers=args.swap_trousers, coats=args.coats, hoodies=args.hoodies):
         t = time.perf_counter()
         character = build_character(recipe, 512, drape=args.drape)
         t_build = time.perf_counter() - t
@@ -95,12 +105,12 @@ def main(argv: list[str] | None = None) -> int:
         tiles, depth, crossings = [], [], []
         for bones, root in (({}, None), (dict(pose.bones), pose.root_transform)):
             run = run_anny(recipe.phenotype, bones)
-            body = run["vertices"] if root is None else run["vertices"] @ root[:3, :3].T + root[:3, 3]
-            for turn in (0.0, 90.0):  # front, then seen from its left
+            for i, turn in enumerate(turns):  # by default the front, then seen from its left
                 R = rotation_about_z(turn)
                 world = R if root is None else R @ root
                 posed = pose_character(character, bones, world)
-                if turn == 0.0:
+                if i == 0:  # the depth in the body turned as the cloth is
+                    body = run["vertices"] @ world[:3, :3].T + world[:3, 3]
                     cloth = next(m for m in posed if m.name == kind)
                     d = penetration(body, faces, cloth.vertices)
                     depth.append((1e3 * float(d.max()), 1e3 * float(np.percentile(d, 99))))
@@ -115,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{depth[0][1]:6.2f} mm, {pose.label} {depth[1][0]:6.2f} / {depth[1][1]:6.2f} mm  "
               f"self-crossing edges: rest {crossings[0]}, {pose.label} {crossings[1]}  (load {load()})", flush=True)
     write_png(args.out, np.concatenate(rows, axis=0))
-    print(f"wrote {args.out}: rows = subjects, columns = rest front | rest side | {pose.label} front | side")
+    print(f"wrote {args.out}: rows = subjects, columns = rest at {turns[0]:g} | {turns[1]:g} degrees, {pose.label} at "
+          f"{turns[0]:g} | {turns[1]:g} degrees (0: the front, 90: its left)")
     return 0
 
 

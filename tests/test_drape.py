@@ -25,8 +25,8 @@ REST_BOUND_M = 0.002
 POSED_BOUND_M = 0.0005
 SEATED_BOUND_M = 0.003
 SEATED_MAX_INSIDE = 10
-# One closed tube; trousers: test_drape_trousers.py, the open coat: test_drape_coat.py.
-TUBE_KINDS = tuple(k for k in DRAPED_KINDS if not PROFILES[k].legs and not PROFILES[k].opening)
+# One closed tube; trousers: test_drape_trousers.py, the open coat: test_drape_coat.py, the hood: test_drape_hoodie.py.
+TUBE_KINDS = tuple(k for k in DRAPED_KINDS if k in PROFILES and not PROFILES[k].legs and not PROFILES[k].opening)
 
 
 def _a_pose_heads() -> dict[str, np.ndarray]:

@@ -1,10 +1,12 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
-trousers, an open coat's panels; `PROFILES` cuts each from one pattern function, `garment_pattern`: the trousers'
-waist tube divides into two leg tubes, `_trouser_pattern`; the coat's tube is cut open at the front,
-`DrapeProfile.opening`, and its shoulders and sleeves are a shell, garments.py, whose hem `shell_hem` places, as it
-places the dress's bodice) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
+trousers, an open coat's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on the back of the
+neckline, laid back and let fall down the upper back)); `PROFILES` cuts the others from one pattern function,
+`garment_pattern`: the trousers' waist tube divides into two leg tubes, `_trouser_pattern`; the coat's tube is cut
+open at the front, `DrapeProfile.opening`, and its shoulders and sleeves are a shell, garments.py, whose hem
+`shell_hem` places, as it places the dress's bodice) and its `DrapeSettings` (per kind and drape level:
+`drape_settings`).
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
 static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
@@ -40,9 +42,10 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
-           "cloth_model", "cloth_solver", "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE"]
+           "cloth_model", "cloth_solver", "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
+           "HoodCut", "HOOD_CLEARANCE"]
 
-DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat")
+DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -50,8 +53,12 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 # (up to ~10 mm where a top lies over a waistband), so push_out keeps them this far off the skin instead; a little
 # less than the drape keeps them at rest (its particle radius, COAT_CLEARANCE), so that push_out leaves the rest
 # drape as it settled and moves only what a limb swung into.
-PUSH_CLEARANCES = {"draped_coat": 0.012}
+PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_hoodie": 0.010}
 COAT_CLEARANCE = 0.014
+# The hood lies over the hoodie's shell (6 mm off the skin, a longsleeve's): its particles keep this far off the skin
+# at rest (the coat's; where its weight rests on the shoulders' slope the worst particle comes to 2-6 mm,
+# tests/test_drape_hoodie.py), push_out 10 mm (PUSH_CLEARANCES) when posed.
+HOOD_CLEARANCE = 0.014
 
 
 @dataclasses.dataclass(frozen=True)
@@ -155,11 +162,44 @@ PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeP
             "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),
             "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=0.05)}
 SHELL_OVERLAP = 0.015  # metres a shell over draped cloth (SHELL_KINDS_OVER) reaches below its pinned ring, inside it
+
+
+@dataclasses.dataclass(frozen=True)
+class HoodCut:
+    """The cut of the hoodie's hood (`draped_hoodie`; its body and sleeves are the longsleeve's shell, garments.py).
+    The hood is cut as it is worn up, in horizontal sections around the head: `DrapeSettings.n_rings` C-shaped
+    rows of `n_around` particles, from the pinned neckline ring (row 0) to the crown (the last row), open at the front
+    (the face opening: the two end columns and the crown's small last row are the cloth's free edge).
+
+    Row 0 lies on the longsleeve's neckline lowered by `drop` metres (so the hood's edge covers the shell's),
+    `clearance` + 2 mm off the skin along its normal, from `front` radians off the front (-Y, about the neck's
+    centre) round the back to the other side: `front` = pi/2 pins the back half of the neckline. Going up, the rows
+    reach `widen` radians further forward (the sides of the hood round the cheeks; the face opening), and swell from
+    the neckline to an ellipse of half-axes `width` (across) by `depth` (front to back) around the head by 40 % of
+    the way up, then close over the crown, `height` metres over the neckline (measured along the hood-up axis). This
+    shape is the cloth's rest shape: a bag (a dome over the crown, a saddle where it swells from the neckline),
+    which cannot lie flat, so it folds where it falls.
+
+    Hood down: each row is then turned back about the horizontal line across the back of the neckline ring by
+    `tilt` radians times a smoothstep of its height (rows above 35 % fully), so the cloth starts laid back, clear of
+    head and back, its opening facing up; under gravity the solver lets it fall onto the shoulders and upper back."""
+
+    front: float = 0.5 * np.pi
+    widen: float = float(np.radians(50.0))
+    drop: float = 0.008
+    width: float = 0.105
+    depth: float = 0.115
+    height: float = 0.13
+    tilt: float = float(np.radians(105.0))
+
+
+HOOD = HoodCut()
 # The simulation per (kind, level). "full": the benchmark's. The dress is about twice the skirt's length; 36 rings
 # (2 cm apart, the skirt's 1.6 cm) keep its drape to ~1.5x the skirt's particles. "coarse": half the particles
 # around and along, half the steps (~1/8 of the work): the draft preset's, for quick looks, the demo and tests
 # (bench/bench_drape_cost.py measures both).
 DRAPE_LEVELS = ("full", "coarse")
+_HOOD_FABRIC = dict(density=0.3, tri_ke=1.0e5, tri_ka=1.0e5, edge_ke=0.1, contact_ke=1.0e5, clearance=HOOD_CLEARANCE)
 _SETTINGS = {
     ("draped_skirt", "full"): DrapeSettings(),
     ("draped_dress", "full"): DrapeSettings(n_rings=36, contact_ke=5.0e4),
@@ -173,6 +213,16 @@ _SETTINGS = {
     ("draped_coat", "full"): DrapeSettings(n_rings=40, contact_ke=5.0e4, clearance=COAT_CLEARANCE),
     ("draped_coat", "coarse"): DrapeSettings(n_around=36, n_rings=20, steps=150, contact_ke=5.0e4,
                                              clearance=COAT_CLEARANCE),
+    # The hood: a heavier, firmer knit (sweatshirt fleece: 0.3 kg/m^2, ten times the skirt's membrane stiffness and a
+    # hundred times its bending stiffness), so it sags less and folds in rounder rolls; 32 x 24 particles (~1.5 cm
+    # apart), contact found every step and twice the dress's contact stiffness (it rests on the shoulders' slope; at
+    # 5e4 particles came to 1.5 mm off the skin, under the shell), its collider keeping the upper arms
+    # (`collider_faces`: without them a heavy body's hood corners sank 6 mm into the deltoids). The coarse level
+    # keeps 16 rows (with 12 a corner next to the pinned ring fell 12 mm into the shoulder; measured before the ring
+    # was put on the neckline) and the full level's 300 steps
+    # (256 particles; with 150 the hood was still falling).
+    ("draped_hoodie", "full"): DrapeSettings(n_around=32, n_rings=24, collide_every=1, **_HOOD_FABRIC),
+    ("draped_hoodie", "coarse"): DrapeSettings(n_around=16, n_rings=16, collide_every=1, **_HOOD_FABRIC),
 }
 
 
@@ -255,6 +305,8 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     not duplicated: the cloth is one closed tube (u wraps; UVs are per vertex, so the last column's faces reuse u of
     the first, which the texture's period hides)."""
     st = drape_settings(kind) if settings is None else settings
+    if kind == "draped_hoodie":
+        return _hood_pattern(phenotype, st)
     prof = PROFILES[kind]
     if prof.legs:
         return _trouser_pattern(phenotype, st, prof)[:5]
@@ -302,6 +354,81 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     pinned = np.zeros(len(verts), dtype=bool)
     pinned[:na] = True
     return verts, faces.astype(np.int32), np.clip(uvs.reshape(-1, 2), 0, 1).astype(np.float32), pinned, circ
+
+
+def _hood_pattern(phenotype: dict[str, float], st: DrapeSettings, cut: HoodCut = HOOD):
+    """The undraped hood (`HoodCut`), in the A-pose frame `garment_pattern` uses: an open sheet of `st.n_rings` rows
+    of `st.n_around` particles, row 0 the pinned neckline ring. Returns garment_pattern's five values; UVs are metres
+    along the rows (from the middle column) and up the columns (from the neckline) of the hood-up shape, over one
+    scale (`metres_per_uv`: the longest row or column)."""
+    na, nr = int(st.n_around), int(st.n_rings)
+    if na < 4 or nr < 4:
+        raise ValueError(f"drape: draped_hoodie needs n_around >= 4 and n_rings >= 4 in DrapeSettings, got {na} x {nr}")
+    run = run_anny(phenotype)
+    body = run["vertices"]
+    heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
+    feats = body_features(phenotype)
+    gap = st.clearance + 0.002
+    t = np.linspace(0.0, 1.0, nr)[:, None]
+    front = cut.front - cut.widen * _smoothstep_np((t - 0.1) / 0.35)  # (nr, 1): each row's ends, off the front
+    ang = front + np.arange(na)[None, :] / (na - 1) * (2.0 * np.pi - 2.0 * front)  # (nr, na), 0 = -Y towards +X
+    # The ring: on the longsleeve's neckline lowered by `drop` (its level set, cut along the body's edges and placed
+    # on the A-pose body), where rays from the neck's centre leave its convex hull seen from above, then `gap` out
+    # along the skin's normal there.
+    from .garments import garment_level
+
+    level = garment_level("longsleeve", feats) + cut.drop
+    faces_all = body_topology().faces
+    e = _edges(faces_all)
+    e = e[(level[e[:, 0]] < 0) != (level[e[:, 1]] < 0)]
+    k = (level[e[:, 0]] / (level[e[:, 0]] - level[e[:, 1]]))[:, None]
+    neck = (1.0 - k) * body[e[:, 0]] + k * body[e[:, 1]]
+    neck = neck[neck[:, 2] > float(heads["neck01"][2]) - 0.08]  # not the hem or the cuffs
+    if len(neck) < 3:
+        raise ValueError("drape: no neckline under the hood's ring; is the phenotype's body complete?")
+    centre = np.array([heads["neck01"][0], heads["neck01"][1], neck[:, 2].mean()], np.float64)
+    idx, w = hull_anchors(neck, np.arange(len(neck)), centre, ang[0])
+    on_skin = (neck[idx] * w[..., None]).sum(1)
+    _, closest, normal = _closest(body, faces_all, on_skin)
+    ring = closest + gap * normal
+    ring_r = np.linalg.norm(ring[:, :2] - centre[:2], axis=1)
+    head_r = 1.0 / np.sqrt((np.sin(ang) / cut.width) ** 2 + (np.cos(ang) / cut.depth) ** 2)
+    swell = _smoothstep_np(t / 0.4)
+    crown = np.where(t > 0.4, np.sqrt(np.clip(1.0 - ((t - 0.4) / 0.62) ** 2, 0.0, 1.0)), 1.0)
+    rho = ((1.0 - swell) * ring_r[None, :] + swell * head_r) * crown
+    # Hood up, about the neckline ring's centre: (across, back, up); row 0 the ring itself.
+    x, y = rho * np.sin(ang), -rho * np.cos(ang)
+    z = (ring[:, 2] - centre[2])[None, :] + cut.height * t
+    x[0], y[0] = ring[:, 0] - centre[0], ring[:, 1] - centre[1]
+    # Laid back about the line across the back of the ring (y = y_back, z = 0), row by row.
+    y_back = float(y[0].max())
+    g = cut.tilt * _smoothstep_np(t / 0.35)
+    yb = (y - y_back) * np.cos(g) + z * np.sin(g) + y_back
+    zb = -(y - y_back) * np.sin(g) + z * np.cos(g)
+    up = np.stack([x, y, z], -1)  # the hood-up shape: its UVs
+    verts = (np.stack([x, yb, zb], -1) + centre).reshape(-1, 3)
+    # Anything the laid-back shape brings within the gap of the body (the hood's collider: forearms and hands left
+    # out) is put `gap` off it, so the simulation starts clear.
+    cf = collider_faces(phenotype, "draped_hoodie")
+    depth, closest, n = _closest(body, cf, verts)
+    near = depth > -gap
+    near[:na] = False
+    verts[near] = closest[near] + gap * n[near]
+    # `_grid_faces` faces outwards for rows going down; the hood's rows go up (hood up), so its faces are flipped.
+    faces = _grid_faces(np.arange(nr * na).reshape(nr, na), wrap=False)[:, ::-1]
+    along = np.concatenate([np.zeros((nr, 1)), np.cumsum(np.linalg.norm(np.diff(up, axis=1), axis=-1), 1)], 1)
+    along -= along[:, na // 2 - 1:na // 2 + 1].mean(1, keepdims=True)
+    height = np.concatenate([np.zeros((1, na)), np.cumsum(np.linalg.norm(np.diff(up, axis=0), axis=-1), 0)], 0)
+    mpu = float(max(np.ptp(along, axis=1).max(), height.max()))
+    uvs = np.stack([0.5 + along / mpu, height / mpu], -1).reshape(-1, 2)
+    pinned = np.zeros(len(verts), dtype=bool)
+    pinned[:na] = True
+    return verts, faces.astype(np.int32), np.clip(uvs, 0.0, 1.0).astype(np.float32), pinned, mpu
+
+
+def _smoothstep_np(x):
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
 
 
 def _crotch_height(mesh, centre: np.ndarray, z_from: float) -> float:
@@ -531,11 +658,14 @@ def _simulate(verts, faces, pinned, body_v, body_f, st: DrapeSettings) -> np.nda
     return q
 
 
-def collider_faces(phenotype: dict[str, float]) -> np.ndarray:
+def collider_faces(phenotype: dict[str, float], kind: str | None = None) -> np.ndarray:
     """Body faces the cloth collides with and takes its skinning from: all but the arms and hands, which hang beside
-    the hips in the A-pose; cloth bound to a hand would fly up with every reach."""
+    the hips in the A-pose; cloth bound to a hand would fly up with every reach. `kind` "draped_hoodie": the drape's
+    collider keeps the upper arms, on whose deltoids the hood's sides come to rest on a broad body (its skinning
+    still comes from the collider without them)."""
     feats = body_features(phenotype)
-    arm = feats.in_groups("upperarm", "lowerarm", "hand")
+    arm = feats.in_groups("lowerarm", "hand") if kind == "draped_hoodie" else \
+        feats.in_groups("upperarm", "lowerarm", "hand")
     faces = body_topology().faces
     return faces[~arm[faces].any(axis=1)]
 
@@ -633,7 +763,7 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
             raise ValueError(f"{path}: drape cache holds {q.shape} vertices, expected {verts.shape}; delete it")
     if q is None:
         body_v = run_anny(phenotype)["vertices"]
-        q = _simulate(verts, faces, pinned, body_v, collider_faces(phenotype), settings)
+        q = _simulate(verts, faces, pinned, body_v, collider_faces(phenotype, kind), settings)
         if use_cache:
             with atomic_path(path) as tmp:
                 with open(tmp, "wb") as fh:
@@ -698,6 +828,10 @@ def bind_to_skeleton(points: np.ndarray, phenotype: dict[str, float], max_bones:
 LOOSE_REACH = 0.11
 LOOSE_BELOW = 0.05
 LOOSE_FADE = 0.15
+# Kinds whose weights are diffused over the whole cloth but its pinned ring, wherever it hangs: the hood, whose
+# particles lie nearest the neck, the head or the upper back by turns (binding each to its own nearest bone would tear
+# the hood where the head turns); the ring keeps the neckline's weights and the diffusion carries them into the hood.
+LOOSE_EVERYWHERE = ("draped_hoodie",)
 
 
 def _edges(faces: np.ndarray) -> np.ndarray:
@@ -722,7 +856,8 @@ def bind_loose(garment: DrapedGarment, phenotype: dict[str, float], max_bones: i
     neighbours' W - W), a per vertex: 0 on the pinned top ring and from `LOOSE_FADE` - `LOOSE_BELOW` above the
     A-pose hip joints up, rising by a smoothstep to 1 at `LOOSE_BELOW` under them), so the front and back of the
     hem blend both thighs and the pelvis and the forward leg carries the cloth in front of it with its neighbours;
-    `push_out` keeps the legs inside afterwards. Deterministic (fixed-order sparse products).
+    `push_out` keeps the legs inside afterwards. Kinds in LOOSE_EVERYWHERE (the hood) diffuse everywhere but on the
+    pinned ring. Deterministic (fixed-order sparse products).
     `iterations`: default `loose_iterations(garment)`; 0 is `bind_to_skeleton` (the binding of before)."""
     import trimesh
     from scipy.sparse import coo_matrix, diags
@@ -735,6 +870,8 @@ def bind_loose(garment: DrapedGarment, phenotype: dict[str, float], max_bones: i
     z_hip = 0.5 * sum(float(run["bone_poses"][labels.index(b), 2, 3]) for b in ("upperleg01.L", "upperleg01.R"))
     x = np.clip((z_hip + LOOSE_FADE - LOOSE_BELOW - pts[:, 2]) / LOOSE_FADE, 0.0, 1.0)
     rate = x * x * (3.0 - 2.0 * x)  # smoothstep: no kink in the weights where the diffusion starts
+    if garment.kind in LOOSE_EVERYWHERE:
+        rate[:] = 1.0
     rate[np.asarray(garment.pinned, bool)] = 0.0
     e = _edges(garment.faces)
     n = len(pts)
@@ -777,6 +914,8 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
     g = drape_garment(kind, phenotype, settings)
     if g.pieces is not None:
         src, faces, uvs = _pieces_render_mesh(g)
+    elif kind == "draped_hoodie":  # an open sheet cut with its own UVs (the hood-up shape's metres)
+        src, faces, uvs = np.arange(len(g.vertices)), g.faces, g.uvs
     else:
         na, nr = int(settings.n_around), int(settings.n_rings)
         opened = PROFILES[kind].opening > 0  # the coat: an open sheet, no seam column to duplicate

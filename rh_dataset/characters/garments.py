@@ -14,8 +14,8 @@ towards a garment's open edges so a hem closes onto the skin (no visible gap bet
 collars).
 
 In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first
-(the draped coat and dress: two each, a shell over the cloth, "coat" or "bodice", then the draped cloth,
-`garment_parts`).
+(the draped coat and dress: two each, a shell over the cloth, "coat" or "bodice", then the draped cloth; the draped
+hoodie: the shell "hoodie", a longsleeve, and its draped hood; `garment_parts`).
 """
 from __future__ import annotations
 
@@ -48,6 +48,7 @@ BASE_OFFSET = {
     "jacket": 0.017,
     "coat": 0.017,  # the draped coat's shoulders, yoke and sleeves (a jacket's cut down to the chest)
     "bodice": 0.006,  # the draped dress's top: a t-shirt's cut with cap sleeves and a scoop neck, down to the chest
+    "hoodie": 0.006,  # the hoodie's body and sleeves: the longsleeve's shell (its hood is draped: drape.py)
 }
 # The coat's front opening in its shell: a V from the panels' gap (drape.PROFILES["draped_coat"].opening wide at
 # the shell's hem) widening by COAT_LAPEL metres per metre up to the collar, so the coat reads as open from the
@@ -109,6 +110,8 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
     z_hip = 0.5 * (_z(feats, "upperleg01.L") + _z(feats, "upperleg01.R"))
     z_waist = 0.5 * (_z(feats, "root") + _z(feats, "spine04")) + 0.02
     out = np.full(len(v), 1.0)  # vertices no part of the garment applies to: 1 m outside
+    if kind == "hoodie":  # the draped hoodie's shell is the longsleeve's
+        kind = "longsleeve"
     if kind in ("tshirt", "longsleeve", "jacket", "coat", "bodice"):
         # A scoop at the front centre: the neckline drops in front of the neck, not behind it (smoothsteps, so
         # the collar's curve has no corners).
@@ -156,9 +159,10 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
 
 SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe kinds (the coat's shell is a part)
 # Parts a recipe garment is built as, in build order: the draped coat is a shell (shoulders, yoke, sleeves) and the
-# draped panels below it, the dress a shell (its bodice) and the draped skirt below it, both in the garment's fabric
-# (drape.SHELL_KINDS_OVER).
-GARMENT_PARTS = {kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()}
+# draped panels below it, the dress a shell (its bodice) and the draped skirt below it (drape.SHELL_KINDS_OVER), the
+# draped hoodie the longsleeve's shell ("hoodie") and its draped hood; all in the garment's fabric.
+GARMENT_PARTS = {**{kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()},
+                 "draped_hoodie": ("hoodie", "draped_hoodie")}
 
 
 def garment_parts(kind: str) -> tuple[str, ...]:
@@ -593,6 +597,8 @@ def build_garments(
             if g.kind in SHELL_KINDS_OVER:
                 out.append(_shell(SHELL_KINDS_OVER[g.kind], feats, under, topology,
                                   hem=shell_hem(g.kind, phenotype, st)))
+            elif g.kind == "draped_hoodie":
+                out.append(_shell("hoodie", feats, under, topology))
             out.append(draped_part(g.kind, phenotype, feats, under, st))
         else:
             out.append(_shell(g.kind, feats, under, topology))

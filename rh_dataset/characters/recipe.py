@@ -41,10 +41,12 @@ POOLS = ("benchmark", "pretrain")
 # draped_skirt, draped_dress, draped_trousers (wide-leg), draped_coat (open, long): loose garments draped by newton's
 # cloth solver (drape.py). A dress is worn instead of a top and a bottom; the coat is the outermost layer, instead of
 # a jacket, over close-fitting shell bottoms only (UNDER_COAT: its drape collides with the body, not with cloth under
-# it). `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a recipe's choice.
+# it). draped_hoodie: a top, the longsleeve's shell with a hood draped on the upper back, worn without a jacket or coat
+# (its hood collides with the body, not with a jacket). `recipe_from_seed` draws them (recipe_draws.py); the shell
+# `skirt` stays a recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
-                 "draped_trousers", "shoes", "draped_coat")
-TOPS = ("tshirt", "longsleeve")
+                 "draped_trousers", "shoes", "draped_coat", "draped_hoodie")
+TOPS = ("tshirt", "longsleeve", "draped_hoodie")
 BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers")
 DRESSES = ("draped_dress",)
 UNDER_COAT = ("trousers", "shorts")  # the bottoms a draped coat may be worn over
@@ -58,7 +60,7 @@ HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 HEADWEAR_KINDS = ("cap", "brimmed_hat", "headscarf", "glasses")
 # Innermost first: shoes under trouser hems, bottoms under tops (a shirt hangs over the waistband), jacket outside.
 GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_dress", "tshirt",
-                  "longsleeve", "jacket", "draped_coat")
+                  "longsleeve", "draped_hoodie", "jacket", "draped_coat")
 COVERINGS = ("cap", "brimmed_hat", "headscarf")
 
 
@@ -293,6 +295,8 @@ class CharacterRecipe:
         if "draped_coat" in kinds and ("jacket" in kinds or not any(k in UNDER_COAT for k in kinds)):
             raise ValueError(f"garments: a draped_coat is worn instead of a jacket, over one of {UNDER_COAT}, "
                              f"got {kinds}")
+        if "draped_hoodie" in kinds and ("jacket" in kinds or "draped_coat" in kinds):
+            raise ValueError(f"garments: a draped_hoodie is worn without a jacket or draped_coat, got {kinds}")
         layered = sorted(kinds, key=GARMENT_LAYERS.index)
         if kinds != layered:
             raise ValueError(f"garments must be listed innermost first, i.e. {layered}, got {kinds}")

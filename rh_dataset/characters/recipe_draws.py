@@ -20,7 +20,7 @@ from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, PATTERNS, 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
            "iris_colour_name", "iris_weights", "EYES_STREAM", "DRESS_P", "DRESS_STREAM", "WIDE_TROUSERS_P",
-           "WIDE_TROUSERS_STREAM", "COAT_P", "COAT_STREAM"]
+           "WIDE_TROUSERS_STREAM", "COAT_P", "COAT_STREAM", "HOODIE_P", "HOODIE_STREAM", "HOODIE_HAIR"]
 
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 # Loose clothing (issue 17): the published dataset's subjects wear "long hair, loose clothing, jackets, hats, head
@@ -43,6 +43,15 @@ WIDE_TROUSERS_P = (0.35, 0.1)
 # figure. Its own stream (one draw for everyone), the jacket's colours, pattern and fabric: no other draw changes.
 COAT_STREAM = 1719
 COAT_P = 0.5
+# A hoodie (`draped_hoodie`: the longsleeve's shell and a hood draped down the upper back) instead of the drawn
+# longsleeve, for this share of the longsleeve wearers with nothing over it (no jacket, no coat: the hood collides
+# with the body, not with a jacket), hair that stays off the upper back (HOODIE_HAIR: long hair and a ponytail would
+# lie through the hood) and no headscarf (it covers the neck the hood is sewn to). Our choice, not a census figure:
+# a few of the benchmark's subjects. Its own stream (one draw for everyone, made after the headwear), the
+# longsleeve's colours, pattern and fabric: no other draw of any seed changes.
+HOODIE_STREAM = 1720
+HOODIE_P = 0.5
+HOODIE_HAIR = ("buzz", "short", "bob", "bun")
 
 
 def derive_seed(pool: str, index: int, base: int) -> int:
@@ -163,6 +172,7 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     skin, garments = _surface_detail(seed, skin, hair, garments)
     headwear = sample_headwear(np.random.default_rng([int(seed), HEADWEAR_STREAM]), female, phenotype["age"])
     eyes = sample_eyes(np.random.default_rng([int(seed), EYES_STREAM]), skin.melanin)
+    garments = _hoodie(np.random.default_rng([int(seed), HOODIE_STREAM]), garments, hair, headwear)
     return CharacterRecipe(seed=int(seed), pool=pool, index=int(index), phenotype=phenotype, skin=skin, hair=hair,
                            garments=garments, headwear=headwear, eyes=eyes)
 
@@ -198,6 +208,19 @@ def _coat(rng: np.random.Generator, garments: tuple[Garment, ...]) -> tuple[Garm
     return tuple(dataclasses.replace(g, kind="draped_coat") if g.kind == "jacket" else g for g in garments)
 
 
+def _hoodie(rng: np.random.Generator, garments: tuple[Garment, ...], hair: HairSpec,
+            headwear: tuple[Headwear, ...]) -> tuple[Garment, ...]:
+    """The drawn longsleeve made a draped hoodie with probability HOODIE_P where nothing is worn over it, the hair is
+    one of HOODIE_HAIR and there is no headscarf (rng: the hoodie's stream; one draw for everyone, so the stream's
+    use is fixed)."""
+    hoodie = rng.random() < HOODIE_P
+    kinds = {g.kind for g in garments}
+    if not (hoodie and "longsleeve" in kinds and not kinds & {"jacket", "draped_coat"} and hair.style in HOODIE_HAIR
+            and not any(h.kind == "headscarf" for h in headwear)):
+        return garments
+    return tuple(dataclasses.replace(g, kind="draped_hoodie") if g.kind == "longsleeve" else g for g in garments)
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Skin and cloth detail (issue 17, part 4): drawn from their own stream after everything else, so the draws above
 # (and any later field's own stream) are untouched by it.
@@ -209,6 +232,7 @@ _FABRIC_CHOICES = {
     "longsleeve": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),
     "jacket": (("plain", "knit", "velvet"), (0.75, 0.15, 0.10)),
     "draped_coat": (("plain", "knit", "velvet"), (0.75, 0.15, 0.10)),  # the jacket's (the drawn fabric stays)
+    "draped_hoodie": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),  # the longsleeve's
     "trousers": (("plain", "velvet"), (0.92, 0.08)),  # denim / twill; velvet stands for corduroy and velour
     "draped_trousers": (("plain", "velvet"), (0.92, 0.08)),  # the trousers' (so a drawn fabric stays the same)
     "skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
