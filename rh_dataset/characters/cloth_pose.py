@@ -43,6 +43,7 @@ CLOTH_MODES = ("skinned", "simulated")
 # left out because the simulation loses the legs: bench/bench_cloth_pose.py --kind draped_trousers (3 December) had
 # a sitting and a bending thigh pass out through the leg tubes (65 mm deep in the body before push_out), which then
 # hang straight down beside the raised legs (docs/cloth_pose_trousers.png); skinned, the tubes follow the thighs.
+# The hoodie's hood is left out too until it is measured (it came after that run; `--simulate-all` measures it).
 SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_coat")
 
 
