@@ -230,3 +230,18 @@ def test_character_wears_the_draped_skirt_in_every_pose(tmp_path, monkeypatch, k
         run = run_anny(PHENO, dict(pose.bones))
         v = run["vertices"] @ pose.root_transform[:3, :3].T + pose.root_transform[:3, 3]
         assert penetration(v, faces, skirt.vertices).max() < POSED_BOUND_M, pose.label
+
+
+def test_drape_cache_key_covers_the_patterns_triangles_and_pins():
+    """A pattern whose points stay but whose triangles or pins change (the hood's faces were once flipped that way)
+    must not read back a drape cached for the old one; the same pattern gives the same key."""
+    from rh_dataset.characters.drape import _cache_key
+
+    st = drape_settings("draped_skirt", "coarse")
+    verts, faces, _, pinned, _ = garment_pattern("draped_skirt", PHENO, st)
+    key = _cache_key("draped_skirt", PHENO, st, verts, faces, pinned)
+    assert key == _cache_key("draped_skirt", PHENO, st, verts.copy(), faces.copy(), pinned.copy())
+    assert key != _cache_key("draped_skirt", PHENO, st, verts, faces[:, ::-1], pinned)
+    moved = pinned.copy()
+    moved[len(verts) // 2] = True
+    assert key != _cache_key("draped_skirt", PHENO, st, verts, faces, moved)

@@ -728,15 +728,19 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
 PUSH_REACH = 0.2  # metres: deeper than any point of the body lies under its skin
 
 
-def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, pattern: np.ndarray) -> str:
+def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, pattern: np.ndarray, faces: np.ndarray,
+               pinned: np.ndarray) -> str:
     import newton
     import warp as wp
 
     key = {"v": DRAPE_VERSION, "kind": kind, "phenotype": {k: float(phenotype[k]) for k in PHENOTYPE_LABELS},
            "settings": dataclasses.asdict(st), "newton": newton.__version__, "warp": wp.__version__,
            "topology": ANNY_TOPOLOGY,
-           # The pattern itself: a change to how it is cut cannot read back a drape of the old cut.
-           "pattern": hashlib.sha256(np.ascontiguousarray(pattern, np.float64).tobytes()).hexdigest()}
+           # The pattern itself, points, triangles and pins: a change to how it is cut or sewn (the same points
+           # joined otherwise, as the hood's flipped faces were) cannot read back a drape of the old one.
+           "pattern": hashlib.sha256(np.ascontiguousarray(pattern, np.float64).tobytes()
+                                     + np.ascontiguousarray(faces, np.int64).tobytes()
+                                     + np.ascontiguousarray(pinned, np.bool_).tobytes()).hexdigest()}
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:24]
 
 
@@ -751,7 +755,7 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
         pieces = tuple(pieces)
     else:
         verts, faces, uvs, pinned, mpu = garment_pattern(kind, phenotype, settings)
-    path = drape_cache_dir() / f"{kind}-{_cache_key(kind, phenotype, settings, verts)}.npz"
+    path = drape_cache_dir() / f"{kind}-{_cache_key(kind, phenotype, settings, verts, faces, pinned)}.npz"
     q = None
     if use_cache and path.is_file():
         try:
