@@ -10,6 +10,7 @@ from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
 from rh_dataset.characters.drape import (DRAPED_KINDS, PROFILES, PUSH_CLEARANCE, bind_loose, bind_to_skeleton,
                                          collider_faces, drape_garment, drape_settings, garment_pattern, penetration,
                                          push_out, skin_points)
+from rh_dataset.characters.geometry import edge_counts
 
 PHENO = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5, "proportions": 0.5}
 # Worst cloth-vertex depth under the skin (metres) allowed. newton keeps the particles `clearance` (4 mm) off the
@@ -42,8 +43,7 @@ def test_pattern_is_an_outward_tube_outside_the_body(kind):
     st = drape_settings(kind)
     assert verts.shape == (st.n_around * st.n_rings, 3) and pinned.sum() == st.n_around
     # Every interior edge is shared by two faces, the two boundary rings' edges by one: an open tube.
-    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(e, axis=0, return_counts=True)
+    _, counts = edge_counts(faces)
     assert set(counts.tolist()) == {1, 2} and (counts == 1).sum() == 2 * st.n_around
     # Faces point away from the body's vertical axis.
     tri = verts[faces]

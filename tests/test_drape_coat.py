@@ -13,6 +13,7 @@ import pytest
 from rh_dataset.characters.body import body_topology, run_anny
 from rh_dataset.characters.drape import (SHELL_OVERLAP, DRAPE_LEVELS, PROFILES, drape_garment, shell_hem,
                                          drape_settings, garment_pattern, penetration, push_clearance)
+from rh_dataset.characters.geometry import edge_counts
 
 KIND = "draped_coat"
 PHENO = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5, "proportions": 0.5}
@@ -33,8 +34,7 @@ def test_coat_pattern_is_open_at_the_front_and_pinned_under_the_arms(pheno, leve
     assert verts.shape == (na * nr, 3) and np.array_equal(np.flatnonzero(pinned), np.arange(na))
     # An open sheet: the boundary is the top and hem rows (na - 1 edges each) and the two front edges (nr - 1 each);
     # no face joins the last column to the first.
-    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    edges, counts = np.unique(e, axis=0, return_counts=True)
+    edges, counts = edge_counts(faces)
     assert set(counts.tolist()) == {1, 2} and (counts == 1).sum() == 2 * (na - 1) + 2 * (nr - 1)
     col = edges % na
     assert not ((col[:, 0] == 0) & (col[:, 1] == na - 1)).any()

@@ -13,6 +13,7 @@ import pytest
 from rh_dataset.characters.body import body_topology, run_anny
 from rh_dataset.characters.drape import (DRAPE_LEVELS, HOOD, HOOD_CLEARANCE, drape_garment, drape_settings,
                                          garment_pattern, penetration, push_clearance)
+from rh_dataset.characters.geometry import edge_counts
 
 KIND = "draped_hoodie"
 PHENO = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5, "proportions": 0.5}
@@ -33,7 +34,7 @@ def _neckline(ph) -> np.ndarray:
     feats = body_features(ph)
     level = garment_level("longsleeve", feats)
     f = body_topology().faces
-    e = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    e = edge_counts(f)[0]
     a, b = level[e[:, 0]], level[e[:, 1]]
     cut = e[(a < 0) != (b < 0)]
     t = (level[cut[:, 0]] / (level[cut[:, 0]] - level[cut[:, 1]]))[:, None]
@@ -50,8 +51,7 @@ def test_hood_pattern_is_a_bag_pinned_on_the_back_of_the_neckline_outside_the_bo
     verts, faces, uvs, pinned, mpu = garment_pattern(KIND, pheno, st)
     assert verts.shape == (na * nr, 3) and np.array_equal(np.flatnonzero(pinned), np.arange(na))
     # An open sheet: its free edge is the neckline row, the crown row and the two front columns (the face opening).
-    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    edges, counts = np.unique(e, axis=0, return_counts=True)
+    edges, counts = edge_counts(faces)
     assert set(counts.tolist()) == {1, 2} and (counts == 1).sum() == 2 * (na - 1) + 2 * (nr - 1)
     # The pinned ring: round the back half of the neck from one side to the other (its ends beside the neck's centre,
     # its middle behind it), every point within 3.5 cm of the longsleeve's neckline (the hood is sewn to the top's

@@ -12,6 +12,7 @@ from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
 from rh_dataset.characters.cloth_pose import self_crossings
 from rh_dataset.characters.drape import (DRAPE_LEVELS, PROFILES, bind_loose, drape_garment, drape_settings,
                                          garment_pattern, penetration, push_out, skin_points)
+from rh_dataset.characters.geometry import edge_counts
 
 KIND = "draped_trousers"
 PHENO = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5, "proportions": 0.5}
@@ -28,11 +29,6 @@ SEATED_BOUND_M = 0.003
 REST_CROSSINGS = 10
 
 
-def _edges(faces):
-    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    return np.unique(e, axis=0, return_counts=True)
-
-
 @pytest.mark.parametrize("level", DRAPE_LEVELS)
 @pytest.mark.parametrize("pheno", [PHENO, HEAVY], ids=["slim", "heavy"])
 def test_pattern_is_a_pair_of_trousers_outside_the_body(pheno, level):
@@ -43,7 +39,7 @@ def test_pattern_is_a_pair_of_trousers_outside_the_body(pheno, level):
     waist, left, right = pieces
     # Pants topology: every edge shared by two faces but the three open rims' (waistband, two hems); Euler
     # characteristic 2 - 3 boundaries = -1; the legs' first rings share the split ring's halves and the seam.
-    _, counts = _edges(faces)
+    _, counts = edge_counts(faces)
     assert set(counts.tolist()) == {1, 2}
     assert (counts == 1).sum() == waist.shape[1] + left.shape[1] + right.shape[1]
     assert len(verts) - len(counts) + len(faces) == -1

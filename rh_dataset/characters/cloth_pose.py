@@ -34,6 +34,7 @@ import numpy as np
 from .body import body_topology, run_anny, vertex_normals
 from .drape import (DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, cloth_model,
                     cloth_solver, collider_faces, drape_garment, push_clearance, push_out, skin_points)
+from .geometry import edge_counts
 
 __all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "ClothPoseSettings", "BodyMotion", "body_motion", "simulate_into_pose", "skin_into_pose",
            "simulated_parts", "self_crossings", "hem_split", "layer_depth"]
@@ -317,7 +318,7 @@ def self_crossings(vertices: np.ndarray, faces: np.ndarray) -> int:
 
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces)
-    e = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    e = edge_counts(f)[0]
     origin = v[e[:, 0]]
     d = v[e[:, 1]] - origin
     length = np.linalg.norm(d, axis=1)
@@ -364,8 +365,7 @@ def layer_depth(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, nea
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces)
     depth, closest, _ = _closest(v, f, points)
-    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    edges, counts = np.unique(e, axis=0, return_counts=True)
+    edges, counts = edge_counts(f)
     rim = edges[counts == 1]
     on_rim = np.zeros(len(closest), bool)
     if len(rim):

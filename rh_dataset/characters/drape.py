@@ -36,7 +36,7 @@ from rh_common.imageio import atomic_path
 
 from .body import PHENOTYPE_LABELS, body_topology, run_anny
 from .body_features import body_features
-from .geometry import hull_anchors
+from .geometry import edge_counts, hull_anchors
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
@@ -840,8 +840,7 @@ LOOSE_EVERYWHERE = ("draped_hoodie",)
 
 def _edges(faces: np.ndarray) -> np.ndarray:
     """The unique edges (E, 2) int64 of a triangle mesh, each (low, high)."""
-    f = np.asarray(faces, np.int64)
-    return np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    return edge_counts(faces)[0]
 
 
 def loose_iterations(garment: DrapedGarment) -> int:

@@ -26,6 +26,7 @@ from .body import body_topology
 from .body_features import BodyFeatures
 
 __all__ = [
+    "edge_counts",
     "SplitMesh",
     "split_faces",
     "boundary_distance",
@@ -147,6 +148,14 @@ def split_faces(face_ids: np.ndarray, topology: str = ANNY_TOPOLOGY, level: np.n
     )
 
 
+def edge_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The unique edges (E, 2) int64 of a triangle mesh, each (low, high), and how many faces share each: 1 on an
+    open edge (a hem, a cut), 2 inside a manifold surface."""
+    f = np.asarray(faces, np.int64)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    return np.unique(e, axis=0, return_counts=True)
+
+
 def boundary_distance(split: SplitMesh, vertices: np.ndarray) -> np.ndarray:
     """Distance along the surface (shortest path over the mesh's edges, UV-seam copies welded) from each split
     vertex to the mesh's open boundary, on the body surface given by `vertices`; cut vertices of a level-set cut
@@ -157,8 +166,7 @@ def boundary_distance(split: SplitMesh, vertices: np.ndarray) -> np.ndarray:
     pos = np.zeros((n, 3))
     pos[weld] = split.points(vertices)
     f = weld[split.faces]
-    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    uniq, counts = np.unique(e, axis=0, return_counts=True)
+    uniq, counts = edge_counts(f)
     boundary = np.unique(uniq[counts == 1].ravel())
     if len(boundary) == 0:
         return np.ones(len(weld))
