@@ -6,6 +6,7 @@ optionally a draft render.
     python bench/bench_cloth.py --kind draped_trousers            # the wide trousers (~8 min: two full drapes)
     python bench/bench_cloth.py --kind draped_coat                # the open coat, and how deep it sinks into the
                                                                   # layers under it and its shell into it
+    python bench/bench_cloth.py --kind draped_jacket              # the open jacket, the same measures
     python bench/bench_cloth.py --image docs/draped_skirt.png   # also 256 px drafts: rest front | side | a walk
 
 Figures: drape wall seconds (uncached, Warp kernels already compiled; the first run ever adds their compilation,
@@ -16,7 +17,8 @@ cloth vertices into the posed body (metres, > 0 inside): the worst over all vert
 share of vertices inside, per pose label; and how many of the drape's edges pass through the cloth itself
 (`cloth_pose.self_crossings`), with and without the drape's self-contact. The load average is printed with the times.
 The skinned cloth is pushed out to its kind's clearance (`drape.push_clearance`: the coat's is larger). For the coat
-(the outermost layer), per pose also: the character's posed garments (`pose_character`, skinned), the worst depth of
+and the open jacket (the outermost layer, panels under the shell "coat"), per pose also: the character's posed
+garments (`pose_character`, skinned), the worst depth of
 a panel vertex under any garment under it (`cloth_pose.layer_depth`, vertices within 2 cm of that garment; sleeves
 apart, where a forearm on the lap presses through the panel), and how
 many vertices of its shell below the panels' pinned ring lie outside the panels (the shell poking through them).
@@ -60,16 +62,17 @@ def coat_overlap(ch, z_ring: float) -> np.ndarray:
     return torso & (rest[:, 2] < z_ring) & ((np.abs(rest[:, 0]) > 0.04) | (rest[:, 1] > 0.0))
 
 
-def coat_layers(recipe, poses, g, level: str = "full") -> tuple[float, int]:
-    """The coat against the layers under it and its own shell, in the rest pose and each pose (module docstring);
-    `g`: its drape at `level`. Returns (worst panel depth under a layer below (m), shell vertices through the
-    panels over all poses)."""
+def coat_layers(recipe, poses, g, level: str = "full", kind: str = "draped_coat"
+                ) -> tuple[float, int]:
+    """The coat (or the open jacket: `kind`) against the layers under it and its own shell, in the rest pose and each
+    pose (module docstring); `g`: its drape at `level`. Returns (worst panel depth under a layer below (m), shell
+    vertices through the panels over all poses)."""
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.cloth_pose import layer_depth
 
     ch = build_character(recipe, 64, drape=level)
-    inner = [gm.kind for gm in recipe.garments if gm.kind != "draped_coat"]
+    inner = [gm.kind for gm in recipe.garments if gm.kind != kind]
     z_ring = float(g.vertices[g.pinned, 2].mean())
     # The shell's trunk vertices under the ring in the rest pose (its overlap; not the sleeves, and not within 4 cm
     # of the front's middle, where the panels are open and the closest panel point is an edge), followed into each
@@ -82,7 +85,7 @@ def coat_layers(recipe, poses, g, level: str = "full") -> tuple[float, int]:
     worst, poked = -np.inf, 0
     for label, bones in [("rest", {})] + [(p.label, dict(p.bones)) for p in poses]:
         posed = {m.name: m for m in pose_character(ch, bones)}
-        panel = posed["draped_coat"].vertices.astype(np.float64)
+        panel = posed[kind].vertices.astype(np.float64)
         under, count = {}, {}
         for k in inner:
             for name, sel in ((k, ~on_arm[k]), (f"{k} sleeves", on_arm[k])):
@@ -90,7 +93,7 @@ def coat_layers(recipe, poses, g, level: str = "full") -> tuple[float, int]:
                     d = layer_depth(panel, posed[k].vertices, posed[k].faces[sel])
                     under[name] = float(np.nanmax(d)) if np.isfinite(d).any() else -np.inf
                     count[name] = int((np.nan_to_num(d, nan=-1.0) > 0.001).sum())
-        d = layer_depth(posed["coat"].vertices[low].astype(np.float64), panel, posed["draped_coat"].faces)
+        d = layer_depth(posed["coat"].vertices[low].astype(np.float64), panel, posed[kind].faces)
         out = int((d < 0).sum())
         worst = max(worst, max(v for k, v in under.items() if not k.endswith("sleeves")))
         poked += out
@@ -116,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body import body_topology, run_anny
     from rh_dataset.characters.drape import (bind_loose, drape_garment, drape_settings, penetration,
-                                             push_clearance, push_out, skin_points)
+                                             push_clearance, push_out, skin_points, SHELL_KINDS_OVER)
     from rh_dataset.poses import sample_poses
 
     kind = args.kind
@@ -159,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.recipe import Garment
 
-    shell_kind = {"draped_trousers": "trousers", "draped_coat": "jacket"}.get(kind, "skirt")
+    shell_kind = {"draped_trousers": "trousers", "draped_coat": "jacket", "draped_jacket": "jacket"}.get(kind, "skirt")
     shell = build_garments((Garment(shell_kind, (0.5, 0.5, 0.5)),), body_features(ph))[0]
     from rh_dataset.characters.body import vertex_normals
 
@@ -189,8 +192,8 @@ def main(argv: list[str] | None = None) -> int:
           f"with push_out {1e3 * worst:.2f} mm")
     print(f"per frame: skinned drape + push_out {1e3 * np.median(skin_t):.2f} ms, shell {shell_kind} anchors "
           f"{1e3 * np.median(shell_t):.2f} ms (medians, body normals excluded from both; load {load()})")
-    if kind == "draped_coat":
-        coat_layers(recipe, poses, g)
+    if SHELL_KINDS_OVER.get(kind) == "coat":  # the coat, the open jacket: panels under the shell "coat"
+        coat_layers(recipe, poses, g, kind=kind)
 
     if args.image is not None:
         import pyoidn

@@ -1,6 +1,6 @@
-"""Benchmark subjects in loose garments: the first draped-dress, draped-skirt, draped-trousers, draped-coat and
-draped-hoodie wearers among a dataset seed's subjects, draped at a drape level, rendered rest front | rest side | a
-posed frame front | side (`--turns`: other views, e.g. from the back),
+"""Benchmark subjects in loose garments: the first draped-dress, draped-skirt, draped-trousers, draped-coat,
+draped-hoodie and draped-jacket wearers among a dataset seed's subjects (or the subjects named), draped at a drape
+level, rendered rest front | rest side | a posed frame front | side (`--turns`: other views, e.g. from the back),
 with the drape's seconds and how deep any cloth vertex sits in the body in each view.
 
     python bench/draped_garments.py --out docs/draped_garments.png           # 2 dresses + 2 skirts, full drape
@@ -10,15 +10,17 @@ with the drape's seconds and how deep any cloth vertex sits in the body in each 
     python bench/draped_garments.py --dresses 0 --skirts 0 --coats 2 --tile 512 --out docs/draped_coat.png
     python bench/draped_garments.py --dresses 0 --skirts 0 --hoodies 1 --turns 180,135 --tile 512 \
         --out docs/draped_hoodie.png                                      # the hood, from the back and back-left
+    python bench/draped_garments.py --subjects 7,48 --tile 512 --out docs/draped_jacket.png  # two open jackets
 
 In: the dataset seed (the generator's subject order: `sample_recipe(rng_for(seed, "character", s))`), how many
-subjects of each kind, the drape level (`drape.DRAPE_LEVELS`). Out: a PNG sheet (a row per subject, 256 px tiles,
-Open Image Denoise on 32 spp: a look, not a dataset frame) and, printed, per subject: its index, garments, drape
-wall seconds (0 when the drape cache already held it), the cloth's depth under the skin (mm, > 0 inside: worst
-vertex and 99th percentile) at rest and posed, the cloth's self-crossing edges (`cloth_pose.self_crossings`) at
-rest and posed, and the load average. The posed frame is skinned (the draft and standard presets' cloth mode).
-`--swap-trousers`: subjects whose recipe draws the shell `trousers` count as trousers wearers, in `draped_trousers`
-of the same colours (their recipes otherwise unmodified), for a seed whose recipes do not draw the draped kind.
+subjects of each kind (or `--subjects`: these indices, whatever they wear), the drape level (`drape.DRAPE_LEVELS`).
+Out: a PNG sheet (a row per subject, 256 px tiles, Open Image Denoise on 32 spp: a look, not a dataset frame)
+and, printed, per subject: its index, garments, drape wall seconds (0 when the drape cache already held it), the
+cloth's depth under the skin (mm, > 0 inside: worst vertex and 99th percentile) at rest and posed, the cloth's
+self-crossing edges (`cloth_pose.self_crossings`) at rest and posed, and the load average. The posed frame is
+skinned (the draft and standard presets' cloth mode). `--swap-trousers`: subjects whose recipe draws the shell
+`trousers` count as trousers wearers, in `draped_trousers` of the same colours (their recipes otherwise unmodified),
+for a seed whose recipes do not draw the draped kind.
 """
 from __future__ import annotations
 
@@ -33,17 +35,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200, trousers: int = 0,
-                   swap_trousers: bool = False, coats: int = 0, hoodies: int = 0) -> list[tuple[int, object]]:
+                   swap_trousers: bool = False, coats: int = 0, hoodies: int = 0, jackets: int = 0,
+                   subjects: tuple[int, ...] = ()) -> list[tuple[int, object]]:
     """(subject index, recipe) of the first `dresses` draped-dress, `skirts` draped-skirt, `trousers`
-    draped-trousers, `coats` draped-coat and `hoodies` draped-hoodie wearers of `seed` (`swap_trousers`:
-    shell-trousers wearers put in draped ones)."""
+    draped-trousers, `coats` draped-coat, `hoodies` draped-hoodie and `jackets` draped-jacket wearers of `seed`
+    (`swap_trousers`: shell-trousers wearers put in draped ones), or of the `subjects` given by index."""
     import dataclasses
 
     from rh_dataset.characters import sample_recipe
     from rh_dataset.generate.seeding import rng_for
 
     want = {"draped_dress": dresses, "draped_skirt": skirts, "draped_trousers": trousers, "draped_coat": coats,
-            "draped_hoodie": hoodies}
+            "draped_hoodie": hoodies, "draped_jacket": jackets}
+    if subjects:
+        return [(s, sample_recipe(rng_for(seed, "character", s), pool="benchmark", index=s)) for s in subjects]
     out = []
     for s in range(limit):
         r = sample_recipe(rng_for(seed, "character", s), pool="benchmark", index=s)
@@ -67,6 +72,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--trousers", type=int, default=0)
     ap.add_argument("--coats", type=int, default=0)
     ap.add_argument("--hoodies", type=int, default=0)
+    ap.add_argument("--jackets", type=int, default=0)
+    ap.add_argument("--subjects", default="", help="comma-separated subject indices to show instead of a search")
     ap.add_argument("--turns", default="0,90",
                     help="the two views, degrees about +Z (0: from the front, 90: its left, 180: from the back)")
     ap.add_argument("--swap-trousers", action="store_true",
@@ -97,7 +104,9 @@ def main(argv: list[str] | None = None) -> int:
     pose = next(p for p in sample_poses(np.random.default_rng(7), load_anny(), 8) if p.label == "walk")
     rows = []
     for s, recipe in loose_subjects(args.seed, args.dresses, args.skirts, trousers=args.trousers,
-                                    swap_trousers=args.swap_trousers, coats=args.coats, hoodies=args.hoodies):
+                                    swap_trousers=args.swap_trousers, coats=args.coats, hoodies=args.hoodies,
+                                    jackets=args.jackets,
+                                    subjects=tuple(int(x) for x in args.subjects.split(",") if x)):
         t = time.perf_counter()
         character = build_character(recipe, 512, drape=args.drape)
         t_build = time.perf_counter() - t

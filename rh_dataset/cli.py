@@ -74,10 +74,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "the frame JSON records it under render.cloth (docs/TRADEOFFS.md, 'Skinned or simulated "
                         "cloth')")
     p.add_argument("--drape", default=None,
-                   help="how finely loose garments (draped skirts, dresses, wide trousers, coats, hoods) are simulated "
-                        "onto each subject's body (overrides the preset): 'full' (the benchmark's, 1-3 min a "
-                        "subject on 2 cores, cached) or 'coarse' (the draft preset's, ~1/8 of that); recorded under "
-                        "render.drape")
+                   help="how finely loose garments (draped skirts, dresses, wide trousers, coats, open jackets, "
+                        "hoods) are simulated onto each subject's body (overrides the preset): 'full' (the "
+                        "benchmark's, 1-3 min a subject on 2 cores, cached) or 'coarse' (the draft preset's, ~1/8 of "
+                        "that); recorded under render.drape")
     p.add_argument("--seed", type=int, default=0, help="dataset seed: characters, poses, lights and sampler seeds")
     p.add_argument("--variant", default=None, choices=["llvm_ad_rgb", "cuda_ad_rgb", "scalar_rgb"],
                    help="Mitsuba variant (default: cuda_ad_rgb if a GPU works, else llvm_ad_rgb)")

@@ -25,12 +25,13 @@ def _heads(ph) -> dict[str, np.ndarray]:
     return {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
 
 
-@pytest.mark.parametrize("level", DRAPE_LEVELS)
-@pytest.mark.parametrize("pheno", [PHENO, HEAVY], ids=["slim", "heavy"])
-def test_coat_pattern_is_open_at_the_front_and_pinned_under_the_arms(pheno, level):
-    st = drape_settings(KIND, level)
+def check_open_front_pattern(kind: str, pheno: dict[str, float], level: str) -> np.ndarray:
+    """The pattern checks the coat and the open jacket (tests/test_drape_jacket.py) share: an open sheet, nothing in
+    the front sector the opening subtends, faces outward, the ring pinned under the arms, every particle clear of the
+    body, the shell's hem SHELL_OVERLAP under the ring, push_out's clearance. Returns the pattern's vertices."""
+    st = drape_settings(kind, level)
     na, nr = st.n_around, st.n_rings
-    verts, faces, uvs, pinned, circ = garment_pattern(KIND, pheno, st)
+    verts, faces, uvs, pinned, circ = garment_pattern(kind, pheno, st)
     assert verts.shape == (na * nr, 3) and np.array_equal(np.flatnonzero(pinned), np.arange(na))
     # An open sheet: the boundary is the top and hem rows (na - 1 edges each) and the two front edges (nr - 1 each);
     # no face joins the last column to the first.
@@ -43,10 +44,10 @@ def test_coat_pattern_is_open_at_the_front_and_pinned_under_the_arms(pheno, leve
     centre = _heads(pheno)["root"]
     ang = np.arctan2(verts[:, 0] - centre[0], -(verts[:, 1] - centre[1]))
     ring = verts[:na]
-    half = 0.5 * PROFILES[KIND].opening / np.hypot(*(ring[0, :2] - centre[:2]))
+    half = 0.5 * PROFILES[kind].opening / np.hypot(*(ring[0, :2] - centre[:2]))
     assert np.abs(ang).min() >= half - 1e-9
     gap = np.linalg.norm(ring[0] - ring[-1])
-    assert 0.8 * PROFILES[KIND].opening < gap < 1.05 * PROFILES[KIND].opening
+    assert 0.8 * PROFILES[kind].opening < gap < 1.05 * PROFILES[kind].opening
     # Faces point away from the body's vertical axis.
     tri = verts[faces]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -54,23 +55,31 @@ def test_coat_pattern_is_open_at_the_front_and_pinned_under_the_arms(pheno, leve
     radial[:, 2] = 0.0
     assert ((n * radial).sum(1) > 0).all()
     # Pinned under the arms (between spine03 and spine01), every particle clear of the whole body (arms too) by
-    # more than half the coat's clearance; the cut ends below the hips and above the floor.
+    # more than half the cloth's clearance, the cut ending above the floor.
     heads = _heads(pheno)
     body = run_anny(pheno)["vertices"]
     assert heads["spine03"][2] <= ring[0, 2] < heads["spine01"][2] and np.ptp(ring[:, 2]) < 1e-9
     assert penetration(body, body_topology().faces, verts).max() < -0.5 * st.clearance
-    assert heads["lowerleg01.L"][2] - 0.15 < verts[-1, 2] < heads["upperleg01.L"][2]
     assert verts[:, 2].min() > body[:, 2].min()
     assert uvs.min() >= 0.0 and uvs.max() <= 1.0 and circ > 0.5
     # The shell's hem (bind space) is SHELL_OVERLAP under the ring: bind space is the A-pose raised by spine02's offset.
     from rh_dataset.characters.body_features import body_features
 
     shift = body_features(pheno).bone_heads["spine02"][2] - heads["spine02"][2]
-    assert shell_hem("draped_coat", pheno, st) == pytest.approx(ring[0, 2] + shift - SHELL_OVERLAP, abs=1e-9)
+    assert shell_hem(kind, pheno, st) == pytest.approx(ring[0, 2] + shift - SHELL_OVERLAP, abs=1e-9)
     # push_out keeps the skinned panels a little nearer than the drape's particle radius (the rest drape is left as it
-    # settled), and farther off the skin than the other kinds (the layers under the coat).
-    assert st.clearance - 0.003 <= push_clearance(KIND) < st.clearance and push_clearance(KIND) > push_clearance(
+    # settled), and farther off the skin than the other kinds (the layers under it).
+    assert st.clearance - 0.003 <= push_clearance(kind) < st.clearance and push_clearance(kind) > push_clearance(
         "draped_skirt")
+    return verts
+
+
+@pytest.mark.parametrize("level", DRAPE_LEVELS)
+@pytest.mark.parametrize("pheno", [PHENO, HEAVY], ids=["slim", "heavy"])
+def test_coat_pattern_is_open_at_the_front_and_pinned_under_the_arms(pheno, level):
+    verts = check_open_front_pattern(KIND, pheno, level)
+    heads = _heads(pheno)
+    assert heads["lowerleg01.L"][2] - 0.15 < verts[-1, 2] < heads["upperleg01.L"][2]  # below the hips, to the knee
 
 
 def test_coat_shell_is_a_jacket_cut_at_the_chest_with_an_open_front():
@@ -117,6 +126,8 @@ def test_benchmark_recipes_draw_coats_from_their_own_stream(monkeypatch):
     from rh_dataset.characters.recipe import UNDER_COAT, CharacterRecipe, Garment
     from rh_dataset.characters.recipe_draws import COAT_P, recipe_from_seed
 
+    # The coat's draw alone: the open jacket's draw after it takes the jackets it leaves (tests/test_drape_jacket.py).
+    monkeypatch.setattr(recipe_draws, "JACKET_P", 0.0)
     rs = [recipe_from_seed(2 * i, "benchmark", i) for i in range(1000)]
     monkeypatch.setattr(recipe_draws, "COAT_P", 0.0)
     plain = [recipe_from_seed(2 * i, "benchmark", i) for i in range(1000)]
@@ -171,14 +182,19 @@ REST_CROSSINGS = 2
 HEM_BELOW_KNEE_M = (0.02, 0.3)
 
 
-@pytest.mark.slow
-def test_coat_drape_is_bit_identical_hangs_and_stays_outside_the_body_and_the_layers(tmp_path, monkeypatch):
-    """Coarse twice (simulated, then simulated and cached, then read back): the same bits. The full drape: every
-    particle REST_OFF_M off the body at rest, the ring where it was pinned, the hem settled below the knee, at most
-    REST_CROSSINGS crossing edges. A character wearing it over trousers and a t-shirt, skinned into sampled poses:
-    the panels outside the body, at most LAYER_MAX_UNDER of their vertices more than 1 mm under
-    the trousers or the t-shirt's trunk (none deeper than LAYER_BOUND_M), and the shell's lower edge inside the
-    panels at rest."""
+def drape_measures(kind: str, pheno: dict[str, float]) -> dict:
+    """What the slow tests of the coat and the open jacket bound, measured with the drape cache wherever the caller
+    points RH_DRAPE_CACHE: `same_bits` (the coarse drape simulated, simulated and cached, read back: one set of
+    bits and one cache file); of the full drape, `rest_depth` (deepest particle, m, < 0 outside the body),
+    `crossings` (self-crossing edges), `ring_moved` (how far the pinned ring moved), `hem` (mean height of the last
+    ring) and the body's `heads`; a character wearing it over trousers and a t-shirt: `shell_out` (depth under the
+    panels of the shell's trunk vertices under the pinned ring, but for the open front's edges; NaN where not over
+    it), `n_low` (their number); skinned into 6 sampled poses (rng 7): `worst` {(k, label): deepest panel vertex in
+    the body}, `under` {(k, label): (deepest under the trousers or the t-shirt's trunk, vertices more than 1 mm
+    under)}."""
+    import os
+    from pathlib import Path
+
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body_features import body_features
@@ -187,32 +203,31 @@ def test_coat_drape_is_bit_identical_hangs_and_stays_outside_the_body_and_the_la
     from rh_dataset.characters.recipe_draws import recipe_from_seed
     from rh_dataset.poses import sample_poses
 
-    monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
-    st = drape_settings(KIND, "coarse")
-    g1 = drape_garment(KIND, PHENO, st, use_cache=False)
-    g2 = drape_garment(KIND, PHENO, st)
-    g3 = drape_garment(KIND, PHENO, st)
-    assert g1.vertices.tobytes() == g2.vertices.tobytes() == g3.vertices.tobytes()
-    assert len(list(tmp_path.glob(f"{KIND}-*.npz"))) == 1
-    g = drape_garment(KIND, PHENO)
-    rest = run_anny(PHENO)
+    out = {}
+    st = drape_settings(kind, "coarse")
+    g1 = drape_garment(kind, pheno, st, use_cache=False)
+    g2 = drape_garment(kind, pheno, st)
+    g3 = drape_garment(kind, pheno, st)
+    out["same_bits"] = (g1.vertices.tobytes() == g2.vertices.tobytes() == g3.vertices.tobytes()
+                        and len(list(Path(os.environ["RH_DRAPE_CACHE"]).glob(f"{kind}-*.npz"))) == 1)
+    g = drape_garment(kind, pheno)
+    rest = run_anny(pheno)
     faces = body_topology().faces
-    rest_depth = penetration(rest["vertices"], faces, g.vertices).max()
-    crossings = self_crossings(g.vertices, g.faces)
-    na = drape_settings(KIND).n_around
-    np.testing.assert_allclose(g.vertices[g.pinned], g.pattern[g.pinned], atol=1e-6)
-    knee = _heads(PHENO)["lowerleg01.L"][2]
-    hem = g.vertices[-na:, 2].mean()
+    out["rest_depth"] = float(penetration(rest["vertices"], faces, g.vertices).max())
+    out["crossings"] = self_crossings(g.vertices, g.faces)
+    out["ring_moved"] = float(np.abs(g.vertices[g.pinned] - g.pattern[g.pinned]).max())
+    out["heads"] = _heads(pheno)
+    out["hem"] = float(g.vertices[-drape_settings(kind).n_around:, 2].mean())
 
     base = recipe_from_seed(0, "benchmark", 0)
     gs = (Garment("shoes", (0.1, 0.1, 0.1)), Garment("trousers", (0.2, 0.2, 0.3)), Garment("tshirt", (1, 1, 1)),
-          Garment(KIND, (0.6, 0.4, 0.2)))
-    recipe = CharacterRecipe(seed=base.seed, pool=base.pool, index=base.index, phenotype=PHENO, skin=base.skin,
+          Garment(kind, (0.6, 0.4, 0.2)))
+    recipe = CharacterRecipe(seed=base.seed, pool=base.pool, index=base.index, phenotype=pheno, skin=base.skin,
                              hair=base.hair, garments=gs)
     ch = build_character(recipe, 64)
     names = [p.name for p in ch.parts]
-    assert names.index("coat") + 1 == names.index(KIND)  # the shell, then the panels, outermost
-    feats = body_features(PHENO)
+    assert names.index("coat") + 1 == names.index(kind)  # the shell, then the panels, outermost
+    feats = body_features(pheno)
     arm = feats.in_groups("upperarm", "lowerarm", "hand")
     trunk = {k: ch.part(k).faces[~arm[ch.part(k).body_vertex][ch.part(k).faces].all(1)]
              for k in ("trousers", "tshirt")}
@@ -221,23 +236,62 @@ def test_coat_drape_is_bit_identical_hangs_and_stays_outside_the_body_and_the_la
     sv = rest_posed["coat"].vertices
     low = (feats.in_groups("torso")[ch.part("coat").body_vertex] & (sv[:, 2] < z_ring)
            & ((np.abs(sv[:, 0]) > 0.04) | (sv[:, 1] > 0.0)))  # the overlap, but for the open front's edges
-    shell_out = layer_depth(sv[low], rest_posed[KIND].vertices, rest_posed[KIND].faces)
-    worst, under = {}, {}
+    out["n_low"] = int(low.sum())
+    out["shell_out"] = layer_depth(sv[low], rest_posed[kind].vertices, rest_posed[kind].faces)
+    out["worst"], out["under"] = {}, {}
     for k, pose in enumerate(sample_poses(np.random.default_rng(7), load_anny(), 6)):
         posed = {m.name: m for m in pose_character(ch, dict(pose.bones))}
-        panel = posed[KIND].vertices
-        run = run_anny(PHENO, dict(pose.bones))
-        worst[k, pose.label] = float(penetration(run["vertices"], faces, panel).max())
+        panel = posed[kind].vertices
+        run = run_anny(pheno, dict(pose.bones))
+        out["worst"][k, pose.label] = float(penetration(run["vertices"], faces, panel).max())
         d = np.concatenate([layer_depth(panel, posed[n].vertices, f) for n, f in trunk.items()])
         d = np.nan_to_num(d, nan=-1.0)
-        under[k, pose.label] = (float(d.max()), int((d > 0.001).sum()))
-    print(f"rest {rest_depth}, crossings {crossings}, hem {hem} knee {knee}, shell {np.nanmin(shell_out)}, "
-          f"posed {worst}, under {under}")
-    assert rest_depth < -REST_OFF_M and crossings <= REST_CROSSINGS
-    assert knee - HEM_BELOW_KNEE_M[1] < hem < knee - HEM_BELOW_KNEE_M[0]
-    assert low.sum() > 50 and np.nan_to_num(shell_out, nan=1.0).min() > 0.0  # the overlap lies under the panels
-    assert max(worst.values()) < POSED_BOUND_M, f"worst depth (m) per pose: {worst}"
-    assert all(d < LAYER_BOUND_M and n <= LAYER_MAX_UNDER for d, n in under.values()), under
+        out["under"][k, pose.label] = (float(d.max()), int((d > 0.001).sum()))
+    print(kind, {k: v for k, v in out.items() if k not in ("heads", "shell_out")},
+          f"shell {np.nanmin(out['shell_out'])}")
+    return out
+
+
+@pytest.mark.slow
+def test_coat_drape_is_bit_identical_hangs_and_stays_outside_the_body_and_the_layers(tmp_path, monkeypatch):
+    """Coarse twice (simulated, then simulated and cached, then read back): the same bits. The full drape: every
+    particle REST_OFF_M off the body at rest, the ring where it was pinned, the hem settled below the knee, at most
+    REST_CROSSINGS crossing edges. A character wearing it over trousers and a t-shirt, skinned into sampled poses:
+    the panels outside the body, at most LAYER_MAX_UNDER of their vertices more than 1 mm under
+    the trousers or the t-shirt's trunk (none deeper than LAYER_BOUND_M), and the shell's lower edge inside the
+    panels at rest."""
+    monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
+    m = drape_measures(KIND, PHENO)
+    knee = m["heads"]["lowerleg01.L"][2]
+    assert m["same_bits"] and m["ring_moved"] < 1e-6
+    assert m["rest_depth"] < -REST_OFF_M and m["crossings"] <= REST_CROSSINGS
+    assert knee - HEM_BELOW_KNEE_M[1] < m["hem"] < knee - HEM_BELOW_KNEE_M[0]
+    assert m["n_low"] > 50 and np.nan_to_num(m["shell_out"], nan=1.0).min() > 0.0  # the overlap lies under the panels
+    assert max(m["worst"].values()) < POSED_BOUND_M, f"worst depth (m) per pose: {m['worst']}"
+    assert all(d < LAYER_BOUND_M and n <= LAYER_MAX_UNDER for d, n in m["under"].values()), m["under"]
+
+
+def shell_under_panels(kind: str, recipe) -> tuple[int, np.ndarray, float]:
+    """A benchmark build (`recipe`'s phenotype) wearing `kind` over trousers and a longsleeve, coarse drape, rest
+    pose: (the number of the shell's trunk vertices under the panels' pinned ring, but for the open front's edges;
+    their depths under the panels, NaN where not over them; the deepest panel particle in the body, m)."""
+    from rh_dataset.characters import build_character, pose_character
+    from rh_dataset.characters.body_features import body_features
+    from rh_dataset.characters.cloth_pose import layer_depth
+    from rh_dataset.characters.recipe import Garment
+
+    gs = (Garment("shoes", (0.1, 0.1, 0.1)), Garment("trousers", (0.2, 0.2, 0.3)), Garment("longsleeve", (1, 1, 1)),
+          Garment(kind, (0.6, 0.4, 0.2)))
+    recipe = dataclasses.replace(recipe, garments=gs, headwear=())
+    ch = build_character(recipe, 32, drape="coarse")
+    g = drape_garment(kind, recipe.phenotype, drape_settings(kind, "coarse"))
+    posed = {m.name: m for m in pose_character(ch, {})}
+    sv = posed["coat"].vertices
+    low = (body_features(recipe.phenotype).in_groups("torso")[ch.part("coat").body_vertex]
+           & (sv[:, 2] < float(g.vertices[g.pinned, 2].mean())) & ((np.abs(sv[:, 0]) > 0.04) | (sv[:, 1] > 0.0)))
+    d = layer_depth(sv[low], posed[kind].vertices, posed[kind].faces)
+    body = run_anny(recipe.phenotype)["vertices"]
+    return int(low.sum()), d, float(penetration(body, body_topology().faces, g.vertices).max())
 
 
 @pytest.mark.slow
@@ -245,27 +299,11 @@ def test_coat_shell_lies_inside_the_panels_and_the_panels_off_the_body_for_many_
     """For the builds of 8 benchmark recipes (heavy and slim, men and women), coarse drape, rest pose: every trunk
     vertex of the shell under the panels' pinned ring (but for the open front's edges) lies under the panels
     (measured: at least 2.6 mm under), and every panel particle REST_OFF_M off the body (measured: 11.6 mm)."""
-    from rh_dataset.characters import build_character, pose_character
-    from rh_dataset.characters.body_features import body_features
-    from rh_dataset.characters.cloth_pose import layer_depth
-    from rh_dataset.characters.recipe import CharacterRecipe, Garment
     from rh_dataset.characters.recipe_draws import recipe_from_seed
 
     monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
-    gs = (Garment("shoes", (0.1, 0.1, 0.1)), Garment("trousers", (0.2, 0.2, 0.3)), Garment("longsleeve", (1, 1, 1)),
-          Garment(KIND, (0.6, 0.4, 0.2)))
-    st = drape_settings(KIND, "coarse")
     for i in range(8):
-        base = recipe_from_seed(2 * i + 100, "benchmark", i)
-        recipe = dataclasses.replace(base, garments=gs, headwear=())
-        ch = build_character(recipe, 32, drape="coarse")
-        g = drape_garment(KIND, recipe.phenotype, st)
-        posed = {m.name: m for m in pose_character(ch, {})}
-        sv = posed["coat"].vertices
-        low = (body_features(recipe.phenotype).in_groups("torso")[ch.part("coat").body_vertex]
-               & (sv[:, 2] < float(g.vertices[g.pinned, 2].mean())) & ((np.abs(sv[:, 0]) > 0.04) | (sv[:, 1] > 0.0)))
-        d = layer_depth(sv[low], posed[KIND].vertices, posed[KIND].faces)
+        n_low, d, depth = shell_under_panels(KIND, recipe_from_seed(2 * i + 100, "benchmark", i))
         # NaN: farther than 2 cm from the panels (they hang away from the shell under a bust) or nearest their edge.
-        assert low.sum() > 50 and np.isfinite(d).mean() > 0.5 and np.nanmin(d) > 0.0, (i, np.nanmin(d))
-        body = run_anny(recipe.phenotype)["vertices"]
-        assert penetration(body, body_topology().faces, g.vertices).max() < -REST_OFF_M, i
+        assert n_low > 50 and np.isfinite(d).mean() > 0.5 and np.nanmin(d) > 0.0, (i, np.nanmin(d))
+        assert depth < -REST_OFF_M, i

@@ -114,12 +114,12 @@ def test_hoodie_shell_is_the_longsleeve():
 
 def test_benchmark_recipes_draw_hoodies_from_their_own_stream(monkeypatch):
     """recipe_from_seed turns the drawn longsleeve into a draped hoodie for HOODIE_P of the longsleeve wearers with no
-    jacket or coat, hair in HOODIE_HAIR and no headscarf, from a stream of its own: with the share set to zero every
-    recipe is the same but for that kind, so no other field of any seed changed. Benchmark subjects 3 and 21 (seed 0)
-    wear one. A hoodie recipe round-trips through JSON; a hoodie under a jacket or coat, or with a longsleeve, is
-    refused."""
+    jacket, coat or open jacket (recipe.OUTERWEAR), hair in HOODIE_HAIR and no headscarf, from a stream of its own:
+    with the share set to zero every recipe is the same but for that kind, so no other field of any seed changed. Benchmark subjects 3 and 21 (seed 0)
+    wear one. A hoodie recipe round-trips through JSON; a hoodie under a jacket, coat or open jacket, or with a
+    longsleeve, is refused."""
     from rh_dataset.characters import recipe_draws
-    from rh_dataset.characters.recipe import CharacterRecipe, Garment
+    from rh_dataset.characters.recipe import OUTERWEAR, CharacterRecipe, Garment
     from rh_dataset.characters.recipe_draws import HOODIE_HAIR, HOODIE_P, derive_seed, recipe_from_seed
 
     rs = [recipe_from_seed(2 * i, "benchmark", i) for i in range(1000)]
@@ -128,7 +128,7 @@ def test_benchmark_recipes_draw_hoodies_from_their_own_stream(monkeypatch):
     plain = [recipe_from_seed(2 * i, "benchmark", i) for i in range(1000)]
     hoodie = np.array([r.garment(KIND) is not None for r in rs])
     kinds = [{g.kind for g in p.garments} for p in plain]
-    eligible = np.array([("longsleeve" in k and not k & {"jacket", "draped_coat"} and p.hair.style in HOODIE_HAIR
+    eligible = np.array([("longsleeve" in k and not k & set(OUTERWEAR) and p.hair.style in HOODIE_HAIR
                           and not any(h.kind == "headscarf" for h in p.headwear)) for k, p in zip(kinds, plain)])
     assert not (hoodie & ~eligible).any() and not any(p.garment(KIND) for p in plain)
     for r, p in zip(rs, plain):
@@ -140,7 +140,8 @@ def test_benchmark_recipes_draw_hoodies_from_their_own_stream(monkeypatch):
     assert CharacterRecipe.from_json(r.to_json_text()) == r
     shoes, jeans = Garment("shoes", (0, 0, 0)), Garment("trousers", (0, 0, 0))
     for gs in ((shoes, jeans, Garment(KIND, (1, 0, 0)), Garment("jacket", (0, 0, 1))),
-               (shoes, jeans, Garment(KIND, (1, 0, 0)), Garment("draped_coat", (0, 0, 1)))):
+               (shoes, jeans, Garment(KIND, (1, 0, 0)), Garment("draped_coat", (0, 0, 1))),
+               (shoes, jeans, Garment(KIND, (1, 0, 0)), Garment("draped_jacket", (0, 0, 1)))):
         with pytest.raises(ValueError, match="hoodie"):
             dataclasses.replace(r, garments=gs)
     with pytest.raises(ValueError, match="exactly one"):

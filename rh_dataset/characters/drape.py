@@ -1,18 +1,18 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
-trousers, an open coat's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on the back of the
-neckline, laid back and let fall down the upper back)); `PROFILES` cuts the others from one pattern function,
-`garment_pattern`: the trousers' waist tube divides into two leg tubes, `_trouser_pattern`; the coat's tube is cut
-open at the front, `DrapeProfile.opening`, and its shoulders and sleeves are a shell, garments.py, whose hem
-`shell_hem` places, as it places the dress's bodice) and its `DrapeSettings` (per kind and drape level:
-`drape_settings`).
+trousers, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on
+the back of the neckline, laid back and let fall down the upper back)); `PROFILES` cuts the others from one pattern
+function, `garment_pattern`: the trousers' waist tube divides into two leg tubes, `_trouser_pattern`; the coat's and
+the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their shoulders and sleeves are one shell,
+garments.py's "coat", whose hem `shell_hem` places, as it places the dress's bodice) and its `DrapeSettings` (per
+kind and drape level: `drape_settings`).
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
 static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
 transferred from the closest body point and, below the hips, diffused over the cloth so it stays one piece in a
 stride (`bind_loose`); the garment expressed in anny's bind space) and `push_out`, which puts skinned cloth that a
-limb swung into back on the skin (`push_clearance` off it: the coat, worn over other clothes, farther).
+limb swung into back on the skin (`push_clearance` off it: the coat and jacket, worn over other clothes, farther).
 `penetration` measures.
 
 Why a solver, not a shell: a skirt's hem is longer than the body it hangs around, so it folds; only a cloth
@@ -43,9 +43,9 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
            "cloth_model", "cloth_solver", "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
-           "HoodCut", "HOOD_CLEARANCE"]
+           "HoodCut", "HOOD_CLEARANCE", "FRONT_OPENING", "JACKET_HEM"]
 
-DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie")
+DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -53,7 +53,8 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 # (up to ~10 mm where a top lies over a waistband), so push_out keeps them this far off the skin instead; a little
 # less than the drape keeps them at rest (its particle radius, COAT_CLEARANCE), so that push_out leaves the rest
 # drape as it settled and moves only what a limb swung into.
-PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_hoodie": 0.010}
+# The open jacket (`draped_jacket`) is the coat cut short: the same layers under it, the same clearances.
+PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010}
 COAT_CLEARANCE = 0.014
 # The hood lies over the hoodie's shell (6 mm off the skin, a longsleeve's): its particles keep this far off the skin
 # at rest (the coat's; where its weight rests on the shoulders' slope the worst particle comes to 2-6 mm,
@@ -146,10 +147,10 @@ class DrapeProfile:
     is a cone of half-angle `DrapeSettings.flare` whose top radius is `legs` times half the hips' width at the
     split, its hem `hem` metres above the floor (`hem` is not a fraction for trousers).
 
-    `opening` (the coat): metres between the two front edges at the top ring; the tube is cut open there (no
+    `opening` (the coat, the jacket): metres between the two front edges at the top ring; the tube is cut open there (no
     particles in the front sector that width subtends at the ring's front radius, all the way down), so the two
-    front panels hang free. The coat's cloth is only its lower body: the shell "coat" (garments.py) makes its
-    shoulders, yoke and sleeves down to just below the pinned ring (`SHELL_OVERLAP`)."""
+    front panels hang free. The coat's and the jacket's cloth is only their lower body: the shell "coat"
+    (garments.py) makes their shoulders, yoke and sleeves down to just below the pinned ring (`SHELL_OVERLAP`)."""
 
     top: str
     flare_from: str
@@ -158,9 +159,18 @@ class DrapeProfile:
     opening: float = 0.0
 
 
+# The open jacket's cut (`draped_jacket`): the coat's, its flared part JACKET_HEM of the hip-to-knee drop, so the
+# hem settles between the hip joints and the crotch. Measured by bench/bench_drape_hem.py (4 builds: slim woman,
+# heavy man, thin tall man, heavy short woman; 3 December): the pattern's hem, 2.2-3.2 cm under the hip joints,
+# settles 2.9-4.1 cm above the crotch (5.2-7.0 cm under the hip joints) in the full drape, 5.4-6.2 cm above it in the
+# coarse one (150 steps: it sags less far); cut at 0.15 the full drape's hem settled at the crotch (-0.6 to +1.7 cm),
+# at 0.2 on or under it (-3.2 to 0.0 cm).
+JACKET_HEM = 0.08
+FRONT_OPENING = 0.05  # metres between the open coat's and jacket's front edges at the pinned ring (their one shell's V)
 PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7),
             "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),
-            "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=0.05)}
+            "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=FRONT_OPENING),
+            "draped_jacket": DrapeProfile("chest", "hips", JACKET_HEM, opening=FRONT_OPENING)}
 SHELL_OVERLAP = 0.015  # metres a shell over draped cloth (SHELL_KINDS_OVER) reaches below its pinned ring, inside it
 
 
@@ -213,6 +223,10 @@ _SETTINGS = {
     ("draped_coat", "full"): DrapeSettings(n_rings=40, contact_ke=5.0e4, clearance=COAT_CLEARANCE),
     ("draped_coat", "coarse"): DrapeSettings(n_around=36, n_rings=20, steps=150, contact_ke=5.0e4,
                                              clearance=COAT_CLEARANCE),
+    # The open jacket: the coat's fabric and spacing (rings ~1.8 cm apart, coarse ~3.8 cm) over its 33-36 cm of cloth.
+    ("draped_jacket", "full"): DrapeSettings(n_rings=20, contact_ke=5.0e4, clearance=COAT_CLEARANCE),
+    ("draped_jacket", "coarse"): DrapeSettings(n_around=36, n_rings=10, steps=150, contact_ke=5.0e4,
+                                               clearance=COAT_CLEARANCE),
     # The hood: a heavier, firmer knit (sweatshirt fleece: 0.3 kg/m^2, ten times the skirt's membrane stiffness and a
     # hundred times its bending stiffness), so it sags less and folds in rounder rolls; 32 x 24 particles (~1.5 cm
     # apart), contact found every step and twice the dress's contact stiffness (it rests on the shoulders' slope; at
@@ -276,9 +290,11 @@ def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre
 
 
 # Draped kinds whose cloth hangs from under the arms and whose top is a shell (garments.py) tucked under the
-# cloth's pinned ring: {draped kind: the shell's part name}. The coat's shoulders, yoke and sleeves; the dress's
-# bodice (without it the dress is strapless, its top edge across the bust).
-SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_dress": "bodice"}
+# cloth's pinned ring: {draped kind: the shell's part name}. The coat's and the jacket's shoulders, yoke and sleeves
+# (one shell "coat": both are pinned from the chest with the same clearance, so `shell_hem` puts its hem at the same
+# height, and the front is open as wide, FRONT_OPENING); the dress's bodice (without it the dress is strapless, its
+# top edge across the bust).
+SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dress": "bodice"}
 
 
 def shell_hem(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:
@@ -967,7 +983,7 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
         src, faces, uvs = np.arange(len(g.vertices)), g.faces, g.uvs
     else:
         na, nr = int(settings.n_around), int(settings.n_rings)
-        opened = PROFILES[kind].opening > 0  # the coat: an open sheet, no seam column to duplicate
+        opened = PROFILES[kind].opening > 0  # the coat, the jacket: an open sheet, no seam column to duplicate
         cols = np.arange(na) if opened else np.concatenate([np.arange(na), [0]])
         src = (np.arange(nr)[:, None] * na + cols[None, :]).ravel()  # render vertex -> simulated vertex
         faces = _grid_faces(np.arange(nr * len(cols)).reshape(nr, len(cols)), wrap=False)

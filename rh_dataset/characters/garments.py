@@ -14,8 +14,8 @@ towards a garment's open edges so a hem closes onto the skin (no visible gap bet
 collars).
 
 In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first
-(the draped coat and dress: two each, a shell over the cloth, "coat" or "bodice", then the draped cloth; the draped
-hoodie: the shell "hoodie", a longsleeve, and its draped hood; `garment_parts`).
+(the draped coat, jacket and dress: two each, a shell over the cloth, "coat" or "bodice", then the draped cloth; the
+draped hoodie: the shell "hoodie", a longsleeve, and its draped hood; `garment_parts`).
 """
 from __future__ import annotations
 
@@ -29,8 +29,8 @@ from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body import body_topology
 from .body_features import BodyFeatures
-from .drape import (DRAPED_KINDS, SHELL_KINDS_OVER, SHELL_OVERLAP, DrapeSettings, SkinBinding, draped_part,
-                    drape_settings, shell_hem)
+from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP, DrapeSettings, SkinBinding,
+                    draped_part, drape_settings, shell_hem)
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
@@ -46,11 +46,11 @@ BASE_OFFSET = {
     "tshirt": 0.006,
     "longsleeve": 0.006,
     "jacket": 0.017,
-    "coat": 0.017,  # the draped coat's shoulders, yoke and sleeves (a jacket's cut down to the chest)
+    "coat": 0.017,  # the draped coat's and jacket's shoulders, yoke and sleeves (a jacket's cut down to the chest)
     "bodice": 0.006,  # the draped dress's top: a t-shirt's cut with cap sleeves and a scoop neck, down to the chest
     "hoodie": 0.006,  # the hoodie's body and sleeves: the longsleeve's shell (its hood is draped: drape.py)
 }
-# The coat's front opening in its shell: a V from the panels' gap (drape.PROFILES["draped_coat"].opening wide at
+# The coat's (and open jacket's) front opening in its shell: a V from the panels' gap (drape.FRONT_OPENING wide at
 # the shell's hem) widening by COAT_LAPEL metres per metre up to the collar, so the coat reads as open from the
 # neck down and the yoke's front edges meet the panels' front edges.
 COAT_LAPEL = 0.25
@@ -121,10 +121,8 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
         if kind in TUCK and hem is None:
             raise ValueError(f"garment_level: the {kind!r} shell needs its hem height (drape.shell_hem)")
         if kind == "coat":
-            from .drape import PROFILES
-
             # The open front: a V, cut on the front half only (at the sides |x| is far wider than the V).
-            half = 0.5 * PROFILES["draped_coat"].opening + COAT_LAPEL * np.maximum(z - hem, 0.0)
+            half = 0.5 * FRONT_OPENING + COAT_LAPEL * np.maximum(z - hem, 0.0)
             collar = np.maximum(collar, np.where(y < y_neck, half - np.abs(x), -np.inf))
             z_hem = float(hem)
         elif kind == "bodice":
@@ -158,9 +156,10 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
 
 
 SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe kinds (the coat's shell is a part)
-# Parts a recipe garment is built as, in build order: the draped coat is a shell (shoulders, yoke, sleeves) and the
-# draped panels below it, the dress a shell (its bodice) and the draped skirt below it (drape.SHELL_KINDS_OVER), the
-# draped hoodie the longsleeve's shell ("hoodie") and its draped hood; all in the garment's fabric.
+# Parts a recipe garment is built as, in build order: the draped coat and jacket are a shell (shoulders, yoke,
+# sleeves) and the draped panels below it, the dress a shell (its bodice) and the draped skirt below it
+# (drape.SHELL_KINDS_OVER), the draped hoodie the longsleeve's shell ("hoodie") and its draped hood; all in the
+# garment's fabric.
 GARMENT_PARTS = {**{kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()},
                  "draped_hoodie": ("hoodie", "draped_hoodie")}
 

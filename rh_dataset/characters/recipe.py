@@ -22,6 +22,7 @@ __all__ = [
     "GARMENT_KINDS",
     "DRESSES",
     "UNDER_COAT",
+    "OUTERWEAR",
     "PATTERNS",
     "FABRICS",
     "HAIR_STYLES",
@@ -38,18 +39,20 @@ __all__ = [
 
 RECIPE_FORMAT = "rh-character/1"  # headwear (optional key) kept the format: older recipes read back unchanged
 POOLS = ("benchmark", "pretrain")
-# draped_skirt, draped_dress, draped_trousers (wide-leg), draped_coat (open, long): loose garments draped by newton's
-# cloth solver (drape.py). A dress is worn instead of a top and a bottom; the coat is the outermost layer, instead of
-# a jacket, over close-fitting shell bottoms only (UNDER_COAT: its drape collides with the body, not with cloth under
-# it). draped_hoodie: a top, the longsleeve's shell with a hood draped on the upper back, worn without a jacket or coat
-# (its hood collides with the body, not with a jacket). `recipe_from_seed` draws them (recipe_draws.py); the shell
+# draped_skirt, draped_dress, draped_trousers (wide-leg), draped_coat (open, long), draped_jacket (open, to the hips):
+# loose garments draped by newton's cloth solver (drape.py). A dress is worn instead of a top and a bottom; the coat
+# or the open jacket is the outermost layer, instead of a (shell) jacket, over close-fitting shell bottoms only
+# (UNDER_COAT: its drape collides with the body, not with cloth under it). draped_hoodie: a top, the longsleeve's
+# shell with a hood draped on the upper back, worn without any of OUTERWEAR (its hood collides with the body, not with
+# a jacket). `recipe_from_seed` draws them (recipe_draws.py); the shell
 # `skirt` stays a recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
-                 "draped_trousers", "shoes", "draped_coat", "draped_hoodie")
+                 "draped_trousers", "shoes", "draped_coat", "draped_hoodie", "draped_jacket")
 TOPS = ("tshirt", "longsleeve", "draped_hoodie")
 BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers")
 DRESSES = ("draped_dress",)
-UNDER_COAT = ("trousers", "shorts")  # the bottoms a draped coat may be worn over
+UNDER_COAT = ("trousers", "shorts")  # the bottoms a draped coat or jacket may be worn over
+OUTERWEAR = ("jacket", "draped_jacket", "draped_coat")  # the outermost layers: at most one of them
 PATTERNS = ("solid", "stripes", "checks", "noise")
 # Fabric finish (how the renderer's sheen lobe and the knit texture treat a garment; character.FABRIC_SHEEN):
 # plain = woven (cotton, denim: threads far below the pixel footprint, no sheen), jersey = fine knit (t-shirts),
@@ -60,7 +63,7 @@ HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 HEADWEAR_KINDS = ("cap", "brimmed_hat", "headscarf", "glasses")
 # Innermost first: shoes under trouser hems, bottoms under tops (a shirt hangs over the waistband), jacket outside.
 GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_dress", "tshirt",
-                  "longsleeve", "draped_hoodie", "jacket", "draped_coat")
+                  "longsleeve", "draped_hoodie", "jacket", "draped_jacket", "draped_coat")
 COVERINGS = ("cap", "brimmed_hat", "headscarf")
 
 
@@ -292,11 +295,12 @@ class CharacterRecipe:
             raise ValueError(f"garments: exactly one of {TOPS} (or a dress, {DRESSES}) is required, got {kinds}")
         if not dresses and sum(k in BOTTOMS for k in kinds) != 1:
             raise ValueError(f"garments: exactly one of {BOTTOMS} (or a dress, {DRESSES}) is required, got {kinds}")
-        if "draped_coat" in kinds and ("jacket" in kinds or not any(k in UNDER_COAT for k in kinds)):
-            raise ValueError(f"garments: a draped_coat is worn instead of a jacket, over one of {UNDER_COAT}, "
-                             f"got {kinds}")
-        if "draped_hoodie" in kinds and ("jacket" in kinds or "draped_coat" in kinds):
-            raise ValueError(f"garments: a draped_hoodie is worn without a jacket or draped_coat, got {kinds}")
+        outer = [k for k in kinds if k in OUTERWEAR]
+        if len(outer) > 1 or (outer and outer != ["jacket"] and not any(k in UNDER_COAT for k in kinds)):
+            raise ValueError(f"garments: at most one of {OUTERWEAR}, a draped_coat or draped_jacket only over one of "
+                             f"{UNDER_COAT}, got {kinds}")
+        if "draped_hoodie" in kinds and outer:
+            raise ValueError(f"garments: a draped_hoodie is worn without any of {OUTERWEAR}, got {kinds}")
         layered = sorted(kinds, key=GARMENT_LAYERS.index)
         if kinds != layered:
             raise ValueError(f"garments must be listed innermost first, i.e. {layered}, got {kinds}")

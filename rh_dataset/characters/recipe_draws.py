@@ -14,13 +14,14 @@ import hashlib
 import numpy as np
 
 from .body import sample_phenotype
-from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, PATTERNS, POOLS, TOPS, UNDER_COAT,
+from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, OUTERWEAR, PATTERNS, POOLS, TOPS, UNDER_COAT,
                      CharacterRecipe, EyeSpec, Garment, HairSpec, Headwear, SkinTone)
 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
            "iris_colour_name", "iris_weights", "EYES_STREAM", "DRESS_P", "DRESS_STREAM", "WIDE_TROUSERS_P",
-           "WIDE_TROUSERS_STREAM", "COAT_P", "COAT_STREAM", "HOODIE_P", "HOODIE_STREAM", "HOODIE_HAIR"]
+           "WIDE_TROUSERS_STREAM", "COAT_P", "COAT_STREAM", "HOODIE_P", "HOODIE_STREAM", "HOODIE_HAIR", "JACKET_P",
+           "JACKET_STREAM"]
 
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 # Loose clothing (issue 17): the published dataset's subjects wear "long hair, loose clothing, jackets, hats, head
@@ -44,7 +45,7 @@ WIDE_TROUSERS_P = (0.35, 0.1)
 COAT_STREAM = 1719
 COAT_P = 0.5
 # A hoodie (`draped_hoodie`: the longsleeve's shell and a hood draped down the upper back) instead of the drawn
-# longsleeve, for this share of the longsleeve wearers with nothing over it (no jacket, no coat: the hood collides
+# longsleeve, for this share of the longsleeve wearers with nothing over it (none of recipe.OUTERWEAR: the hood collides
 # with the body, not with a jacket), hair that stays off the upper back (HOODIE_HAIR: long hair and a ponytail would
 # lie through the hood) and no headscarf (it covers the neck the hood is sewn to). Our choice, not a census figure:
 # a few of the benchmark's subjects. Its own stream (one draw for everyone, made after the headwear), the
@@ -52,6 +53,15 @@ COAT_P = 0.5
 HOODIE_STREAM = 1720
 HOODIE_P = 0.5
 HOODIE_HAIR = ("buzz", "short", "bob", "bun")
+# An open jacket (`draped_jacket`: the coat's shoulders and sleeves over panels draped from the chest to the hips)
+# instead of every drawn jacket the coat draw left a jacket, where the bottom is one of UNDER_COAT. Our choice, not a
+# census figure: the shell jacket is a second skin from the collar to the hips, with no hem standing off the body and
+# no folds, which no jacket looks like, so wherever the draped one can be worn it is; jackets over skirts and wide
+# trousers (through which its drape would hang) stay shells. Its own stream (one draw for everyone, after the coat's),
+# the jacket's colours, pattern and fabric: no other draw of any seed changes, and a share below 1 can be chosen later
+# without moving any other draw.
+JACKET_STREAM = 1721
+JACKET_P = 1.0
 
 
 def derive_seed(pool: str, index: int, base: int) -> int:
@@ -168,7 +178,8 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     garments = tuple(_sample_garment(rng, k) for k in sorted(kinds, key=GARMENT_LAYERS.index))
     garments = _dress(np.random.default_rng([int(seed), DRESS_STREAM]), female, garments)
     garments = _wide_trousers(np.random.default_rng([int(seed), WIDE_TROUSERS_STREAM]), female, garments)
-    garments = _coat(np.random.default_rng([int(seed), COAT_STREAM]), garments)
+    garments = _open_jacket(np.random.default_rng([int(seed), COAT_STREAM]), garments, "draped_coat", COAT_P)
+    garments = _open_jacket(np.random.default_rng([int(seed), JACKET_STREAM]), garments, "draped_jacket", JACKET_P)
     skin, garments = _surface_detail(seed, skin, hair, garments)
     headwear = sample_headwear(np.random.default_rng([int(seed), HEADWEAR_STREAM]), female, phenotype["age"])
     eyes = sample_eyes(np.random.default_rng([int(seed), EYES_STREAM]), skin.melanin)
@@ -198,14 +209,15 @@ def _wide_trousers(rng: np.random.Generator, female: bool, garments: tuple[Garme
     return tuple(dataclasses.replace(g, kind="draped_trousers") if g.kind == "trousers" else g for g in garments)
 
 
-def _coat(rng: np.random.Generator, garments: tuple[Garment, ...]) -> tuple[Garment, ...]:
-    """The drawn jacket made a draped coat with probability COAT_P where the bottom is one of UNDER_COAT (rng: the
-    coat's stream; one draw for everyone, so the stream's use is fixed)."""
-    coat = rng.random() < COAT_P
+def _open_jacket(rng: np.random.Generator, garments: tuple[Garment, ...], kind: str, p: float
+                 ) -> tuple[Garment, ...]:
+    """The drawn (shell) jacket made the draped `kind` (the coat, the open jacket) with probability `p` where the
+    bottom is one of UNDER_COAT (rng: the kind's stream; one draw for everyone, so the stream's use is fixed)."""
+    wears = rng.random() < p
     kinds = {g.kind for g in garments}
-    if not (coat and "jacket" in kinds and kinds & set(UNDER_COAT)):
+    if not (wears and "jacket" in kinds and kinds & set(UNDER_COAT)):
         return garments
-    return tuple(dataclasses.replace(g, kind="draped_coat") if g.kind == "jacket" else g for g in garments)
+    return tuple(dataclasses.replace(g, kind=kind) if g.kind == "jacket" else g for g in garments)
 
 
 def _hoodie(rng: np.random.Generator, garments: tuple[Garment, ...], hair: HairSpec,
@@ -215,7 +227,7 @@ def _hoodie(rng: np.random.Generator, garments: tuple[Garment, ...], hair: HairS
     use is fixed)."""
     hoodie = rng.random() < HOODIE_P
     kinds = {g.kind for g in garments}
-    if not (hoodie and "longsleeve" in kinds and not kinds & {"jacket", "draped_coat"} and hair.style in HOODIE_HAIR
+    if not (hoodie and "longsleeve" in kinds and not kinds & set(OUTERWEAR) and hair.style in HOODIE_HAIR
             and not any(h.kind == "headscarf" for h in headwear)):
         return garments
     return tuple(dataclasses.replace(g, kind="draped_hoodie") if g.kind == "longsleeve" else g for g in garments)
@@ -227,11 +239,13 @@ def _hoodie(rng: np.random.Generator, garments: tuple[Garment, ...], hair: HairS
 # ---------------------------------------------------------------------------------------------------------------
 _STREAM_SURFACE_DETAIL = 1704
 # Which fabrics a garment kind is made of, with probabilities (shoes and everything unlisted: plain).
+_JACKET_FABRICS = (("plain", "knit", "velvet"), (0.75, 0.15, 0.10))
 _FABRIC_CHOICES = {
     "tshirt": (("jersey", "plain"), (0.85, 0.15)),
     "longsleeve": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),
-    "jacket": (("plain", "knit", "velvet"), (0.75, 0.15, 0.10)),
-    "draped_coat": (("plain", "knit", "velvet"), (0.75, 0.15, 0.10)),  # the jacket's (the drawn fabric stays)
+    "jacket": _JACKET_FABRICS,
+    "draped_coat": _JACKET_FABRICS,  # the jacket's (so the drawn fabric stays)
+    "draped_jacket": _JACKET_FABRICS,
     "draped_hoodie": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),  # the longsleeve's
     "trousers": (("plain", "velvet"), (0.92, 0.08)),  # denim / twill; velvet stands for corduroy and velour
     "draped_trousers": (("plain", "velvet"), (0.92, 0.08)),  # the trousers' (so a drawn fabric stays the same)

@@ -1,0 +1,74 @@
+"""Where a draped kind's hem settles on a few builds, against the hip joints and the crotch: how its cut was chosen.
+
+    python bench/bench_drape_hem.py                                   # the open jacket, both levels, its own cut
+    python bench/bench_drape_hem.py --hem 0.08 0.15 --levels coarse   # other cuts (DrapeProfile.hem)
+    python bench/bench_drape_hem.py --kind draped_coat
+
+In: a draped kind cut by a `drape.DrapeProfile` (default `draped_jacket`), the cuts tried (`--hem`: the profile's
+`hem`, replaced for the run; default the kind's own), the drape levels. Builds: a slim woman and a heavy man (the
+drape tests' PHENO and HEAVY), a thin tall man and a heavy short woman. Out, printed per (cut, build, level) with the
+load average: the pinned ring's height, the hip joints' (upperleg01, mean of both sides), the crotch's (the lowest
+point of the body's underside on the midplane, `drape._crotch_height`), the pattern's hem and the settled hem (mean,
+min, max of the last ring) and its distance from the hip joints and the crotch (metres, A-pose frame), the deepest
+particle (mm, < 0 outside the body) and the drape's wall seconds (0 when the drape cache held it: RH_DRAPE_CACHE or
+~/.cache).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+BUILDS = {"slim woman": {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5, "proportions": 0.5},
+          "heavy man": {"gender": 0.0, "age": 0.6, "muscle": 0.5, "weight": 0.95, "height": 0.5, "proportions": 0.5},
+          "thin tall man": {"gender": 0.0, "age": 0.4, "muscle": 0.3, "weight": 0.1, "height": 0.8,
+                            "proportions": 0.5},
+          "heavy short woman": {"gender": 1.0, "age": 0.7, "muscle": 0.3, "weight": 0.9, "height": 0.3,
+                                "proportions": 0.5}}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--kind", default="draped_jacket")
+    ap.add_argument("--hem", type=float, nargs="*", default=[], help="cuts tried (DrapeProfile.hem); default its own")
+    ap.add_argument("--levels", nargs="+", default=["full", "coarse"])
+    args = ap.parse_args(argv)
+
+    import trimesh
+
+    from rh_dataset.characters import drape
+    from rh_dataset.characters.body import body_topology, run_anny
+
+    load = lambda: " ".join(open("/proc/loadavg").read().split()[:3])  # noqa: E731
+    own = drape.PROFILES[args.kind]
+    for hem in args.hem or [own.hem]:
+        drape.PROFILES[args.kind] = dataclasses.replace(own, hem=hem)
+        for level in args.levels:
+            st = drape.drape_settings(args.kind, level)
+            for name, ph in BUILDS.items():
+                run = run_anny(ph)
+                heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
+                hip = 0.5 * float(heads["upperleg01.L"][2] + heads["upperleg01.R"][2])
+                mesh = trimesh.Trimesh(run["vertices"], drape.collider_faces(ph), process=False)
+                crotch = drape._crotch_height(mesh, np.asarray(heads["root"], np.float64), hip + 0.1)
+                t = time.perf_counter()
+                g = drape.drape_garment(args.kind, ph, st)
+                secs = time.perf_counter() - t
+                last = g.vertices[-st.n_around:, 2]
+                depth = drape.penetration(run["vertices"], body_topology().faces, g.vertices).max()
+                print(f"hem {hem:.2f} {level:6s} {name:17s} ring {g.vertices[0, 2]:+.3f} hips {hip:+.3f} crotch "
+                      f"{crotch:+.3f} pattern hem {g.pattern[-1, 2]:+.3f} settled {last.mean():+.3f} "
+                      f"({last.min():+.3f}..{last.max():+.3f}): {100 * (hip - last.mean()):4.1f} cm under the hips, "
+                      f"{100 * (last.mean() - crotch):+5.1f} cm above the crotch; deepest {1e3 * depth:6.1f} mm; "
+                      f"drape {secs:5.1f} s  (load {load()})", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
