@@ -737,9 +737,10 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
         p[todo] = closest[bad] + clearance * n[bad]
         pushed[todo] += n[bad]
         moved[todo] = True
-    todo = todo[depth[bad] > -0.5 * clearance]  # in or on the skin after every round (a crease): walked out
-    if len(todo):
-        p[todo] = _walk_out(p[todo], pushed[todo], v, local, body_normals, mesh, clearance)
+    stuck = depth[bad] > -0.5 * clearance  # in or on the skin after every round (a crease): walked out
+    if stuck.any():
+        todo = todo[stuck]
+        p[todo] = _walk_out(p[todo], depth[bad][stuck], pushed[todo], v, local, body_normals, mesh, clearance)
     if clearance > PUSH_CLEARANCE and moved.any():  # points never moved are `clearance` off: nothing to redo
         idx = np.flatnonzero(moved)
         p[idx] = push_out(p[idx], body_vertices, body_normals, body_faces, PUSH_CLEARANCE, rounds)
@@ -752,22 +753,22 @@ _WALK_WAYS = np.array([(x, y, z) for x in (-1, 0, 1) for y in (-1, 0, 1) for z i
 _WALK_WAYS /= np.linalg.norm(_WALK_WAYS, axis=1, keepdims=True)
 
 
-def _walk_out(p: np.ndarray, pushed: np.ndarray, v: np.ndarray, faces: np.ndarray, normals, mesh,
-              clearance: float) -> np.ndarray:
-    """`push_out`'s points still under the skin, or within half the clearance of it, after its rounds: each walked
-    out, half a clearance a step, along the sum of the normals it was pushed along (`pushed`) and along 26 fixed
-    directions, to the first step at which a way is `clearance` off the skin, taking the clear way nearest that sum.
-    These are points in a crease, where two skin surfaces meet at an angle (a thigh lifted against the belly, an
-    arm against the chest): stepping `clearance` off one surface lands inside the other, and alternating between
-    the two approaches the crease's bisector by a fraction of a millimetre a round (3 December: 0.9-2.6 mm deep
-    after the rounds in 5 of 24 posed frames, bench/bench_cloth_pose.py), whereas the sum of the two normals is
-    that bisector. Where the two skins face each other (a slot, the normals cancel) the bisector says little, and a
-    fixed direction finds the slot's way out. A point with no clear way within WALK_STEPS keeps the position
-    farthest from the skin it reached."""
+def _walk_out(p: np.ndarray, depth: np.ndarray, pushed: np.ndarray, v: np.ndarray, faces: np.ndarray, normals,
+              mesh, clearance: float) -> np.ndarray:
+    """`push_out`'s points still under the skin, or within half the clearance of it, after its rounds (`depth`:
+    their depth there, push_out's last query): each walked out, half a clearance a step, along the sum of the
+    normals it was pushed along (`pushed`) and along 26 fixed directions, to the first step at which a way is
+    `clearance` off the skin, taking the clear way nearest that sum. These are points in a crease, where two skin
+    surfaces meet at an angle (a thigh lifted against the belly, an arm against the chest): stepping `clearance`
+    off one surface lands inside the other, and alternating between the two approaches the crease's bisector by a
+    fraction of a millimetre a round (3 December: 0.9-2.6 mm deep after the rounds in 5 of 24 posed frames,
+    bench/bench_cloth_pose.py), whereas the sum of the two normals is that bisector. Where the two skins face each
+    other (a slot, the normals cancel) the bisector says little, and a fixed direction finds the slot's way out. A
+    point with no clear way within WALK_STEPS keeps the position farthest from the skin it reached."""
     bisector = pushed / np.maximum(np.linalg.norm(pushed, axis=1, keepdims=True), 1e-12)
     ways = np.concatenate([bisector[:, None], np.broadcast_to(_WALK_WAYS, (len(p),) + _WALK_WAYS.shape)], axis=1)
     best = p.copy()
-    best_depth = _closest(v, faces, p, normals, mesh=mesh)[0]
+    best_depth = np.array(depth, np.float64)  # push_out's last query, at these positions
     todo = np.arange(len(p))
     for k in range(1, WALK_STEPS + 1):
         w = ways[todo]
