@@ -185,12 +185,12 @@ JACKET_HEM = 0.08
 # 2.6 cm under to 0.4 cm over the hip joints, settles 1.6-4.6 cm under them in the full drape (5 cm or more above the
 # crotch), 0.1-3.1 cm in the coarse one; at 0.4 it settled 0.7-2.0 cm above them on four of the six.
 TSHIRT_HEM = 0.45
-# Metres the loose t-shirt's pinned ring keeps outside the trunk's hull (`DrapeProfile.ring_gap`): the shell "tee"
-# under it (6 mm off the skin, a t-shirt's) plus 1 mm. At the cloth's own 14 mm the ring stood 8 mm or more off the
-# shell, and seen from above (a bending pose, bench_cloth_pose.py --figure) the slot between them showed as a dark
-# line across the chest; at 9 mm and at 7 mm it still shows, thinner: where the hull bridges the chest (the sternum,
-# between the breasts) the ring stands further off the skin than the gap (not fixed).
-TSHIRT_RING_GAP = 0.007
+# Metres the loose t-shirt's pinned ring keeps outside the trunk's hull (`DrapeProfile.ring_gap`): its push clearance,
+# so posing leaves it where it was draped (push_out would move it there anyway), over the shell "tee" lifted to 7.5 mm
+# under it (garments.TUCK). At the cloth's own 14 mm the ring stood 8 mm or more off the shell (tapered to ~4.5 mm at
+# the ring's height), and seen from above (a bending pose, bench_cloth_pose.py --figure) the slot between them showed
+# as a dark line across the chest.
+TSHIRT_RING_GAP = 0.010
 FRONT_OPENING = 0.05  # metres between the open coat's and jacket's front edges at the pinned ring (their one shell's V)
 PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7),
             "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),

@@ -56,8 +56,11 @@ BASE_OFFSET = {
 # neck down and the yoke's front edges meet the panels' front edges.
 COAT_LAPEL = 0.25
 # Metres: a shell's offset where the draped cloth under its hem overlaps it (`_shell`): less than the cloth's own
-# distance from the skin there (the coat's panels >= ~13 mm, the dress's cloth >= its 4 mm particle radius).
-TUCK = {"coat": 0.009, "bodice": 0.003, "tee": 0.006}
+# distance from the skin there (the coat's panels >= ~13 mm, the dress's cloth >= its 4 mm particle radius). Above
+# the shell's own offset it is a lift, not a cap: the loose t-shirt's shell rises to 2.5 mm under its cloth's pinned
+# ring (10 mm off the skin once posed, `drape.push_clearance`) instead of tapering to its hem, since the slot
+# between a 4-6 mm shell and the ring showed as a dark line across the chest seen from above.
+TUCK = {"coat": 0.009, "bodice": 0.003, "tee": 0.0075}
 LAYER_GAP = 0.003  # minimum distance between two layers (well above ray-tracing epsilon at body scale)
 TAPER_WIDTH = 0.025  # metres over which the offset falls towards an open edge
 TAPER_MIN = 0.3  # fraction of the offset left at the very edge
@@ -236,7 +239,7 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
         # well as raised, so at the back a bind-space height is a few millimetres off the ring's.
         z = split.points(feats.rest_vertices)[:, 2]
         cap = TUCK[kind] + (BASE_OFFSET[kind] - TUCK[kind]) * _smoothstep((z - hem - SHELL_OVERLAP - 0.005) / 0.02)
-        off = np.minimum(off, cap)
+        off = np.maximum(off, cap) if TUCK[kind] > BASE_OFFSET[kind] else np.minimum(off, cap)
     t = split.cut_t
     need = np.where(under > 0, under + LAYER_GAP, 0.0)
     off = np.maximum(off, (1.0 - t) * need[split.body_vertex] + t * need[split.cut_vertex])
