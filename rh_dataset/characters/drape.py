@@ -2,8 +2,8 @@
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
 trousers, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on
-the back of the neckline, laid back and let fall down the upper back), a loose t-shirt's body (a tube hanging from
-under the arms to the hips; its shoulders and sleeves are the shell "tee")); `PROFILES` cuts the others from one pattern
+the back of the neckline, laid back and let fall down the upper back), a loose t-shirt's or long sleeve's body (a tube
+hanging from under the arms to the hips; its shoulders and sleeves are the shell "tee" or "longtop")); `PROFILES` cuts the others from one pattern
 function, `garment_pattern`: the trousers' waist tube divides into two leg tubes, `_trouser_pattern`; the coat's and
 the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their shoulders and sleeves are one shell,
 garments.py's "coat", whose hem `shell_hem` places, as it places the dress's bodice) and its `DrapeSettings` (per
@@ -48,7 +48,7 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "TSHIRT_HEM"]
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
-                "draped_tshirt")
+                "draped_tshirt", "draped_longsleeve")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -60,7 +60,9 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 # The loose t-shirt's body (`draped_tshirt`) hangs over the shell trousers' or shorts' waistband (7 mm): push_out
 # keeps it 10 mm off the skin (the waistband's offset and `garments.LAYER_GAP`), its drape TSHIRT_CLEARANCE (its
 # particles settle a little closer than their radius where the cloth rests on the body, as the coat's do).
-PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010, "draped_tshirt": 0.010}
+# The loose long sleeve (`draped_longsleeve`) is the loose t-shirt with the longsleeve's sleeves: the same clearances.
+PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010, "draped_tshirt": 0.010,
+                   "draped_longsleeve": 0.010}
 COAT_CLEARANCE = 0.014
 TSHIRT_CLEARANCE = 0.012
 # The hood lies over the hoodie's shell (6 mm off the skin, a longsleeve's): its particles keep this far off the skin
@@ -196,7 +198,8 @@ PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeP
             "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),
             "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=FRONT_OPENING),
             "draped_jacket": DrapeProfile("chest", "hips", JACKET_HEM, opening=FRONT_OPENING),
-            "draped_tshirt": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP)}
+            "draped_tshirt": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP),
+            "draped_longsleeve": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP)}
 SHELL_OVERLAP = 0.015  # metres a shell over draped cloth (SHELL_KINDS_OVER) reaches below its pinned ring, inside it
 
 
@@ -258,6 +261,10 @@ _SETTINGS = {
     ("draped_tshirt", "full"): DrapeSettings(n_rings=16, contact_ke=5.0e4, clearance=TSHIRT_CLEARANCE, flare=0.12),
     ("draped_tshirt", "coarse"): DrapeSettings(n_around=36, n_rings=8, steps=150, contact_ke=5.0e4,
                                                clearance=TSHIRT_CLEARANCE, flare=0.12),
+    # The loose long sleeve: the loose t-shirt's body of cloth (its sleeves are the shell's).
+    ("draped_longsleeve", "full"): DrapeSettings(n_rings=16, contact_ke=5.0e4, clearance=TSHIRT_CLEARANCE, flare=0.12),
+    ("draped_longsleeve", "coarse"): DrapeSettings(n_around=36, n_rings=8, steps=150, contact_ke=5.0e4,
+                                                   clearance=TSHIRT_CLEARANCE, flare=0.12),
     # The hood: a heavier, firmer knit (sweatshirt fleece: 0.3 kg/m^2, ten times the skirt's membrane stiffness and a
     # hundred times its bending stiffness), so it sags less and folds in rounder rolls; 32 x 24 particles (~1.5 cm
     # apart), contact found every step and twice the dress's contact stiffness (it rests on the shoulders' slope; at
@@ -330,8 +337,9 @@ def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre
 # (one shell "coat": both are pinned from the chest with the same clearance, so `shell_hem` puts its hem at the same
 # height, and the front is open as wide, FRONT_OPENING); the dress's bodice (without it the dress is strapless, its
 # top edge across the bust); the loose t-shirt's shoulders, sleeves and chest ("tee": the t-shirt's cut, its hem
-# under the ring).
-SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dress": "bodice", "draped_tshirt": "tee"}
+# under the ring); the loose long sleeve's ("longtop": the longsleeve's cut, its hem under the ring).
+SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dress": "bodice", "draped_tshirt": "tee",
+                    "draped_longsleeve": "longtop"}
 
 
 def shell_hem(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:
