@@ -1,5 +1,5 @@
 """Benchmark subjects in loose garments: the first draped-dress, draped-skirt, draped-trousers, draped-coat,
-draped-hoodie and draped-jacket wearers among a dataset seed's subjects (or the subjects named), draped at a drape
+draped-hoodie, draped-jacket, draped-tshirt and draped-longsleeve wearers among a dataset seed's subjects (or the subjects named), draped at a drape
 level, rendered rest front | rest side | a posed frame front | side (`--turns`: other views, e.g. from the back),
 with the drape's seconds and how deep any cloth vertex sits in the body in each view.
 
@@ -11,6 +11,8 @@ with the drape's seconds and how deep any cloth vertex sits in the body in each 
     python bench/draped_garments.py --dresses 0 --skirts 0 --hoodies 1 --turns 180,135 --tile 512 \
         --out docs/draped_hoodie.png                                      # the hood, from the back and back-left
     python bench/draped_garments.py --subjects 7,48 --tile 512 --out docs/draped_jacket.png  # two open jackets
+    python bench/draped_garments.py --subjects 3,31 --tile 512 --out docs/draped_tshirt.png  # two loose t-shirts
+    python bench/draped_garments.py --subjects 11,36 --tile 512 --out docs/draped_longsleeve.png  # loose long sleeves
 
 In: the dataset seed (the generator's subject order: `sample_recipe(rng_for(seed, "character", s))`), how many
 subjects of each kind (or `--subjects`: these indices, whatever they wear), the drape level (`drape.DRAPE_LEVELS`).
@@ -36,17 +38,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200, trousers: int = 0,
                    swap_trousers: bool = False, coats: int = 0, hoodies: int = 0, jackets: int = 0,
+                   tshirts: int = 0, longsleeves: int = 0,
                    subjects: tuple[int, ...] = ()) -> list[tuple[int, object]]:
     """(subject index, recipe) of the first `dresses` draped-dress, `skirts` draped-skirt, `trousers`
-    draped-trousers, `coats` draped-coat, `hoodies` draped-hoodie and `jackets` draped-jacket wearers of `seed`
-    (`swap_trousers`: shell-trousers wearers put in draped ones), or of the `subjects` given by index."""
+    draped-trousers, `coats` draped-coat, `hoodies` draped-hoodie, `jackets` draped-jacket, `tshirts`
+    draped-tshirt and `longsleeves` draped-longsleeve wearers of `seed` (`swap_trousers`: shell-trousers wearers put in draped ones), or of the `subjects` given by index."""
     import dataclasses
 
     from rh_dataset.characters import sample_recipe
     from rh_dataset.generate.seeding import rng_for
 
     want = {"draped_dress": dresses, "draped_skirt": skirts, "draped_trousers": trousers, "draped_coat": coats,
-            "draped_hoodie": hoodies, "draped_jacket": jackets}
+            "draped_hoodie": hoodies, "draped_jacket": jackets, "draped_tshirt": tshirts, "draped_longsleeve": longsleeves}
     if subjects:
         return [(s, sample_recipe(rng_for(seed, "character", s), pool="benchmark", index=s)) for s in subjects]
     out = []
@@ -67,12 +70,14 @@ def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200, trous
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0, help="dataset seed whose subjects are searched")
-    ap.add_argument("--dresses", type=int, default=2)
-    ap.add_argument("--skirts", type=int, default=2)
-    ap.add_argument("--trousers", type=int, default=0)
-    ap.add_argument("--coats", type=int, default=0)
-    ap.add_argument("--hoodies", type=int, default=0)
-    ap.add_argument("--jackets", type=int, default=0)
+    ap.add_argument("--dresses", type=int, default=2, help="draped-dress wearers")
+    ap.add_argument("--skirts", type=int, default=2, help="draped-skirt wearers")
+    ap.add_argument("--trousers", type=int, default=0, help="wide-trousers (draped_trousers) wearers")
+    ap.add_argument("--coats", type=int, default=0, help="open-coat (draped_coat) wearers")
+    ap.add_argument("--hoodies", type=int, default=0, help="hoodie (draped_hoodie) wearers")
+    ap.add_argument("--jackets", type=int, default=0, help="open-jacket (draped_jacket) wearers")
+    ap.add_argument("--tshirts", type=int, default=0, help="loose t-shirt (draped_tshirt) wearers")
+    ap.add_argument("--longsleeves", type=int, default=0, help="loose long sleeve (draped_longsleeve) wearers")
     ap.add_argument("--subjects", default="", help="comma-separated subject indices to show instead of a search")
     ap.add_argument("--turns", default="0,90",
                     help="the two views, degrees about +Z (0: from the front, 90: its left, 180: from the back)")
@@ -105,7 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for s, recipe in loose_subjects(args.seed, args.dresses, args.skirts, trousers=args.trousers,
                                     swap_trousers=args.swap_trousers, coats=args.coats, hoodies=args.hoodies,
-                                    jackets=args.jackets,
+                                    jackets=args.jackets, tshirts=args.tshirts,
+                                    longsleeves=args.longsleeves,
                                     subjects=tuple(int(x) for x in args.subjects.split(",") if x)):
         t = time.perf_counter()
         character = build_character(recipe, 512, drape=args.drape)

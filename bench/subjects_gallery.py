@@ -37,9 +37,10 @@ COLOURS = {"black": (20, 16, 14), "brown": (80, 54, 36), "blonde": (205, 170, 11
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--out", type=Path, default=Path("docs/subjects.png"))
-    p.add_argument("--size", type=int, default=256)
-    p.add_argument("--spp", type=int, default=64)
+    p.add_argument("--out", type=Path, default=Path("docs/subjects.png"),
+                   help="the PNG written (--benchmark: docs/benchmark_subjects.png unless given)")
+    p.add_argument("--size", type=int, default=256, help="tile size in pixels")
+    p.add_argument("--spp", type=int, default=64, help="samples per pixel of each render")
     p.add_argument("--headwear", action="store_true", help="the headwear gallery instead of the hair one")
     p.add_argument("--benchmark", type=int, default=0, metavar="N",
                    help="the first N protocol-a subjects as generated (full body, posed; head close-ups)")

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from rh_dataset.characters.body import body_topology, run_anny
-from rh_dataset.characters.drape import (SHELL_OVERLAP, DRAPE_LEVELS, PROFILES, drape_garment, shell_hem,
-                                         drape_settings, garment_pattern, penetration, push_clearance)
+from rh_dataset.characters.drape import (SHELL_KINDS_OVER, SHELL_OVERLAP, DRAPE_LEVELS, PROFILES, drape_garment,
+                                         drape_settings, garment_pattern, penetration, push_clearance, shell_hem)
 from rh_dataset.characters.geometry import edge_counts
 
 KIND = "draped_coat"
@@ -182,16 +182,16 @@ REST_CROSSINGS = 2
 HEM_BELOW_KNEE_M = (0.02, 0.3)
 
 
-def drape_measures(kind: str, pheno: dict[str, float]) -> dict:
+def drape_measures(kind: str, pheno: dict[str, float], top: str | None = "tshirt") -> dict:
     """What the slow tests of the coat and the open jacket bound, measured with the drape cache wherever the caller
     points RH_DRAPE_CACHE: `same_bits` (the coarse drape simulated, simulated and cached, read back: one set of
     bits and one cache file); of the full drape, `rest_depth` (deepest particle, m, < 0 outside the body),
     `crossings` (self-crossing edges), `ring_moved` (how far the pinned ring moved), `hem` (mean height of the last
-    ring) and the body's `heads`; a character wearing it over trousers and a t-shirt: `shell_out` (depth under the
-    panels of the shell's trunk vertices under the pinned ring, but for the open front's edges; NaN where not over
-    it), `n_low` (their number); skinned into 6 sampled poses (rng 7): `worst` {(k, label): deepest panel vertex in
-    the body}, `under` {(k, label): (deepest under the trousers or the t-shirt's trunk, vertices more than 1 mm
-    under)}."""
+    ring) and the body's `heads`; a character wearing it over trousers and `top` (None: no top, for a kind that is
+    one): `shell_out` (depth under the panels of its shell's (SHELL_KINDS_OVER) trunk vertices under the pinned ring,
+    but for an open front's edges; NaN where not over it), `n_low` (their number); skinned into 6 sampled poses
+    (rng 7): `worst` {(k, label): deepest panel vertex in the body}, `under` {(k, label): (deepest under the trousers
+    or the top's trunk, vertices more than 1 mm under)}."""
     import os
     from pathlib import Path
 
@@ -220,22 +220,23 @@ def drape_measures(kind: str, pheno: dict[str, float]) -> dict:
     out["hem"] = float(g.vertices[-drape_settings(kind).n_around:, 2].mean())
 
     base = recipe_from_seed(0, "benchmark", 0)
-    gs = (Garment("shoes", (0.1, 0.1, 0.1)), Garment("trousers", (0.2, 0.2, 0.3)), Garment("tshirt", (1, 1, 1)),
-          Garment(kind, (0.6, 0.4, 0.2)))
+    gs = (Garment("shoes", (0.1, 0.1, 0.1)), Garment("trousers", (0.2, 0.2, 0.3)),
+          *((Garment(top, (1, 1, 1)),) if top else ()), Garment(kind, (0.6, 0.4, 0.2)))
     recipe = CharacterRecipe(seed=base.seed, pool=base.pool, index=base.index, phenotype=pheno, skin=base.skin,
                              hair=base.hair, garments=gs)
     ch = build_character(recipe, 64)
     names = [p.name for p in ch.parts]
-    assert names.index("coat") + 1 == names.index(kind)  # the shell, then the panels, outermost
+    shell = SHELL_KINDS_OVER[kind]
+    assert names.index(shell) + 1 == names.index(kind)  # the shell, then the panels, outermost
     feats = body_features(pheno)
     arm = feats.in_groups("upperarm", "lowerarm", "hand")
     trunk = {k: ch.part(k).faces[~arm[ch.part(k).body_vertex][ch.part(k).faces].all(1)]
-             for k in ("trousers", "tshirt")}
+             for k in ("trousers", top) if k}
     z_ring = float(g.vertices[g.pinned, 2].mean())
     rest_posed = {m.name: m for m in pose_character(ch, {})}
-    sv = rest_posed["coat"].vertices
-    low = (feats.in_groups("torso")[ch.part("coat").body_vertex] & (sv[:, 2] < z_ring)
-           & ((np.abs(sv[:, 0]) > 0.04) | (sv[:, 1] > 0.0)))  # the overlap, but for the open front's edges
+    sv = rest_posed[shell].vertices
+    low = (feats.in_groups("torso")[ch.part(shell).body_vertex] & (sv[:, 2] < z_ring)
+           & ((np.abs(sv[:, 0]) > 0.04) | (sv[:, 1] > 0.0) | (not PROFILES[kind].opening)))  # but an open front's edges
     out["n_low"] = int(low.sum())
     out["shell_out"] = layer_depth(sv[low], rest_posed[kind].vertices, rest_posed[kind].faces)
     out["worst"], out["under"] = {}, {}
@@ -271,24 +272,27 @@ def test_coat_drape_is_bit_identical_hangs_and_stays_outside_the_body_and_the_la
     assert all(d < LAYER_BOUND_M and n <= LAYER_MAX_UNDER for d, n in m["under"].values()), m["under"]
 
 
-def shell_under_panels(kind: str, recipe) -> tuple[int, np.ndarray, float]:
-    """A benchmark build (`recipe`'s phenotype) wearing `kind` over trousers and a longsleeve, coarse drape, rest
-    pose: (the number of the shell's trunk vertices under the panels' pinned ring, but for the open front's edges;
+def shell_under_panels(kind: str, recipe, top: str | None = "longsleeve") -> tuple[int, np.ndarray, float]:
+    """A benchmark build (`recipe`'s phenotype) wearing `kind` over trousers and `top` (None: no top, for a kind that
+    is one), coarse drape, rest pose: (the number of its shell's (SHELL_KINDS_OVER) trunk vertices under the panels'
+    pinned ring, but for an open front's edges;
     their depths under the panels, NaN where not over them; the deepest panel particle in the body, m)."""
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.cloth_pose import layer_depth
     from rh_dataset.characters.recipe import Garment
 
-    gs = (Garment("shoes", (0.1, 0.1, 0.1)), Garment("trousers", (0.2, 0.2, 0.3)), Garment("longsleeve", (1, 1, 1)),
-          Garment(kind, (0.6, 0.4, 0.2)))
+    gs = (Garment("shoes", (0.1, 0.1, 0.1)), Garment("trousers", (0.2, 0.2, 0.3)),
+          *((Garment(top, (1, 1, 1)),) if top else ()), Garment(kind, (0.6, 0.4, 0.2)))
     recipe = dataclasses.replace(recipe, garments=gs, headwear=())
     ch = build_character(recipe, 32, drape="coarse")
     g = drape_garment(kind, recipe.phenotype, drape_settings(kind, "coarse"))
     posed = {m.name: m for m in pose_character(ch, {})}
-    sv = posed["coat"].vertices
-    low = (body_features(recipe.phenotype).in_groups("torso")[ch.part("coat").body_vertex]
-           & (sv[:, 2] < float(g.vertices[g.pinned, 2].mean())) & ((np.abs(sv[:, 0]) > 0.04) | (sv[:, 1] > 0.0)))
+    shell = SHELL_KINDS_OVER[kind]
+    sv = posed[shell].vertices
+    low = (body_features(recipe.phenotype).in_groups("torso")[ch.part(shell).body_vertex]
+           & (sv[:, 2] < float(g.vertices[g.pinned, 2].mean()))
+           & ((np.abs(sv[:, 0]) > 0.04) | (sv[:, 1] > 0.0) | (not PROFILES[kind].opening)))
     d = layer_depth(sv[low], posed[kind].vertices, posed[kind].faces)
     body = run_anny(recipe.phenotype)["vertices"]
     return int(low.sum()), d, float(penetration(body, body_topology().faces, g.vertices).max())

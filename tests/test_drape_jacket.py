@@ -64,6 +64,21 @@ def _benchmark(n: int) -> list:
     return [sample_recipe(rng_for(0, "character", s), pool="benchmark", index=s) for s in range(n)]
 
 
+def stream_draws(monkeypatch, share: str) -> tuple[list[int], list, list, list]:
+    """What a test of a garment drawn on its own stream compares (tests/test_drape_tshirt.py shares it): the seeds
+    (1000, even), their benchmark recipes as drawn, seed 0's first 49 benchmark subjects as rh-generate draws them,
+    and the same 1000 recipes drawn again with `recipe_draws.<share>` set to zero (left so: monkeypatched)."""
+    from rh_dataset.characters import recipe_draws
+    from rh_dataset.characters.recipe_draws import recipe_from_seed
+
+    seeds = [2 * i for i in range(1000)]
+    rs = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
+    bench = _benchmark(49)
+    monkeypatch.setattr(recipe_draws, share, 0.0)
+    plain = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
+    return seeds, rs, bench, plain
+
+
 def test_benchmark_recipes_draw_open_jackets_from_their_own_stream(monkeypatch):
     """recipe_from_seed turns every drawn jacket the coat draw left, over shell trousers or shorts (UNDER_COAT), into
     a draped open jacket (JACKET_P = 1), deciding on a stream of its own (JACKET_STREAM): with the share set to zero
@@ -75,11 +90,7 @@ def test_benchmark_recipes_draw_open_jackets_from_their_own_stream(monkeypatch):
     from rh_dataset.characters.recipe import UNDER_COAT, CharacterRecipe, Garment
     from rh_dataset.characters.recipe_draws import JACKET_P, JACKET_STREAM, recipe_from_seed
 
-    seeds = [2 * i for i in range(1000)]
-    rs = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
-    bench = _benchmark(49)
-    monkeypatch.setattr(recipe_draws, "JACKET_P", 0.0)
-    plain = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
+    seeds, rs, bench, plain = stream_draws(monkeypatch, "JACKET_P")
     jacket = np.array([r.garment(KIND) is not None for r in rs])
     eligible = np.array([p.garment("jacket") is not None and any(p.garment(k) for k in UNDER_COAT) for p in plain])
     assert not any(p.garment(KIND) for p in plain) and eligible.sum() > 50

@@ -51,7 +51,13 @@ CLOTH_MODES = ("skinned", "simulated")
 # The open jacket is simulated as the coat is (the same cloth and layers, cut shorter): bench_cloth_pose.py --kind
 # draped_jacket (3 December, 3 posed frames, no renders) found no panel vertex in the body and no self-crossing edge
 # either way (docs/TRADEOFFS.md, "Every draped kind").
-SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_coat", "draped_jacket")
+# The loose t-shirt is simulated too: bench_cloth_pose.py --kind draped_tshirt --simulate-all (3 December, load
+# ~0.7-1.7; 2 subjects, 6 posed frames, no renders) found no cloth vertex in the body either way, fewer self-crossing
+# edges simulated (32 against 37) and the simulation at 5.0 s a posed frame (median); rendered (1 subject, 2 frames)
+# the two ways lie 26.4 and 31.1 dB apart against standard's 38-40 dB noise. The bench's rule: simulated at reference.
+# The loose long sleeve's cloth is the loose t-shirt's (the same cut and fabric; its sleeves are shell): simulated
+# alike, not measured on its own.
+SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_coat", "draped_jacket", "draped_tshirt", "draped_longsleeve")
 
 
 @dataclasses.dataclass(frozen=True)

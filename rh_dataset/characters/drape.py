@@ -2,7 +2,8 @@
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
 trousers, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on
-the back of the neckline, laid back and let fall down the upper back)); `PROFILES` cuts the others from one pattern
+the back of the neckline, laid back and let fall down the upper back), a loose t-shirt's or long sleeve's body (a tube
+hanging from under the arms to the hips; its shoulders and sleeves are the shell "tee" or "longtop")); `PROFILES` cuts the others from one pattern
 function, `garment_pattern`: the trousers' waist tube divides into two leg tubes, `_trouser_pattern`; the coat's and
 the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their shoulders and sleeves are one shell,
 garments.py's "coat", whose hem `shell_hem` places, as it places the dress's bodice) and its `DrapeSettings` (per
@@ -43,9 +44,11 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
            "cloth_model", "cloth_solver", "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
-           "HoodCut", "HOOD_CLEARANCE", "FRONT_OPENING", "JACKET_HEM"]
+           "HoodCut", "HOOD_CLEARANCE", "FRONT_OPENING", "JACKET_HEM", "TSHIRT_CLEARANCE",
+           "TSHIRT_HEM"]
 
-DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket")
+DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
+                "draped_tshirt", "draped_longsleeve")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -54,8 +57,14 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 # less than the drape keeps them at rest (its particle radius, COAT_CLEARANCE), so that push_out leaves the rest
 # drape as it settled and moves only what a limb swung into.
 # The open jacket (`draped_jacket`) is the coat cut short: the same layers under it, the same clearances.
-PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010}
+# The loose t-shirt's body (`draped_tshirt`) hangs over the shell trousers' or shorts' waistband (7 mm): push_out
+# keeps it 10 mm off the skin (the waistband's offset and `garments.LAYER_GAP`), its drape TSHIRT_CLEARANCE (its
+# particles settle a little closer than their radius where the cloth rests on the body, as the coat's do).
+# The loose long sleeve (`draped_longsleeve`) is the loose t-shirt with the longsleeve's sleeves: the same clearances.
+PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010, "draped_tshirt": 0.010,
+                   "draped_longsleeve": 0.010}
 COAT_CLEARANCE = 0.014
+TSHIRT_CLEARANCE = 0.012
 # The hood lies over the hoodie's shell (6 mm off the skin, a longsleeve's): its particles keep this far off the skin
 # at rest (the coat's; where its weight rests on the shoulders' slope the worst particle comes to 2-6 mm,
 # tests/test_drape_hoodie.py), push_out 10 mm (PUSH_CLEARANCES) when posed.
@@ -138,9 +147,14 @@ class DrapeProfile:
     then flaring at `DrapeSettings.flare` for `hem` times the drop from there to the knee (measured along the
     cloth): the skirt's hem ends about 10 cm above the knee; the dress, whose 70 cm of cloth hang from the chest and
     give way by ~15 cm under their weight (measured: the hem of a 0.9 pattern settled 17 cm lower, 9 cm under the
-    knee), is cut shorter. Every ring stays `clearance` + 2 mm outside the convex hull of the trunk's, shoulders'
-    and thighs' cross-section at its height, so the pattern starts clear of the body wherever the hips are wider
-    than the cloth above them.
+    knee), is cut shorter; the loose t-shirt flares from the chest (`TSHIRT_HEM`). Every ring stays `clearance` +
+    2 mm outside the convex hull of the trunk's, shoulders' and thighs' cross-section at its height, so the pattern
+    starts clear of the body wherever the hips are wider than the cloth above them.
+
+    `ring_gap` (the loose t-shirt): metres the pinned ring keeps outside that hull instead (0: `clearance` + 2 mm),
+    so it closes onto the shell it covers (`SHELL_KINDS_OVER`) and no slot opens between shell and cloth where one
+    looks up under the ring; the rings below keep the cloth's own gap (the pattern steps out over the first ring
+    spacing). Its height under the arms is found with this gap too (`_top_height`, `shell_hem`).
 
     `legs` (trousers, `_trouser_pattern`): the tube from the waist hangs straight (kept outside the hips) down to
     just under the crotch, where it divides into two leg tubes along a crotch seam between the thighs; each leg
@@ -157,6 +171,7 @@ class DrapeProfile:
     hem: float = 0.9
     legs: float = 0.0
     opening: float = 0.0
+    ring_gap: float = 0.0
 
 
 # The open jacket's cut (`draped_jacket`): the coat's, its flared part JACKET_HEM of the hip-to-knee drop, so the
@@ -166,11 +181,25 @@ class DrapeProfile:
 # coarse one (150 steps: it sags less far); cut at 0.15 the full drape's hem settled at the crotch (-0.6 to +1.7 cm),
 # at 0.2 on or under it (-3.2 to 0.0 cm).
 JACKET_HEM = 0.08
+# The loose t-shirt's cut (`draped_tshirt`): flaring from the chest at its settings' 0.12 rad (so ~3.7 cm wider at the
+# hem than under the arms: enough cloth to fall in soft waves, not enough for a tent) for TSHIRT_HEM of the chest-to-
+# knee drop. Measured (3 December, slim and heavy test builds and seed-0 subjects 3, 9, 12, 31): the pattern's hem,
+# 2.6 cm under to 0.4 cm over the hip joints, settles 1.6-4.6 cm under them in the full drape (5 cm or more above the
+# crotch), 0.1-3.1 cm in the coarse one; at 0.4 it settled 0.7-2.0 cm above them on four of the six.
+TSHIRT_HEM = 0.45
+# Metres the loose t-shirt's pinned ring keeps outside the trunk's hull (`DrapeProfile.ring_gap`): its push clearance,
+# so posing leaves it where it was draped (push_out would move it there anyway), over the shell "tee" lifted to 7.5 mm
+# under it (garments.TUCK). At the cloth's own 14 mm the ring stood 8 mm or more off the shell (tapered to ~4.5 mm at
+# the ring's height), and seen from above (a bending pose, bench_cloth_pose.py --figure) the slot between them showed
+# as a dark line across the chest.
+TSHIRT_RING_GAP = 0.010
 FRONT_OPENING = 0.05  # metres between the open coat's and jacket's front edges at the pinned ring (their one shell's V)
 PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7),
             "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),
             "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=FRONT_OPENING),
-            "draped_jacket": DrapeProfile("chest", "hips", JACKET_HEM, opening=FRONT_OPENING)}
+            "draped_jacket": DrapeProfile("chest", "hips", JACKET_HEM, opening=FRONT_OPENING),
+            "draped_tshirt": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP),
+            "draped_longsleeve": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP)}
 SHELL_OVERLAP = 0.015  # metres a shell over draped cloth (SHELL_KINDS_OVER) reaches below its pinned ring, inside it
 
 
@@ -227,6 +256,15 @@ _SETTINGS = {
     ("draped_jacket", "full"): DrapeSettings(n_rings=20, contact_ke=5.0e4, clearance=COAT_CLEARANCE),
     ("draped_jacket", "coarse"): DrapeSettings(n_around=36, n_rings=10, steps=150, contact_ke=5.0e4,
                                                clearance=COAT_CLEARANCE),
+    # The loose t-shirt's body: a closed cone of the skirt's light fabric from under the arms to the hips, flaring
+    # at 0.12 rad (TSHIRT_HEM), the coat's contact stiffness; rings ~2.1 cm apart (coarse ~4.6 cm) over its ~32 cm.
+    ("draped_tshirt", "full"): DrapeSettings(n_rings=16, contact_ke=5.0e4, clearance=TSHIRT_CLEARANCE, flare=0.12),
+    ("draped_tshirt", "coarse"): DrapeSettings(n_around=36, n_rings=8, steps=150, contact_ke=5.0e4,
+                                               clearance=TSHIRT_CLEARANCE, flare=0.12),
+    # The loose long sleeve: the loose t-shirt's body of cloth (its sleeves are the shell's).
+    ("draped_longsleeve", "full"): DrapeSettings(n_rings=16, contact_ke=5.0e4, clearance=TSHIRT_CLEARANCE, flare=0.12),
+    ("draped_longsleeve", "coarse"): DrapeSettings(n_around=36, n_rings=8, steps=150, contact_ke=5.0e4,
+                                                   clearance=TSHIRT_CLEARANCE, flare=0.12),
     # The hood: a heavier, firmer knit (sweatshirt fleece: 0.3 kg/m^2, ten times the skirt's membrane stiffness and a
     # hundred times its bending stiffness), so it sags less and folds in rounder rolls; 32 x 24 particles (~1.5 cm
     # apart), contact found every step and twice the dress's contact stiffness (it rests on the shoulders' slope; at
@@ -281,6 +319,11 @@ def _under_the_arms(feats, body: np.ndarray, heads: dict, centre: np.ndarray, ga
     return z_low
 
 
+def _ring_gap(prof: DrapeProfile, st: DrapeSettings) -> float:
+    """Metres a profile's pinned ring keeps outside the trunk's hull (`DrapeProfile.ring_gap`)."""
+    return prof.ring_gap or st.clearance + 0.002
+
+
 def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float) -> float:
     """Height (A-pose frame) of a profile's pinned top ring: the waist (`DrapeProfile.top`), or the chest under the
     arms (`_under_the_arms`)."""
@@ -293,8 +336,10 @@ def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre
 # cloth's pinned ring: {draped kind: the shell's part name}. The coat's and the jacket's shoulders, yoke and sleeves
 # (one shell "coat": both are pinned from the chest with the same clearance, so `shell_hem` puts its hem at the same
 # height, and the front is open as wide, FRONT_OPENING); the dress's bodice (without it the dress is strapless, its
-# top edge across the bust).
-SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dress": "bodice"}
+# top edge across the bust); the loose t-shirt's shoulders, sleeves and chest ("tee": the t-shirt's cut, its hem
+# under the ring); the loose long sleeve's ("longtop": the longsleeve's cut, its hem under the ring).
+SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dress": "bodice", "draped_tshirt": "tee",
+                    "draped_longsleeve": "longtop"}
 
 
 def shell_hem(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:
@@ -308,8 +353,8 @@ def shell_hem(kind: str, phenotype: dict[str, float], settings: DrapeSettings | 
     feats = body_features(phenotype)
     run = run_anny(phenotype)
     heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
-    z = _top_height(PROFILES[kind], feats, run["vertices"], heads, np.asarray(heads["root"], np.float64),
-                    st.clearance + 0.002)
+    prof = PROFILES[kind]
+    z = _top_height(prof, feats, run["vertices"], heads, np.asarray(heads["root"], np.float64), _ring_gap(prof, st))
     return z + float(feats.bone_heads["spine02"][2] - heads["spine02"][2]) - SHELL_OVERLAP
 
 
@@ -334,9 +379,9 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     body = run["vertices"]
     heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
     na, nr = int(st.n_around), int(st.n_rings)
-    gap = st.clearance + 0.002
+    gap, ring_gap = st.clearance + 0.002, _ring_gap(prof, st)
     centre = np.asarray(heads["root"], dtype=np.float64)
-    z_top = _top_height(prof, feats, body, heads, centre, gap)
+    z_top = _top_height(prof, feats, body, heads, centre, ring_gap)
     z_flare = z_top if prof.flare_from == "top" else \
         0.5 * (float(heads["upperleg01.L"][2]) + float(heads["upperleg01.R"][2]))
     z_knee = 0.5 * (float(heads["lowerleg01.L"][2]) + float(heads["lowerleg01.R"][2]))
@@ -353,7 +398,7 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     flare_out = cone * np.sin(st.flare)
     # r_i = flare_out_i + m_i, m_i the running maximum of (body + gap - flare_out): the cone as drawn where the
     # body stays inside it, pushed out (and kept out further down) where the body reaches it.
-    m = _hull_radii(feats, body, float(zs[0]), centre, ang) + gap
+    m = _hull_radii(feats, body, float(zs[0]), centre, ang) + ring_gap
     rr = np.empty((nr, na))
     for i in range(nr):
         if i:

@@ -23,6 +23,7 @@ __all__ = [
     "DRESSES",
     "UNDER_COAT",
     "OUTERWEAR",
+    "LOOSE_TOPS",
     "PATTERNS",
     "FABRICS",
     "HAIR_STYLES",
@@ -44,11 +45,16 @@ POOLS = ("benchmark", "pretrain")
 # or the open jacket is the outermost layer, instead of a (shell) jacket, over close-fitting shell bottoms only
 # (UNDER_COAT: its drape collides with the body, not with cloth under it). draped_hoodie: a top, the longsleeve's
 # shell with a hood draped on the upper back, worn without any of OUTERWEAR (its hood collides with the body, not with
-# a jacket). `recipe_from_seed` draws them (recipe_draws.py); the shell
-# `skirt` stays a recipe's choice.
+# a jacket). draped_tshirt: a top, the t-shirt's shoulders and sleeves over a body of cloth hanging loose from under
+# the arms to the hips, worn without any of OUTERWEAR, over one of UNDER_COAT (its drape collides with the body, not
+# with a jacket or a draped bottom); draped_longsleeve likewise, the longsleeve's shoulders and sleeves over that
+# cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a
+# recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
-                 "draped_trousers", "shoes", "draped_coat", "draped_hoodie", "draped_jacket")
-TOPS = ("tshirt", "longsleeve", "draped_hoodie")
+                 "draped_trousers", "shoes", "draped_coat", "draped_hoodie", "draped_jacket", "draped_tshirt",
+                 "draped_longsleeve")
+TOPS = ("tshirt", "longsleeve", "draped_hoodie", "draped_tshirt", "draped_longsleeve")
+LOOSE_TOPS = ("draped_tshirt", "draped_longsleeve")  # worn with nothing over them, over one of UNDER_COAT
 BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers")
 DRESSES = ("draped_dress",)
 UNDER_COAT = ("trousers", "shorts")  # the bottoms a draped coat or jacket may be worn over
@@ -63,7 +69,7 @@ HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 HEADWEAR_KINDS = ("cap", "brimmed_hat", "headscarf", "glasses")
 # Innermost first: shoes under trouser hems, bottoms under tops (a shirt hangs over the waistband), jacket outside.
 GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_dress", "tshirt",
-                  "longsleeve", "draped_hoodie", "jacket", "draped_jacket", "draped_coat")
+                  "draped_tshirt", "longsleeve", "draped_longsleeve", "draped_hoodie", "jacket", "draped_jacket", "draped_coat")
 COVERINGS = ("cap", "brimmed_hat", "headscarf")
 
 
@@ -301,6 +307,9 @@ class CharacterRecipe:
                              f"{UNDER_COAT}, got {kinds}")
         if "draped_hoodie" in kinds and outer:
             raise ValueError(f"garments: a draped_hoodie is worn without any of {OUTERWEAR}, got {kinds}")
+        if any(k in LOOSE_TOPS for k in kinds) and (outer or not any(k in UNDER_COAT for k in kinds)):
+            raise ValueError(f"garments: a loose top {LOOSE_TOPS} is worn without any of {OUTERWEAR}, over one of "
+                             f"{UNDER_COAT}, got {kinds}")
         layered = sorted(kinds, key=GARMENT_LAYERS.index)
         if kinds != layered:
             raise ValueError(f"garments must be listed innermost first, i.e. {layered}, got {kinds}")

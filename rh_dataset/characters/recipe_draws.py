@@ -21,7 +21,8 @@ __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear"
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
            "iris_colour_name", "iris_weights", "EYES_STREAM", "DRESS_P", "DRESS_STREAM", "WIDE_TROUSERS_P",
            "WIDE_TROUSERS_STREAM", "COAT_P", "COAT_STREAM", "HOODIE_P", "HOODIE_STREAM", "HOODIE_HAIR", "JACKET_P",
-           "JACKET_STREAM"]
+           "JACKET_STREAM", "TSHIRT_P", "TSHIRT_STREAM",
+           "LONGSLEEVE_P", "LONGSLEEVE_STREAM"]
 
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 # Loose clothing (issue 17): the published dataset's subjects wear "long hair, loose clothing, jackets, hats, head
@@ -62,6 +63,21 @@ HOODIE_HAIR = ("buzz", "short", "bob", "bun")
 # without moving any other draw.
 JACKET_STREAM = 1721
 JACKET_P = 1.0
+# A loose t-shirt (`draped_tshirt`: the t-shirt's shoulders and sleeves over cloth hanging from under the arms to the
+# hips) instead of the drawn t-shirt, for this share of the t-shirt wearers with nothing over it (none of
+# recipe.OUTERWEAR) and shell trousers or shorts under it (UNDER_COAT: its drape would hang through a skirt or wide
+# trousers). Our choice, not a census figure: about half the t-shirts stay close-fitting shells (fitted tees exist),
+# the rest hang loose. Its own stream (one draw for everyone, after the jacket's), the t-shirt's colours, pattern and
+# fabric: no other draw of any seed changes.
+TSHIRT_STREAM = 1722
+TSHIRT_P = 0.5
+# A loose long sleeve (`draped_longsleeve`: the longsleeve's shoulders and sleeves over the loose t-shirt's cloth)
+# instead of the drawn longsleeve, for this share of the longsleeve wearers the hoodie draw left, with nothing over it
+# and shell trousers or shorts under it (as the loose t-shirt). Our choice, not a census figure (a sweater hangs off
+# the body; a fitted long sleeve does not). Its own stream (one draw for everyone, after the hoodie's), the
+# longsleeve's colours, pattern and fabric: no other draw of any seed changes.
+LONGSLEEVE_STREAM = 1723
+LONGSLEEVE_P = 0.5
 
 
 def derive_seed(pool: str, index: int, base: int) -> int:
@@ -180,10 +196,13 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     garments = _wide_trousers(np.random.default_rng([int(seed), WIDE_TROUSERS_STREAM]), female, garments)
     garments = _open_jacket(np.random.default_rng([int(seed), COAT_STREAM]), garments, "draped_coat", COAT_P)
     garments = _open_jacket(np.random.default_rng([int(seed), JACKET_STREAM]), garments, "draped_jacket", JACKET_P)
+    garments = _loose_top(np.random.default_rng([int(seed), TSHIRT_STREAM]), garments, "tshirt", TSHIRT_P)
     skin, garments = _surface_detail(seed, skin, hair, garments)
     headwear = sample_headwear(np.random.default_rng([int(seed), HEADWEAR_STREAM]), female, phenotype["age"])
     eyes = sample_eyes(np.random.default_rng([int(seed), EYES_STREAM]), skin.melanin)
     garments = _hoodie(np.random.default_rng([int(seed), HOODIE_STREAM]), garments, hair, headwear)
+    garments = _loose_top(np.random.default_rng([int(seed), LONGSLEEVE_STREAM]), garments, "longsleeve",
+                          LONGSLEEVE_P)
     return CharacterRecipe(seed=int(seed), pool=pool, index=int(index), phenotype=phenotype, skin=skin, hair=hair,
                            garments=garments, headwear=headwear, eyes=eyes)
 
@@ -220,6 +239,17 @@ def _open_jacket(rng: np.random.Generator, garments: tuple[Garment, ...], kind: 
     return tuple(dataclasses.replace(g, kind=kind) if g.kind == "jacket" else g for g in garments)
 
 
+def _loose_top(rng: np.random.Generator, garments: tuple[Garment, ...], top: str, p: float) -> tuple[Garment, ...]:
+    """The drawn `top` ("tshirt" or "longsleeve") made its draped kind with probability `p` where nothing is worn
+    over it and the bottom is one of UNDER_COAT (rng: the kind's stream; one draw for everyone, so the stream's use
+    is fixed)."""
+    loose = rng.random() < p
+    kinds = {g.kind for g in garments}
+    if not (loose and top in kinds and not kinds & set(OUTERWEAR) and kinds & set(UNDER_COAT)):
+        return garments
+    return tuple(dataclasses.replace(g, kind=f"draped_{top}") if g.kind == top else g for g in garments)
+
+
 def _hoodie(rng: np.random.Generator, garments: tuple[Garment, ...], hair: HairSpec,
             headwear: tuple[Headwear, ...]) -> tuple[Garment, ...]:
     """The drawn longsleeve made a draped hoodie with probability HOODIE_P where nothing is worn over it, the hair is
@@ -242,11 +272,13 @@ _STREAM_SURFACE_DETAIL = 1704
 _JACKET_FABRICS = (("plain", "knit", "velvet"), (0.75, 0.15, 0.10))
 _FABRIC_CHOICES = {
     "tshirt": (("jersey", "plain"), (0.85, 0.15)),
+    "draped_tshirt": (("jersey", "plain"), (0.85, 0.15)),  # the t-shirt's (so the drawn fabric stays)
     "longsleeve": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),
     "jacket": _JACKET_FABRICS,
     "draped_coat": _JACKET_FABRICS,  # the jacket's (so the drawn fabric stays)
     "draped_jacket": _JACKET_FABRICS,
     "draped_hoodie": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),  # the longsleeve's
+    "draped_longsleeve": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),  # the longsleeve's
     "trousers": (("plain", "velvet"), (0.92, 0.08)),  # denim / twill; velvet stands for corduroy and velour
     "draped_trousers": (("plain", "velvet"), (0.92, 0.08)),  # the trousers' (so a drawn fabric stays the same)
     "skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
