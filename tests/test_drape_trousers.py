@@ -144,9 +144,10 @@ def test_benchmark_recipes_draw_wide_trousers_from_their_own_stream(monkeypatch)
     wide = np.array([r.garment(KIND) is not None for r in rs])
     had = np.array([p.garment("trousers") is not None for p in plain])
     assert not (wide & ~had).any() and not any(p.garment(KIND) for p in plain)
-    # The coat and the open jacket (drawn after, over shell bottoms only) may come or go with the trousers' kind:
-    # each is compared as the jacket it replaced.
-    as_jacket = {"draped_coat": "jacket", "draped_jacket": "jacket"}
+    # The coat, the open jacket and the loose tops (drawn after, over shell bottoms only) may come or go with the
+    # trousers' kind: each is compared as the jacket or the top it replaced.
+    as_jacket = {"draped_coat": "jacket", "draped_jacket": "jacket", "draped_tshirt": "tshirt",
+                 "draped_longsleeve": "longsleeve"}
     for r, p in zip(rs, plain):
         back = tuple(dataclasses.replace(g, kind=as_jacket.get(g.kind, "trousers" if g.kind == KIND else g.kind))
                      for g in r.garments)
