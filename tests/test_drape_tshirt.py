@@ -137,8 +137,9 @@ HEM_ABOVE_CROTCH_M = 0.04
 @pytest.mark.parametrize("pheno", [PHENO, HEAVY], ids=["slim", "heavy"])
 def test_tshirt_coarse_drape_hangs_to_the_hips_off_the_body_over_its_shell(pheno, kind):
     """newton's coarse drape (~3 s; the user's drape cache): the pinned ring where it was and RING_OFF_M off the body,
-    every other particle REST_OFF_M off it, the hem settled just under the hip joints (by COARSE_HEM_UNDER_HIPS_M) and well above the crotch,
-    and a character wearing it over trousers: the shell's trunk under the pinned ring inside the cloth."""
+    every other particle REST_OFF_M off it, the hem settled just under the hip joints (by COARSE_HEM_UNDER_HIPS_M)
+    and well above the crotch, and a character wearing it over trousers: the shell's trunk under the pinned ring
+    inside the cloth."""
     from rh_dataset.characters.recipe_draws import recipe_from_seed
 
     st = drape_settings(kind, "coarse")
@@ -170,11 +171,11 @@ LAYER_MAX_UNDER = 5
 
 @pytest.mark.slow
 def test_tshirt_drape_is_bit_identical_and_stays_outside_the_body_and_the_trousers(tmp_path, monkeypatch):
-    """Coarse simulated, simulated and cached, read back: the same bits. The full drape: the ring where it was
-    pinned and RING_OFF_M off the body, every other particle REST_OFF_M off it, at most REST_CROSSINGS crossing edges, the hem under the hip
-    joints (by FULL_HEM_UNDER_HIPS_M) and above the crotch. Skinned into sampled poses over trousers: the cloth
-    3 mm or more off the skin, at most LAYER_MAX_UNDER vertices more than 1 mm under the trousers (none deeper than
-    LAYER_BOUND_M), and the shell's lower edge inside the cloth at rest."""
+    """Coarse simulated, simulated and cached, read back: the same bits. The full drape: the ring where it was pinned
+    and RING_OFF_M off the body, every other particle REST_OFF_M off it, at most REST_CROSSINGS crossing edges, the hem
+    under the hip joints (by FULL_HEM_UNDER_HIPS_M) and above the crotch. Skinned into sampled poses over trousers:
+    the cloth 3 mm or more off the skin, at most LAYER_MAX_UNDER vertices more than 1 mm under the trousers (none
+    deeper than LAYER_BOUND_M), and the shell's lower edge inside the cloth at rest."""
     monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
     m = drape_measures(KIND, PHENO, top=None)
     crotch, hip = _band(PHENO)

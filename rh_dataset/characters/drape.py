@@ -1,13 +1,13 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
-trousers, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on
-the back of the neckline, laid back and let fall down the upper back), a loose t-shirt's or long sleeve's body (a tube
-hanging from under the arms to the hips; its shoulders and sleeves are the shell "tee" or "longtop")); `PROFILES` cuts the others from one pattern
-function, `garment_pattern`: the trousers' waist tube divides into two leg tubes, `_trouser_pattern`; the coat's and
-the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their shoulders and sleeves are one shell,
-garments.py's "coat", whose hem `shell_hem` places, as it places the dress's bodice) and its `DrapeSettings` (per
-kind and drape level: `drape_settings`).
+trousers, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on the
+back of the neckline, laid back and let fall down the upper back), a loose t-shirt's or long sleeve's body (a tube
+hanging from under the arms to the hips; its shoulders and sleeves are the shell "tee" or "longtop")); `PROFILES` cuts
+the others from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
+`_trouser_pattern`; the coat's and the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their
+shoulders and sleeves are one shell, garments.py's "coat", whose hem `shell_hem` places, as it places the dress's
+bodice) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
 static collider, plus the skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
@@ -60,9 +60,7 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 # The loose t-shirt's body (`draped_tshirt`) hangs over the shell trousers' or shorts' waistband (7 mm): push_out
 # keeps it 10 mm off the skin (the waistband's offset and `garments.LAYER_GAP`), its drape TSHIRT_CLEARANCE (its
 # particles settle a little closer than their radius where the cloth rests on the body, as the coat's do).
-# The loose long sleeve (`draped_longsleeve`) is the loose t-shirt with the longsleeve's sleeves: the same clearances.
-PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010, "draped_tshirt": 0.010,
-                   "draped_longsleeve": 0.010}
+PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010, "draped_tshirt": 0.010}
 COAT_CLEARANCE = 0.014
 TSHIRT_CLEARANCE = 0.012
 # The hood lies over the hoodie's shell (6 mm off the skin, a longsleeve's): its particles keep this far off the skin
@@ -198,8 +196,7 @@ PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeP
             "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),
             "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=FRONT_OPENING),
             "draped_jacket": DrapeProfile("chest", "hips", JACKET_HEM, opening=FRONT_OPENING),
-            "draped_tshirt": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP),
-            "draped_longsleeve": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP)}
+            "draped_tshirt": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP)}
 SHELL_OVERLAP = 0.015  # metres a shell over draped cloth (SHELL_KINDS_OVER) reaches below its pinned ring, inside it
 
 
@@ -261,10 +258,6 @@ _SETTINGS = {
     ("draped_tshirt", "full"): DrapeSettings(n_rings=16, contact_ke=5.0e4, clearance=TSHIRT_CLEARANCE, flare=0.12),
     ("draped_tshirt", "coarse"): DrapeSettings(n_around=36, n_rings=8, steps=150, contact_ke=5.0e4,
                                                clearance=TSHIRT_CLEARANCE, flare=0.12),
-    # The loose long sleeve: the loose t-shirt's body of cloth (its sleeves are the shell's).
-    ("draped_longsleeve", "full"): DrapeSettings(n_rings=16, contact_ke=5.0e4, clearance=TSHIRT_CLEARANCE, flare=0.12),
-    ("draped_longsleeve", "coarse"): DrapeSettings(n_around=36, n_rings=8, steps=150, contact_ke=5.0e4,
-                                                   clearance=TSHIRT_CLEARANCE, flare=0.12),
     # The hood: a heavier, firmer knit (sweatshirt fleece: 0.3 kg/m^2, ten times the skirt's membrane stiffness and a
     # hundred times its bending stiffness), so it sags less and folds in rounder rolls; 32 x 24 particles (~1.5 cm
     # apart), contact found every step and twice the dress's contact stiffness (it rests on the shoulders' slope; at
@@ -276,6 +269,13 @@ _SETTINGS = {
     ("draped_hoodie", "full"): DrapeSettings(n_around=32, n_rings=24, collide_every=1, **_HOOD_FABRIC),
     ("draped_hoodie", "coarse"): DrapeSettings(n_around=16, n_rings=16, collide_every=1, **_HOOD_FABRIC),
 }
+
+
+# The loose long sleeve (`draped_longsleeve`) is the loose t-shirt's body of cloth under the longsleeve's shell:
+# the same cut, settings and clearances.
+PROFILES["draped_longsleeve"] = PROFILES["draped_tshirt"]
+PUSH_CLEARANCES["draped_longsleeve"] = PUSH_CLEARANCES["draped_tshirt"]
+_SETTINGS.update({("draped_longsleeve", level): _SETTINGS["draped_tshirt", level] for level in DRAPE_LEVELS})
 
 
 def drape_settings(kind: str, level: str = "full") -> DrapeSettings:

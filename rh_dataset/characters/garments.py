@@ -15,7 +15,8 @@ collars).
 
 In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first
 (the draped coat, jacket, dress, loose t-shirt and loose long sleeve: two each, a shell over the cloth, "coat",
-"bodice", "tee" or "longtop", then the draped cloth; the draped hoodie: the shell "hoodie", a longsleeve, and its draped hood; `garment_parts`).
+"bodice", "tee" or "longtop", then the draped cloth; the draped hoodie: the shell "hoodie", a longsleeve, and its
+draped hood; `garment_parts`).
 """
 from __future__ import annotations
 
@@ -48,9 +49,9 @@ BASE_OFFSET = {
     "jacket": 0.017,
     "coat": 0.017,  # the draped coat's and jacket's shoulders, yoke and sleeves (a jacket's cut down to the chest)
     "bodice": 0.006,  # the draped dress's top: a t-shirt's cut with cap sleeves and a scoop neck, down to the chest
-    "hoodie": 0.006,
+    "hoodie": 0.006,  # the hoodie's body and sleeves: the longsleeve's shell (its hood is draped: drape.py)
     "tee": 0.006,  # the loose t-shirt's shoulders, sleeves and chest: the t-shirt's cut down to the chest
-    "longtop": 0.006,  # the loose long sleeve's: the longsleeve's cut down to the chest  # the hoodie's body and sleeves: the longsleeve's shell (its hood is draped: drape.py)
+    "longtop": 0.006,  # the loose long sleeve's: the longsleeve's cut down to the chest
 }
 # The coat's (and open jacket's) front opening in its shell: a V from the panels' gap (drape.FRONT_OPENING wide at
 # the shell's hem) widening by COAT_LAPEL metres per metre up to the collar, so the coat reads as open from the
@@ -60,8 +61,12 @@ COAT_LAPEL = 0.25
 # distance from the skin there (the coat's panels >= ~13 mm, the dress's cloth >= its 4 mm particle radius). Above
 # the shell's own offset it is a lift, not a cap: the loose t-shirt's shell rises to 2.5 mm under its cloth's pinned
 # ring (10 mm off the skin once posed, `drape.push_clearance`) instead of tapering to its hem, since the slot
-# between a 4-6 mm shell and the ring showed as a dark line across the chest seen from above.
-TUCK = {"coat": 0.009, "bodice": 0.003, "tee": 0.0075, "longtop": 0.0075}
+# between a 4-6 mm shell and the ring showed as a dark line across the chest seen from above; the loose long
+# sleeve's shell over the same cloth likewise.
+TUCK = {"coat": 0.009, "bodice": 0.003, "tee": 0.0075}
+TUCK["longtop"] = TUCK["tee"]
+# Shells cut as another kind but for their hem (`garment_level`): neckline and sleeves of the named kind.
+CUT_AS = {"hoodie": "longsleeve", "tee": "tshirt", "longtop": "longsleeve"}
 LAYER_GAP = 0.003  # minimum distance between two layers (well above ray-tracing epsilon at body scale)
 TAPER_WIDTH = 0.025  # metres over which the offset falls towards an open edge
 TAPER_MIN = 0.3  # fraction of the offset left at the very edge
@@ -106,8 +111,9 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
     along which `split_faces` cuts the body's triangles. Each edge is a level of a smooth function (height, a
     rounded scoop in front of the neck, distance along a limb's axis), so the cut is a smooth curve; bone-group
     labels only pick which function applies to a vertex (an arm takes the sleeve's, never the trunk's), so their
-    ragged borders never become an edge. `hem` (bind-space height; the "coat", "bodice", "tee" and "longtop" shells only, whose
-    hem is where the draped cloth under them is pinned: `drape.shell_hem`)."""
+    ragged borders never become an edge. `hem` (bind-space height; the "coat", "bodice", "tee" and "longtop" shells
+    only, whose hem is where the draped cloth under them is pinned: `drape.shell_hem`). Shells in CUT_AS take the
+    neckline and sleeves of the kind named there."""
     v = feats.rest_vertices
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     z_neck = _z(feats, "neck01")
@@ -115,28 +121,22 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
     z_hip = 0.5 * (_z(feats, "upperleg01.L") + _z(feats, "upperleg01.R"))
     z_waist = 0.5 * (_z(feats, "root") + _z(feats, "spine04")) + 0.02
     out = np.full(len(v), 1.0)  # vertices no part of the garment applies to: 1 m outside
-    if kind == "hoodie":  # the draped hoodie's shell is the longsleeve's
-        kind = "longsleeve"
-    if kind in ("tshirt", "longsleeve", "jacket", "coat", "bodice", "tee", "longtop"):
+    shell, hem_given = kind, kind in TUCK
+    kind = CUT_AS.get(kind, kind)
+    if kind in ("tshirt", "longsleeve", "jacket", "coat", "bodice"):
         # A scoop at the front centre: the neckline drops in front of the neck, not behind it (smoothsteps, so
         # the collar's curve has no corners).
         front = _smoothstep(-(y - y_neck) / 0.07) * _smoothstep(1.0 - np.abs(x) / 0.1)
-        drop = {"tshirt": 0.04, "longsleeve": 0.03, "jacket": 0.06, "coat": 0.06, "bodice": 0.08, "tee": 0.04,
-                "longtop": 0.03}[kind]
+        drop = {"tshirt": 0.04, "longsleeve": 0.03, "jacket": 0.06, "coat": 0.06, "bodice": 0.08}[kind]
         collar = z - (z_neck - 0.012 - drop * front)
-        if kind in TUCK and hem is None:
-            raise ValueError(f"garment_level: the {kind!r} shell needs its hem height (drape.shell_hem)")
+        if hem_given and hem is None:
+            raise ValueError(f"garment_level: the {shell!r} shell needs its hem height (drape.shell_hem)")
         if kind == "coat":
             # The open front: a V, cut on the front half only (at the sides |x| is far wider than the V).
             half = 0.5 * FRONT_OPENING + COAT_LAPEL * np.maximum(z - hem, 0.0)
             collar = np.maximum(collar, np.where(y < y_neck, half - np.abs(x), -np.inf))
-            z_hem = float(hem)
-        elif kind in ("bodice", "tee", "longtop"):
-            z_hem = float(hem)
-        else:
-            z_hem = z_hip + {"tshirt": 0.0, "longsleeve": -0.005, "jacket": -0.02}[kind]
-        sleeve = {"tshirt": 0.3, "longsleeve": 0.95, "jacket": 0.97, "coat": 0.97, "bodice": 0.12, "tee": 0.3,
-                  "longtop": 0.95}[kind]
+        z_hem = float(hem) if hem_given else z_hip + {"tshirt": 0.0, "longsleeve": -0.005, "jacket": -0.02}[kind]
+        sleeve = {"tshirt": 0.3, "longsleeve": 0.95, "jacket": 0.97, "coat": 0.97, "bodice": 0.12}[kind]
         # Hem: a horizontal cut through trunk and hips alike (upper-leg vertices included), above the crotch so a
         # top never turns into a bodysuit between the legs.
         trunk = feats.in_groups("torso", "shoulder", "neck", "upperleg")

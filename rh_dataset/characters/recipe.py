@@ -48,8 +48,7 @@ POOLS = ("benchmark", "pretrain")
 # a jacket). draped_tshirt: a top, the t-shirt's shoulders and sleeves over a body of cloth hanging loose from under
 # the arms to the hips, worn without any of OUTERWEAR, over one of UNDER_COAT (its drape collides with the body, not
 # with a jacket or a draped bottom); draped_longsleeve likewise, the longsleeve's shoulders and sleeves over that
-# cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a
-# recipe's choice.
+# cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
                  "draped_trousers", "shoes", "draped_coat", "draped_hoodie", "draped_jacket", "draped_tshirt",
                  "draped_longsleeve")
@@ -69,7 +68,8 @@ HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 HEADWEAR_KINDS = ("cap", "brimmed_hat", "headscarf", "glasses")
 # Innermost first: shoes under trouser hems, bottoms under tops (a shirt hangs over the waistband), jacket outside.
 GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_dress", "tshirt",
-                  "draped_tshirt", "longsleeve", "draped_longsleeve", "draped_hoodie", "jacket", "draped_jacket", "draped_coat")
+                  "draped_tshirt", "longsleeve", "draped_longsleeve", "draped_hoodie", "jacket", "draped_jacket",
+                  "draped_coat")
 COVERINGS = ("cap", "brimmed_hat", "headscarf")
 
 
