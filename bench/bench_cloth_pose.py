@@ -6,7 +6,8 @@ penetration and the image difference, and from them which preset poses cloth whi
     python bench/bench_cloth_pose.py --figure docs/cloth_pose.png     # also the picture of the most different pose
     python bench/bench_cloth_pose.py --subjects 1 --no-render --max-body-step 0.01   # another simulation setting
     python bench/bench_cloth_pose.py --kind draped_coat               # another draped kind (DRAPED_KINDS)
-    python bench/bench_cloth_pose.py --kind draped_trousers --simulate-all   # a kind "simulated" leaves skinned
+    python bench/bench_cloth_pose.py --kind draped_hoodie --simulate-all     # a kind "simulated" leaves skinned
+    python bench/bench_cloth_pose.py --kind draped_trousers --drape-fabric   # the trousers in their drape's fabric
 
 Subjects: the first benchmark-pool recipes that draw `--kind` (default the skirt; recipe_from_seed(derive_seed(
 "benchmark", i, --seed)), as bench/bench_cloth.py draws them: bench_cloth.draped_recipe; every skirt drawn is the
@@ -24,13 +25,17 @@ Per (subject, pose), both ways of `pose_character(..., cloth=)`:
   body      cloth-vertex depth under the posed skin (`drape.penetration`, > 0 inside): worst (mm), share inside,
             and the simulation's own worst before the final push_out (raw);
   self      cloth edges that pass through the cloth's own triangles (`cloth_pose.self_crossings`);
+  cover     of the body vertices the part covers in the rest pose (`cloth_pose.covers`: the ray out along the
+            skin's normal meets it), the share it still covers in the pose: a thigh that left its trouser leg is bare;
   image     512x512 renders at the standard preset (its sampler, spp, env_spp, the pose's scene-class depth, skin
             under clothes culled) under the bundled `interior` map (mean luminance 1), camera framed as the generator
             frames the subject: rh-eval's PSNR (display space over the person's dilated box, over white) of the
             simulated render against the skinned one (same sampler seed), and the standard preset's noise as the
             PSNR of the skinned render at another seed (+3.01 dB = its estimated PSNR against a converged image).
 `--simulate-all`: the simulated side simulates every draped kind, also those `cloth_pose.SIMULATED_KINDS` leaves
-skinned in every mode (the wide-leg trousers; without it their two sides are the same).
+skinned in every mode (the hoodie's hood; without it its two sides are the same). `--drape-fabric`: simulate with the
+fabric each kind was draped with, not `cloth_pose.POSE_FABRIC`'s (the wide-leg trousers as they were simulated
+before 3 December).
 The decision printed last: a preset simulates the cloth where, on posed frames, the two renders differ by more than
 that preset's noise and the simulation costs at most the preset's own render of the frame (the cloth may at most
 double a frame's time). The reference preset's render seconds and noise are scaled from standard's measured ones by
@@ -111,6 +116,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="ClothPoseSettings.iterations (default: the setting's)")
     ap.add_argument("--simulate-all", action="store_true",
                     help="simulate every draped kind, also those cloth_pose.SIMULATED_KINDS leaves skinned")
+    ap.add_argument("--drape-fabric", action="store_true",
+                    help="simulate every kind with the fabric it was draped with (cloth_pose.POSE_FABRIC emptied: the "
+                         "wide-leg trousers as simulated before 3 December)")
     ap.add_argument("--figure", type=Path, default=None,
                     help="write skinned | simulated of the pose whose surfaces differ most (front, then its left side)")
     args = ap.parse_args(argv)
@@ -120,8 +128,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
-    from rh_dataset.characters.body import body_topology, run_anny
-    from rh_dataset.characters.cloth_pose import self_crossings
+    from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+    from rh_dataset.characters.cloth_pose import covers, self_crossings
     from rh_dataset.characters.drape import DRAPED_KINDS, penetration
     from rh_dataset.cli import render_settings
     from rh_dataset.generate import rng_for
@@ -137,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
     simulated_kinds = cloth_pose.SIMULATED_KINDS
     if args.simulate_all:
         cloth_pose.SIMULATED_KINDS = DRAPED_KINDS  # read by simulated_parts at each call
+    if args.drape_fabric:
+        cloth_pose.POSE_FABRIC = {}  # read by pose_fabric at each call
     changed = {k: v for k, v in (("max_body_step", args.max_body_step), ("iterations", args.iterations))
                if v is not None}
     cloth_settings = ClothPoseSettings(**changed)
@@ -152,7 +162,11 @@ def main(argv: list[str] | None = None) -> int:
         character = build_character(recipe, 512)
         kinds = [p.name for p in character.parts if p.name in DRAPED_KINDS]
         assert args.kind in kinds, (args.kind, kinds)
-        pose_character(character, None, None, "simulated")  # the drape (cached on disk) and kernels, not timed
+        rest = pose_character(character, None, None, "simulated")  # the drape (cached on disk) and kernels, not timed
+        rest_body = run_anny(character.phenotype)["vertices"]
+        part_faces = next(p for p in character.parts if p.name == args.kind).faces
+        under = np.flatnonzero(covers(next(x for x in rest if x.name == args.kind).vertices, part_faces, rest_body,
+                                      vertex_normals(rest_body, faces)))  # the skin the part covers at rest
         scene = None if args.no_render else scene_for(character, args.resolution)
         poses = [("turntable", turntable(4)[1])]
         poses += [(f"test {j}", sample_pose(rng_for(args.seed, "pose", recipe.index, "test", j), load_anny()))
@@ -171,6 +185,7 @@ def main(argv: list[str] | None = None) -> int:
             run = run_anny(character.phenotype, bones)
             m = pose.root_transform
             body = run["vertices"] @ m[:3, :3].T + m[:3, 3]
+            normals = vertex_normals(body, faces)
             row = {"subject": recipe.index, "pose": f"{name} ({pose.label})", "posed": name != "turntable",
                    "t_skin": out["skinned"][1], "t_sim": out["simulated"][1], "load": out["simulated"][2],
                    "steps": stats.get("move_steps", 0) + stats.get("settle_steps", 0),
@@ -186,6 +201,7 @@ def main(argv: list[str] | None = None) -> int:
                     row[f"pen_{mode}_mm"] = 1e3 * max(float(pen.max()), 0.0)
                     row[f"in_{mode}_pct"] = 100.0 * float((pen > 0).mean())
                     row[f"self_{mode}"] = self_crossings(v, part.faces)
+                    row[f"cover_{mode}_pct"] = 100.0 * float(covers(v, part.faces, body[under], normals[under]).mean())
             if scene is not None:
                 depth = presets["standard"].depth_for("posed-envmap" if row["posed"] else "apose-envmap")
                 st = dataclasses.replace(standard, max_depth=depth)
@@ -209,7 +225,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 HEAD = ("subject pose                  skin s   sim s steps  mean mm  max mm  Haus mm | body mm skin/sim (sim raw)"
-        "  inside % skin/sim  self skin/sim | PSNR sim  noise  load")
+        "  inside % skin/sim  self skin/sim | cover % skin/sim | PSNR sim  noise  load")
 
 
 def _line(r: dict) -> str:
@@ -218,7 +234,8 @@ def _line(r: dict) -> str:
             f"{r['mean_mm']:8.1f} "
             f"{r['max_mm']:7.1f} {r['haus_mm']:8.1f} | {r['pen_skin_mm']:7.2f} {r['pen_sim_mm']:7.2f} "
             f"({r['raw_mm']:5.2f})   "
-            f"{r['in_skin_pct']:6.2f} {r['in_sim_pct']:6.2f}   {r['self_skin']:5d} {r['self_sim']:5d}{img}  "
+            f"{r['in_skin_pct']:6.2f} {r['in_sim_pct']:6.2f}   {r['self_skin']:5d} {r['self_sim']:5d} | "
+            f"{r['cover_skin_pct']:5.1f} {r['cover_sim_pct']:5.1f}{img}  "
             f"{r['load']}")
 
 
@@ -235,7 +252,9 @@ def _summary(rows: list[dict], presets: dict, standard) -> None:
           f"depth in the body skinned {max(r['pen_skin_mm'] for r in posed):.2f} mm, simulated "
           f"{max(r['pen_sim_mm'] for r in posed):.2f} mm (before push_out {max(r['raw_mm'] for r in posed):.2f} mm);"
           f" self-crossing edges skinned "
-          f"{sum(r['self_skin'] for r in posed)}, simulated {sum(r['self_sim'] for r in posed)}  (load {load()})")
+          f"{sum(r['self_skin'] for r in posed)}, simulated {sum(r['self_sim'] for r in posed)}; skin covered at rest "
+          f"still covered, worst pose: skinned {min(r['cover_skin_pct'] for r in posed):.1f} %, simulated "
+          f"{min(r['cover_sim_pct'] for r in posed):.1f} %  (load {load()})")
     if "psnr_sim" not in posed[0]:
         return
     diff_db = med("psnr_sim")

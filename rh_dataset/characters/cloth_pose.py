@@ -17,10 +17,11 @@ phenotype and the frame's anny bone deltas ('local-ref', as `pose_character` tak
                vertex a few millimetres inside a limb that pressed the cloth.
 
 Measures of posed cloth: `self_crossings` (cloth through itself), `hem_split` (a hem wrapped round each leg),
-`layer_depth` (an outer layer under an inner garment's surface).
+`layer_depth` (an outer layer under an inner garment's surface), `covers` (skin the cloth lies over).
 
 Which preset uses which is decided by bench/bench_cloth_pose.py (docs/TRADEOFFS.md, "Skinned or simulated cloth"),
-and so is which kinds "simulated" simulates (`SIMULATED_KINDS`): the wide-leg trousers stay skinned in every mode.
+and so is which kinds "simulated" simulates (`SIMULATED_KINDS`: all but the hood) and with what fabric (`POSE_FABRIC`:
+the wide-leg trousers' differs from their drape's).
 Determinism: Warp's CPU kernels run in a fixed order, so the same inputs give the same bits on one machine
 (tests/test_cloth_pose.py); other machines and Warp/newton versions are not promised the same bits.
 """
@@ -36,15 +37,16 @@ from .drape import (DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, 
                     cloth_solver, collider_faces, drape_garment, push_clearance, push_out, skin_points)
 from .geometry import edge_counts
 
-__all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "ClothPoseSettings", "BodyMotion", "body_motion", "simulate_into_pose", "skin_into_pose",
-           "simulated_parts", "self_crossings", "hem_split", "layer_depth"]
+__all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "POSE_FABRIC", "pose_fabric", "ClothPoseSettings", "BodyMotion",
+           "body_motion", "simulate_into_pose", "skin_into_pose", "simulated_parts", "self_crossings", "hem_split",
+           "layer_depth", "covers"]
 
 CLOTH_MODES = ("skinned", "simulated")
-# The draped kinds the "simulated" mode simulates; the others are skinned in every mode. The wide-leg trousers are
-# left out because the simulation loses the legs: bench/bench_cloth_pose.py --kind draped_trousers (3 December) had
-# a sitting and a bending thigh pass out through the leg tubes (65 mm deep in the body before push_out), which then
-# hang straight down beside the raised legs (docs/cloth_pose_trousers.png); skinned, the tubes follow the thighs.
-# The hoodie's hood is left out too: `simulate_into_pose` gives every garment simulated together the first one's
+# The draped kinds the "simulated" mode simulates; the others are skinned in every mode.
+# The wide-leg trousers are simulated with `POSE_FABRIC` since 3 December: with the fabric they are draped with, a
+# sitting or bending thigh passed out through its leg tube (65 mm deep in the body before push_out), which then hung
+# straight down beside the raised leg (bench/bench_cloth_pose.py --kind draped_trousers --drape-fabric).
+# The hoodie's hood is left out: `simulate_into_pose` gives every garment simulated together the first one's
 # fabric, so a hood over a skirt would move as the skirt's light cloth, and in the one measured case (a hood over a
 # skirt, 3 posed frames, `--kind draped_hoodie --simulate-all`) the simulated hood crossed itself more than the
 # skinned one (98 edges against 52) while the picture barely shows it (docs/TRADEOFFS.md, "Every draped kind").
@@ -57,7 +59,27 @@ CLOTH_MODES = ("skinned", "simulated")
 # the two ways lie 26.4 and 31.1 dB apart against standard's 38-40 dB noise. The bench's rule: simulated at reference.
 # The loose long sleeve's cloth is the loose t-shirt's (the same cut and fabric; its sleeves are shell): simulated
 # alike, not measured on its own.
-SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_coat", "draped_jacket", "draped_tshirt", "draped_longsleeve")
+SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_jacket", "draped_tshirt",
+                   "draped_longsleeve")
+# What a kind's per-frame simulation changes in the `DrapeSettings` it was draped with. The wide-leg trousers: the
+# drape's membrane (1e5, stiff enough that the 80 cm legs, held at the waist only, do not stretch to the floor as they
+# settle) would not stretch over the seat a sitting thigh swings forward, and at the drape's contact stiffness (5e4)
+# the thigh pushed through the front of its leg tube instead. A softer membrane and a tenfold stiffer contact keep the
+# thighs in their tubes. Tried by hand on subject 4 sitting (bench/bench_cloth_pose.py --kind draped_trousers's
+# first subject, 3 December), as the share of the thighs' skin the cloth lies over (`covers`): the drape's fabric
+# 27 %, a 1e4 membrane 66 %, a 2e5 contact 57 %, a 1e6 contact 73 %, 1e4 with 2e5 79 % (flapping
+# more), 3e4 with 5e5 (kept) 77 %, skinned 83 %; holding the hems where skinning puts them did not help (27 % in the
+# drape's fabric; in this one 22 mm of cloth in the body before push_out in a bend, against 6 mm without). The
+# bench over its 6 posed frames, of the skin the trousers cover at rest (docs/TRADEOFFS.md, "Every draped kind"):
+# worst pose 76.8 % still covered (33.8 % in the drape's fabric, 76.0 % skinned); 15 mm in the body before push_out
+# at most (65.5 mm).
+POSE_FABRIC = {"draped_trousers": dict(tri_ke=3.0e4, tri_ka=3.0e4, contact_ke=5.0e5)}
+
+
+def pose_fabric(kind: str, drape: DrapeSettings | None) -> DrapeSettings:
+    """The fabric a draped kind is simulated with per frame: the `DrapeSettings` it was draped with (its part's
+    `drape`; None: the defaults), changed as `POSE_FABRIC` says for its kind."""
+    return dataclasses.replace(drape or DrapeSettings(), **POSE_FABRIC.get(kind, {}))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -305,8 +327,8 @@ def simulated_parts(character, bone_deltas: Mapping[str, np.ndarray] | None,
     phenotype = character.phenotype
     garments = [drape_garment(p.name, phenotype, p.drape) for p in parts]
     # One fabric for the cloth simulated together: the levels' settings differ in resolution and steps only.
-    posed = simulate_into_pose(garments, phenotype, bone_deltas, settings, fabric=parts[0].drape or DrapeSettings(),
-                               stats=stats)
+    posed = simulate_into_pose(garments, phenotype, bone_deltas, settings,
+                               fabric=pose_fabric(parts[0].name, parts[0].drape), stats=stats)
     rig = rig_for(load_anny(), phenotype)
     reference = rig.world_poses(np.tile(np.eye(4), (len(rig.bone_labels), 1, 1)))  # the rest (A-)pose
     out = {}
@@ -361,6 +383,19 @@ def hem_split(vertices: np.ndarray, n_around: int) -> tuple[float, float]:
     x, y = hem[:, 0], hem[:, 1]
     area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
     return float(depth.max()), float(1.0 - area / hull.volume)
+
+
+def covers(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(P,) bool: does the cloth (`vertices`, `faces`) lie over each skin point, i.e. does the ray out along the
+    skin's normal (`normals`, unit, outward), from 1 mm off the skin, meet it (trimesh)? Taken over the skin a
+    garment covers in the rest pose, the share still covered in a pose: a thigh that rose out through its trouser
+    leg is bare."""
+    import trimesh
+
+    n = np.asarray(normals, np.float64)
+    origin = np.asarray(skin, np.float64) + 1e-3 * n
+    return trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces), process=False).ray.intersects_any(
+        origin, n)
 
 
 def layer_depth(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, near: float = 0.02) -> np.ndarray:
