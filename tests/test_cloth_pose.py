@@ -117,6 +117,38 @@ def test_several_garments_are_simulated_together():
         np.testing.assert_allclose(x[g.pinned], ring, atol=1e-6)
 
 
+def test_each_garment_simulated_together_keeps_its_own_fabric():
+    """Garments simulated together, each in its own fabric: the model gives each cloth's particles its own radius
+    and mass (density); a fabric list of the wrong length is refused; one fabric for all gives the bits it gave
+    before fabrics could differ, another fabric for the outer garment moves it otherwise."""
+    from rh_dataset.characters.drape import cloth_model
+
+    inner = _tiny_skirt()
+    v, f, uv, pinned, mpu = garment_pattern("draped_skirt", PHENO, DrapeSettings(n_around=12, n_rings=3,
+                                                                                  clearance=0.02))
+    outer = DrapedGarment("draped_skirt", v, f, uv, pinned, mpu, v)
+    light, heavy = DrapeSettings(), DrapeSettings(density=0.6, clearance=0.012, contact_ke=1.0e5, tri_ke=1.0e5)
+    body = run_anny(PHENO)["vertices"]
+    cloths = [(inner.vertices, inner.faces, inner.pinned)] * 2  # one cloth twice: only the fabric differs
+    model, _ = cloth_model(cloths, body, body_topology().faces, heavy, [light, heavy])
+    n = len(inner.vertices)
+    radius, mass = model.particle_radius.numpy(), model.particle_mass.numpy()
+    assert np.allclose(radius[:n], light.clearance) and np.allclose(radius[n:], heavy.clearance)
+    free = ~inner.pinned  # pinned particles are kinematic
+    np.testing.assert_allclose(mass[n:][free], mass[:n][free] * heavy.density / light.density, rtol=1e-5)
+    with pytest.raises(ValueError, match="one fabric per cloth"):
+        cloth_model(cloths, body, body_topology().faces, light, [light])
+    st = ClothPoseSettings(iterations=2, max_move_steps=2, settle_steps=1, keyframes=3)
+    deltas = _bent_hip(-30.0)
+    one = simulate_into_pose([inner, outer], PHENO, deltas, st, fabric=light)
+    same = simulate_into_pose([inner, outer], PHENO, deltas, st, fabric=[light, light])
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(one, same))
+    own = simulate_into_pose([inner, outer], PHENO, deltas, st, fabric=[light, heavy])
+    assert not np.array_equal(own[1], one[1])
+    with pytest.raises(ValueError, match="one DrapeSettings per garment"):
+        simulate_into_pose([inner, outer], PHENO, deltas, st, fabric=[light])
+
+
 def test_simulated_parts_land_on_the_rendered_part(monkeypatch):
     """pose_character's simulated path: the rendered skirt (a seam column duplicated for its UVs) takes each
     simulated vertex's position, the duplicate column its twin's."""
@@ -212,19 +244,19 @@ def test_drape_level_is_a_render_setting_preset_field_and_cli_flag():
         build_character(recipe_from_seed(0, "benchmark", 0), 64, drape="fine")
 
 
-def test_simulated_mode_simulates_every_kind_but_the_hood_and_the_trousers_in_their_pose_fabric(monkeypatch):
-    """SIMULATED_KINDS: every draped kind but the hoodie's hood (a character whose only draped part is its hood has
-    nothing simulated). The wide-leg trousers are simulated in `POSE_FABRIC`'s fabric (a softer membrane, a stiffer
-    contact: with their drape's, a sitting thigh rose out through its leg tube), every other kind in the fabric it
-    was draped with; simulated_parts hands that fabric to the solver."""
+def test_simulated_mode_simulates_every_kind_each_in_its_pose_fabric(monkeypatch):
+    """SIMULATED_KINDS: every draped kind (a character with no draped part has nothing simulated). Each garment is
+    simulated in its own fabric, `pose_fabric`: the one it was draped with (the hood its fleece, not the skirt's cloth
+    under it), but the wide-leg trousers in `POSE_FABRIC`'s (a softer membrane, a stiffer contact: with their
+    drape's, a sitting thigh rose out through its leg tube); simulated_parts hands one per garment to the solver."""
     import types
 
     from rh_dataset.characters import cloth_pose
     from rh_dataset.characters.cloth_pose import POSE_FABRIC, SIMULATED_KINDS, pose_fabric, simulated_parts
     from rh_dataset.characters.drape import DRAPED_KINDS, drape_settings
 
-    assert set(DRAPED_KINDS) - set(SIMULATED_KINDS) == {"draped_hoodie"} and set(POSE_FABRIC) == {"draped_trousers"}
-    parts = [types.SimpleNamespace(name=n) for n in ("body", "shoes", "draped_hoodie", "tshirt")]
+    assert set(DRAPED_KINDS) == set(SIMULATED_KINDS) and set(POSE_FABRIC) == {"draped_trousers"}
+    parts = [types.SimpleNamespace(name=n) for n in ("body", "shoes", "trousers", "tshirt")]
     assert simulated_parts(types.SimpleNamespace(parts=parts, phenotype=PHENO), {"upperleg01.L": np.eye(4)}) == {}
     drape = drape_settings("draped_trousers", "coarse")
     f = pose_fabric("draped_trousers", drape)
@@ -242,9 +274,10 @@ def test_simulated_mode_simulates_every_kind_but_the_hood_and_the_trousers_in_th
     monkeypatch.setattr(cloth_pose, "drape_garment", lambda kind, ph, st=None, use_cache=True: g)
     monkeypatch.setattr(cloth_pose, "simulate_into_pose", fake)
     trousers = types.SimpleNamespace(name="draped_trousers", drape=drape)
+    hood = types.SimpleNamespace(name="draped_hoodie", drape=drape_settings("draped_hoodie"))
     with pytest.raises(RuntimeError, match="stop"):
-        simulated_parts(types.SimpleNamespace(parts=[trousers], phenotype=PHENO), {"upperleg01.L": np.eye(4)})
-    assert seen == [f]
+        simulated_parts(types.SimpleNamespace(parts=[trousers, hood], phenotype=PHENO), {"upperleg01.L": np.eye(4)})
+    assert seen == [[f, drape_settings("draped_hoodie")]]
 
 
 def test_covers_is_the_skin_under_the_cloth():

@@ -20,8 +20,8 @@ Measures of posed cloth: `self_crossings` (cloth through itself), `hem_split` (a
 `layer_depth` (an outer layer under an inner garment's surface), `covers` (skin the cloth lies over).
 
 Which preset uses which is decided by bench/bench_cloth_pose.py (docs/TRADEOFFS.md, "Skinned or simulated cloth"),
-and so is which kinds "simulated" simulates (`SIMULATED_KINDS`: all but the hood) and with what fabric (`POSE_FABRIC`:
-the wide-leg trousers' differs from their drape's).
+and so is which kinds "simulated" simulates (`SIMULATED_KINDS`: today every draped kind) and with what fabric
+(`pose_fabric`: each garment its own, the one it was draped with but for `POSE_FABRIC`'s wide-leg trousers).
 Determinism: Warp's CPU kernels run in a fixed order, so the same inputs give the same bits on one machine
 (tests/test_cloth_pose.py); other machines and Warp/newton versions are not promised the same bits.
 """
@@ -42,14 +42,16 @@ __all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "POSE_FABRIC", "pose_fabric", "Clot
            "layer_depth", "covers"]
 
 CLOTH_MODES = ("skinned", "simulated")
-# The draped kinds the "simulated" mode simulates; the others are skinned in every mode.
+# The draped kinds the "simulated" mode simulates (the others would be skinned in every mode): today all of them.
 # The wide-leg trousers are simulated with `POSE_FABRIC` since 3 December: with the fabric they are draped with, a
 # sitting or bending thigh passed out through its leg tube (65 mm deep in the body before push_out), which then hung
 # straight down beside the raised leg (bench/bench_cloth_pose.py --kind draped_trousers --drape-fabric).
-# The hoodie's hood is left out: `simulate_into_pose` gives every garment simulated together the first one's
-# fabric, so a hood over a skirt would move as the skirt's light cloth, and in the one measured case (a hood over a
-# skirt, 3 posed frames, `--kind draped_hoodie --simulate-all`) the simulated hood crossed itself more than the
-# skinned one (98 edges against 52) while the picture barely shows it (docs/TRADEOFFS.md, "Every draped kind").
+# The hoodie's hood is simulated in its own fabric (a heavier, firmer fleece) since garments simulated together
+# each keep theirs (3 December): when `simulate_into_pose` gave them all the first one's fabric, a hood over a skirt
+# moved as the skirt's light cloth and crossed itself more than skinned (98 edges against 52, 3 posed frames); in its
+# own fabric (bench_cloth_pose.py --kind draped_hoodie --simulate-all, 2 subjects, 6 posed frames) 60 against 61, no
+# hood vertex in the body either way, the renders 38.3 dB apart (median) against standard's 42.9 dB noise: by the
+# bench's rule simulated at reference (docs/TRADEOFFS.md, "Every draped kind").
 # The open jacket is simulated as the coat is (the same cloth and layers, cut shorter): bench_cloth_pose.py --kind
 # draped_jacket (3 December, 3 posed frames, no renders) found no panel vertex in the body and no self-crossing edge
 # either way (docs/TRADEOFFS.md, "Every draped kind").
@@ -59,8 +61,8 @@ CLOTH_MODES = ("skinned", "simulated")
 # the two ways lie 26.4 and 31.1 dB apart against standard's 38-40 dB noise. The bench's rule: simulated at reference.
 # The loose long sleeve's cloth is the loose t-shirt's (the same cut and fabric; its sleeves are shell): simulated
 # alike, not measured on its own.
-SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_jacket", "draped_tshirt",
-                   "draped_longsleeve")
+SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
+                   "draped_tshirt", "draped_longsleeve")
 # What a kind's per-frame simulation changes in the `DrapeSettings` it was draped with. The wide-leg trousers: the
 # drape's membrane (1e5, stiff enough that the 80 cm legs, held at the waist only, do not stretch to the floor as they
 # settle) would not stretch over the seat a sitting thigh swings forward, and at the drape's contact stiffness (5e4)
@@ -222,10 +224,14 @@ def _next_time(x: float, collider: np.ndarray, cloth: np.ndarray, pin_keys: np.n
 def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str, float],
                        bone_deltas: Mapping[str, np.ndarray] | None,
                        settings: ClothPoseSettings = ClothPoseSettings(),
-                       fabric: DrapeSettings = DrapeSettings(), stats: dict | None = None) -> list[np.ndarray]:
+                       fabric: DrapeSettings | Sequence[DrapeSettings] = DrapeSettings(), stats: dict | None = None
+                       ) -> list[np.ndarray]:
     """Posed vertices of each garment (list of (V_i, 3) float64, anny's posed space), simulated from the draped
     rest state while the body moves into the pose (module docstring). `fabric`: the cloth's material and contact
-    parameters, those it was draped with. The rest pose (no delta, e.g. a turntable frame) has nothing to move:
+    parameters (`pose_fabric`: those it was draped with), one for all garments or one per garment; each garment
+    moves as its own material (density, membrane and bending stiffness, particle radius), and the soft contact with
+    the body, which newton keeps one of, is the stiffest of them (no layer is let further into the body than its
+    own drape let it). The rest pose (no delta, e.g. a turntable frame) has nothing to move:
     the drape is returned as it is. `stats`, if given, receives the step counts (`move_steps`, `settle_steps`)."""
     import warp as wp
 
@@ -243,8 +249,12 @@ def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str
     pins = bind_to_skeleton(rest[pinned], phenotype)
     pin_keys = np.stack([skin_points(pins, W, motion.rest_bone_poses) for W in motion.bone_poses])
     # The cloth's rest shape is its pattern; it starts where the drape settled.
+    fabrics = [fabric] * len(garments) if isinstance(fabric, DrapeSettings) else list(fabric)
+    if len(fabrics) != len(garments) or not all(isinstance(f, DrapeSettings) for f in fabrics):
+        raise ValueError("cloth_pose: fabric must be a DrapeSettings or one DrapeSettings per garment")
+    contact = max(fabrics, key=lambda f: f.contact_ke)  # newton has one soft contact for all particles
     model, body = cloth_model([(g.pattern, g.faces, g.pinned) for g in garments], motion.collider[0],
-                              motion.collider_faces, fabric)
+                              motion.collider_faces, contact, fabrics)
     mesh = body.mesh  # the Warp mesh the model's shape queries; moved in place below
     # The shape's bounds are fixed when the model is built: widen them to the whole motion, or the contact
     # broad phase would skip particles where the body has moved beyond its rest-pose box.
@@ -252,7 +262,7 @@ def simulate_into_pose(garments: Sequence[DrapedGarment], phenotype: Mapping[str
     hi = motion.collider.reshape(-1, 3).max(0) + st.contact_gap
     model.shape_collision_aabb_lower.assign(lo[None].astype(np.float32))
     model.shape_collision_aabb_upper.assign(hi[None].astype(np.float32))
-    solver = cloth_solver(model, fabric, st.iterations)
+    solver = cloth_solver(model, contact, st.iterations)
     pipe = newton.CollisionPipeline(model, soft_contact_gap=st.contact_gap, deterministic=True)
     contacts = pipe.contacts()
     s0, s1, ctrl = model.state(), model.state(), model.control()
@@ -326,9 +336,8 @@ def simulated_parts(character, bone_deltas: Mapping[str, np.ndarray] | None,
         return {}
     phenotype = character.phenotype
     garments = [drape_garment(p.name, phenotype, p.drape) for p in parts]
-    # One fabric for the cloth simulated together: the levels' settings differ in resolution and steps only.
     posed = simulate_into_pose(garments, phenotype, bone_deltas, settings,
-                               fabric=pose_fabric(parts[0].name, parts[0].drape), stats=stats)
+                               fabric=[pose_fabric(p.name, p.drape) for p in parts], stats=stats)
     rig = rig_for(load_anny(), phenotype)
     reference = rig.world_poses(np.tile(np.eye(4), (len(rig.bone_labels), 1, 1)))  # the rest (A-)pose
     out = {}

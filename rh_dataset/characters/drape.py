@@ -655,24 +655,28 @@ def _smoothstep_scalar(x: float) -> float:
     return x * x * (3.0 - 2.0 * x)
 
 
-def cloth_model(cloths, body_v, body_f, st: DrapeSettings):
+def cloth_model(cloths, body_v, body_f, st: DrapeSettings, fabrics=None):
     """newton's model of cloth around the body: each of `cloths` ((vertices (V, 3), faces (F, 3), pinned (V,) bool),
-    inner first) as cloth particles of `st`'s fabric whose rest shape (and start) is `vertices`, its pinned
-    particles kinematic (not ACTIVE: the caller places them), the body (body_v, body_f) as one triangle-mesh shape,
-    soft-contact stiffness and friction from `st`. Returns (model, the body's `newton.Mesh`, whose Warp mesh a
-    caller may move between steps). The drape and the per-frame simulation (cloth_pose.py) build the same cloth
-    this way."""
+    inner first) as cloth particles whose rest shape (and start) is `vertices`, its pinned particles kinematic (not
+    ACTIVE: the caller places them), the body (body_v, body_f) as one triangle-mesh shape. Each cloth's material
+    (density, membrane and bending stiffness, particle radius) is `fabrics[i]` (a DrapeSettings per cloth; None: `st`
+    for every cloth); the soft contact's stiffness, damping and friction, which newton keeps one of for all particles,
+    are `st`'s. Returns (model, the body's `newton.Mesh`, whose Warp mesh a caller may move between steps). The drape
+    and the per-frame simulation (cloth_pose.py) build the same cloth this way."""
     import warp as wp
 
     import newton
 
+    fabrics = [st] * len(cloths) if fabrics is None else list(fabrics)
+    if len(fabrics) != len(cloths):
+        raise ValueError(f"drape: cloth_model needs one fabric per cloth, got {len(fabrics)} for {len(cloths)}")
     builder = newton.ModelBuilder(up_axis=newton.Axis.Z, gravity=(0.0, 0.0, -9.81))
-    for verts, faces, _ in cloths:
+    for (verts, faces, _), fab in zip(cloths, fabrics):
         builder.add_cloth_mesh(
             pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0, vel=wp.vec3(0.0, 0.0, 0.0),
             vertices=[wp.vec3(*p) for p in np.asarray(verts, np.float64)], indices=np.asarray(faces).ravel().tolist(),
-            density=st.density, tri_ke=st.tri_ke, tri_ka=st.tri_ka, tri_kd=st.tri_kd, edge_ke=st.edge_ke,
-            edge_kd=st.edge_kd, particle_radius=st.clearance)
+            density=fab.density, tri_ke=fab.tri_ke, tri_ka=fab.tri_ka, tri_kd=fab.tri_kd, edge_ke=fab.edge_ke,
+            edge_kd=fab.edge_kd, particle_radius=fab.clearance)
     cfg = newton.ModelBuilder.ShapeConfig(mu=st.friction)
     body = newton.Mesh(np.asarray(body_v).astype(np.float32), np.asarray(body_f).ravel().astype(np.int32))
     builder.add_shape_mesh(body=-1, mesh=body, cfg=cfg)
