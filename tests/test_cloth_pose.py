@@ -158,8 +158,8 @@ def test_simulated_parts_land_on_the_rendered_part(monkeypatch):
     from rh_dataset.characters.body_features import body_features
 
     g = _tiny_skirt()
-    monkeypatch.setattr(drape, "drape_garment", lambda kind, ph, st=None, use_cache=True: g)
-    monkeypatch.setattr(cloth_pose, "drape_garment", lambda kind, ph, st=None, use_cache=True: g)
+    monkeypatch.setattr(drape, "drape_garment", lambda kind, ph, st=None, use_cache=True, over=(): g)
+    monkeypatch.setattr(cloth_pose, "drape_garment", lambda kind, ph, st=None, use_cache=True, over=(): g)
     feats = body_features(PHENO)
     part = drape.draped_part("draped_skirt", PHENO, feats, np.zeros(len(feats.rest_vertices)),
                              DrapeSettings(n_around=16, n_rings=4))
@@ -271,13 +271,29 @@ def test_simulated_mode_simulates_every_kind_each_in_its_pose_fabric(monkeypatch
         raise RuntimeError("stop")
 
     g = _tiny_skirt()
-    monkeypatch.setattr(cloth_pose, "drape_garment", lambda kind, ph, st=None, use_cache=True: g)
+    monkeypatch.setattr(cloth_pose, "drape_garment", lambda kind, ph, st=None, use_cache=True, over=(): g)
     monkeypatch.setattr(cloth_pose, "simulate_into_pose", fake)
     trousers = types.SimpleNamespace(name="draped_trousers", drape=drape)
     hood = types.SimpleNamespace(name="draped_hoodie", drape=drape_settings("draped_hoodie"))
     with pytest.raises(RuntimeError, match="stop"):
         simulated_parts(types.SimpleNamespace(parts=[trousers, hood], phenotype=PHENO), {"upperleg01.L": np.eye(4)})
     assert seen == [[f, drape_settings("draped_hoodie")]]
+
+
+def test_push_over_lifts_what_lies_under_the_inner_layer():
+    """push_over: points under an outward (+Z) square sheet, or closer than the clearance above it, go to the
+    clearance above their closest point; points far enough above it, beyond its edges or deeper than its reach are
+    left where they are."""
+    from rh_dataset.characters.cloth_pose import LAYER_REACH, push_over
+
+    sheet = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    quads = np.array([[0, 1, 2], [0, 2, 3]])
+    pts = np.array([[0.2, 0.1, -0.01], [0.0, -0.5, 0.002], [0.3, 0.3, 0.01], [1.5, 0.0, -0.01],
+                    [0.0, 0.0, -2 * LAYER_REACH]])
+    out = push_over(pts, sheet, quads, 0.004)
+    np.testing.assert_allclose(out[:2], [[0.2, 0.1, 0.004], [0.0, -0.5, 0.004]], atol=1e-12)
+    np.testing.assert_array_equal(out[2:], pts[2:])
+    assert push_over(np.zeros((0, 3)), sheet, quads, 0.004).shape == (0, 3)
 
 
 def test_covers_is_the_skin_under_the_cloth():

@@ -30,8 +30,9 @@ from rh_common.colourspace import srgb_decode
 from .body import body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, garment_parts, shoe_height_map
 from .body_features import body_features
-from .cloth_pose import CLOTH_MODES, ClothPoseSettings, simulated_parts
-from .drape import DRAPE_LEVELS, DrapeSettings, SkinBinding, penetration, push_clearance, push_out, skin_points
+from .cloth_pose import CLOTH_MODES, ClothPoseSettings, push_over, simulated_parts
+from .drape import (DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, DrapeSettings, SkinBinding, penetration,
+                    push_clearance, push_out, skin_points)
 from .eyes import eye_geometry
 from .geometry import split_faces
 from .hair import build_hair
@@ -450,7 +451,9 @@ def pose_character(
     `cloth`: how draped garments reach the pose (`cloth_pose.CLOTH_MODES`): "skinned" (linear-blend skinning +
     push_out) or "simulated" (newton's cloth solver while the body moves from the rest pose into this one; its
     penalty contact can leave a vertex pressed a few millimetres into a limb, which push_out then puts back on the
-    skin as it does for skinned cloth; `cloth_settings` are its settings). `cloth_stats`, if given, receives the
+    skin as it does for skinned cloth; `cloth_settings` are its settings). Either way a loose top over draped cloth
+    (`drape.DRAPED_OVER`) is then pushed out over that cloth's posed surface (`cloth_pose.push_over`, keeping
+    `drape.LAYER_GAP_DRAPE`). `cloth_stats`, if given, receives the
     simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
     (benches; costs a closest-point query). The meshes come first, in part order, then one `PosedStrands` per
     `character.strands`."""
@@ -467,6 +470,7 @@ def pose_character(
     simulated = (simulated_parts(character, bone_deltas, cloth_settings, stats=cloth_stats) if cloth == "simulated"
                  else {})
     posed = []
+    cloth_under = {}  # draped part name -> (posed vertices, faces): what a loose top over it is pushed over
     for part in character.parts:
         if part.skinning is not None:
             if part.name in simulated:
@@ -480,6 +484,11 @@ def pose_character(
                 cloth_stats["depth_before_push_m"] = max(cloth_stats.get("depth_before_push_m", -np.inf), depth)
             if part.collide:
                 v = push_out(v, verts, normals, topo.faces, push_clearance(part.name))
+            for inner in DRAPED_OVER.get(part.name, ()):
+                if inner in cloth_under:
+                    v = push_over(v, *cloth_under[inner], LAYER_GAP_DRAPE)
+            if part.name in DRAPED_KINDS:
+                cloth_under[part.name] = (v, part.faces)
             n = _welded_normals(v, part.faces)
         elif part.blend_vertices is None:
             p = verts[part.body_vertex]

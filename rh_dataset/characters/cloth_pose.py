@@ -33,13 +33,13 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .body import body_topology, run_anny, vertex_normals
-from .drape import (DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, cloth_model,
-                    cloth_solver, collider_faces, drape_garment, push_clearance, push_out, skin_points)
+from .drape import (DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, cloth_model, cloth_solver,
+                    collider_faces, drape_garment, draped_over, push_clearance, push_out, skin_points)
 from .geometry import edge_counts
 
 __all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "POSE_FABRIC", "pose_fabric", "ClothPoseSettings", "BodyMotion",
            "body_motion", "simulate_into_pose", "skin_into_pose", "simulated_parts", "self_crossings", "hem_split",
-           "layer_depth", "covers"]
+           "layer_depth", "push_over", "covers"]
 
 CLOTH_MODES = ("skinned", "simulated")
 # The draped kinds the "simulated" mode simulates (the others would be skinned in every mode): today all of them.
@@ -337,7 +337,10 @@ def simulated_parts(character, bone_deltas: Mapping[str, np.ndarray] | None,
     if not parts:
         return {}
     phenotype = character.phenotype
-    garments = [drape_garment(p.name, phenotype, p.drape) for p in parts]
+    draped = {}  # each part draped as build_character draped it: a loose top over the draped cloth under it
+    for p in parts:
+        draped[p.name] = drape_garment(p.name, phenotype, p.drape, over=draped_over(p.name, draped))
+    garments = list(draped.values())
     posed = simulate_into_pose(garments, phenotype, bone_deltas, settings,
                                fabric=[pose_fabric(p.name, p.drape) for p in parts], stats=stats)
     rig = rig_for(load_anny(), phenotype)
@@ -415,11 +418,16 @@ def layer_depth(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, nea
     point signed by the surface's interpolated normals. NaN for points farther than `near` from the surface, and
     for points whose closest surface point is on the surface's open edge (a hem, a cuff, a sheet's edge): beyond an
     edge the side a point is on says nothing about whether it is under the cloth."""
+    return _layer_closest(points, vertices, faces, near)[0]
+
+
+def _layer_closest(points, vertices, faces, near: float):
+    """`layer_depth`'s (depth, closest surface points (P, 3), unit interpolated normals there (P, 3))."""
     from .drape import _closest
 
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces)
-    depth, closest, _ = _closest(v, f, points)
+    depth, closest, normal = _closest(v, f, points)
     edges, counts = edge_counts(f)
     rim = edges[counts == 1]
     on_rim = np.zeros(len(closest), bool)
@@ -430,4 +438,28 @@ def layer_depth(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, nea
             t = np.clip(((c - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-18), 0.0, 1.0)
             on_rim[i:i + 512] = (np.linalg.norm(c - (a + t[..., None] * d), axis=-1).min(1) < 1e-6)
     far = np.linalg.norm(np.asarray(points, np.float64) - closest, axis=1) > near
-    return np.where(far | on_rim, np.nan, depth)
+    return np.where(far | on_rim, np.nan, depth), closest, normal
+
+
+LAYER_REACH = 0.03  # metres: how far under an inner garment `push_over` looks for an outer layer's points
+
+
+def push_over(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, clearance: float,
+              near: float = LAYER_REACH, rounds: int = 2) -> np.ndarray:
+    """An outer layer's points moved out over an inner garment's surface (`vertices`, `faces`, outward): those under
+    it or closer than `clearance` above it (`layer_depth`, within `near`, not beyond its open edges) go to their
+    closest surface point plus `clearance` along its interpolated normal there, as `drape.push_out` does with the
+    skin; the points it moved are looked at again, `rounds` times in all (a point moved off one fold of a creased
+    skirt can land under the next). For a loose top over draped cloth (`drape.DRAPED_OVER`), after push_out: each
+    layer is skinned on its own, and where a thigh swings, the skirt and the top over it can pass through each
+    other."""
+    p = np.array(points, dtype=np.float64)
+    todo = np.arange(len(p))
+    for _ in range(int(rounds)):
+        if not len(todo):
+            break
+        depth, closest, normal = _layer_closest(p[todo], vertices, faces, near)
+        bad = np.isfinite(depth) & (depth > -clearance + 1e-6)
+        todo = todo[bad]
+        p[todo] = closest[bad] + clearance * normal[bad]
+    return p

@@ -28,6 +28,7 @@ import dataclasses
 import hashlib
 import json
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,7 @@ from .body_features import body_features
 from .geometry import edge_counts, hull_anchors
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
+           "DRAPED_OVER", "draped_over",
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
@@ -301,6 +303,17 @@ def _hull_radii(feats, v: np.ndarray, z: float, centre: np.ndarray, ang: np.ndar
     return np.linalg.norm(ring[:, :2] - centre[:2], axis=1)
 
 
+def _cloth_radii(cloth: np.ndarray, z: float, centre: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    """As `_hull_radii`, for the points of draped cloth (all of them within 1.5 cm of height z); -inf where fewer
+    than 3 are."""
+    band = np.flatnonzero(np.abs(cloth[:, 2] - z) < 0.015)
+    if len(band) < 3:
+        return np.full(len(ang), -np.inf)
+    idx, w = hull_anchors(cloth, band, centre, ang)
+    ring = (cloth[idx] * w[..., None]).sum(1)
+    return np.linalg.norm(ring[:, :2] - centre[:2], axis=1)
+
+
 def _under_the_arms(feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float) -> float:
     """Height of a dress's top ring: from halfway between spine02 and spine01 (the chest, under the armpits) down
     in 1 cm steps to spine03 at most, the first height where the ring (`gap` outside the trunk's cross-section)
@@ -342,6 +355,14 @@ SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dres
                     "draped_longsleeve": "longtop"}
 
 
+# Draped kinds hung over draped cloth worn under them: {draped kind: the draped kinds under it its drape collides
+# with}. The loose tops' hems hang over a draped skirt's or wide trousers' waistband and hips: draped on the body
+# alone, the top's cloth would settle through the skirt. Their pattern is cut outside that cloth too
+# (`garment_pattern`'s `over`), and `drape_garment` adds the cloth to the collider.
+DRAPED_OVER = {"draped_tshirt": ("draped_skirt", "draped_trousers"),
+               "draped_longsleeve": ("draped_skirt", "draped_trousers")}
+
+
 def shell_hem(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:
     """Height in anny's bind space (where `BodyFeatures` and the shells' level sets live) of the hem of the shell
     over a draped kind (`SHELL_KINDS_OVER`): `SHELL_OVERLAP` under the cloth's pinned ring, so the shell's lower edge
@@ -358,14 +379,19 @@ def shell_hem(kind: str, phenotype: dict[str, float], settings: DrapeSettings | 
     return z + float(feats.bone_heads["spine02"][2] - heads["spine02"][2]) - SHELL_OVERLAP
 
 
-def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None):
+def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None,
+                    over: np.ndarray | None = None):
     """The undraped cloth of a draped kind (`PROFILES`): a closed tube of `n_rings` rings of `n_around` particles,
     its top ring on the body (pinned), hanging straight down to the profile's `flare_from` and then a cone at
     `settings.flare` to just above the knee; each ring pushed out where the body's cross-section reaches it. Returns
     (vertices (V, 3), faces (F, 3) int32 outward, uvs (V, 2), pinned (V,) bool, metres_per_uv). A seam column is
     not duplicated: the cloth is one closed tube (u wraps; UVs are per vertex, so the last column's faces reuse u of
-    the first, which the texture's period hides)."""
+    the first, which the texture's period hides). `over` (P, 3): the rest-pose vertices of draped cloth the garment
+    hangs over (`DRAPED_OVER`); the rings are also kept outside their cross-section's hull, so that no particle starts
+    under that cloth."""
     st = drape_settings(kind) if settings is None else settings
+    if over is not None and (kind == "draped_hoodie" or PROFILES[kind].legs):
+        raise ValueError(f"drape: {kind} is not draped over other cloth (DRAPED_OVER)")
     if kind == "draped_hoodie":
         return _hood_pattern(phenotype, st)
     prof = PROFILES[kind]
@@ -403,6 +429,8 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     for i in range(nr):
         if i:
             m = np.maximum(m, _hull_radii(feats, body, float(zs[i]), centre, ang) + gap - flare_out[i])
+            if over is not None:
+                m = np.maximum(m, _cloth_radii(over, float(zs[i]), centre, ang) + gap - flare_out[i])
         rr[i] = flare_out[i] + m
     x = centre[0] + rr * np.sin(ang)[None, :]
     y = centre[1] - rr * np.cos(ang)[None, :]
@@ -841,7 +869,7 @@ PUSH_REACH = 0.2  # metres: deeper than any point of the body lies under its ski
 
 
 def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, pattern: np.ndarray, faces: np.ndarray,
-               pinned: np.ndarray) -> str:
+               pinned: np.ndarray, over: Sequence[DrapedGarment] = ()) -> str:
     import newton
     import warp as wp
 
@@ -853,21 +881,30 @@ def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, patter
            "pattern": hashlib.sha256(np.ascontiguousarray(pattern, np.float64).tobytes()
                                      + np.ascontiguousarray(faces, np.int64).tobytes()
                                      + np.ascontiguousarray(pinned, np.bool_).tobytes()).hexdigest()}
+    if over:  # the draped cloth it hangs over is part of the collider (a key without it reads back as before)
+        key["over"] = [hashlib.sha256(np.ascontiguousarray(g.vertices, np.float64).tobytes()
+                                      + np.ascontiguousarray(g.faces, np.int64).tobytes()).hexdigest() for g in over]
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:24]
 
 
 def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None,
-                  use_cache: bool = True) -> DrapedGarment:
+                  use_cache: bool = True, over: Sequence[DrapedGarment] = ()) -> DrapedGarment:
     """The draped rest-pose garment, from the cache or simulated (then cached, written atomically). `settings`:
-    the kind's default (`drape_settings`) unless given."""
+    the kind's default (`drape_settings`) unless given. `over`: the draped garments under it whose cloth its drape
+    collides with besides the body (`draped_over` picks them: `DRAPED_OVER`); its pattern is cut outside them."""
     settings = drape_settings(kind) if settings is None else settings
+    over = tuple(over)
+    if any(g.kind not in DRAPED_OVER.get(kind, ()) for g in over):
+        raise ValueError(f"drape: {kind} is draped over {DRAPED_OVER.get(kind, ())} only, got "
+                         f"{[g.kind for g in over]}")
     pieces = None
     if kind in PROFILES and PROFILES[kind].legs:
         verts, faces, uvs, pinned, mpu, pieces = _trouser_pattern(phenotype, settings, PROFILES[kind])
         pieces = tuple(pieces)
     else:
-        verts, faces, uvs, pinned, mpu = garment_pattern(kind, phenotype, settings)
-    path = drape_cache_dir() / f"{kind}-{_cache_key(kind, phenotype, settings, verts, faces, pinned)}.npz"
+        verts, faces, uvs, pinned, mpu = garment_pattern(
+            kind, phenotype, settings, np.concatenate([g.vertices for g in over]) if over else None)
+    path = drape_cache_dir() / f"{kind}-{_cache_key(kind, phenotype, settings, verts, faces, pinned, over)}.npz"
     q = None
     if use_cache and path.is_file():
         try:
@@ -878,13 +915,22 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
         if q.shape != verts.shape:
             raise ValueError(f"{path}: drape cache holds {q.shape} vertices, expected {verts.shape}; delete it")
     if q is None:
-        body_v = run_anny(phenotype)["vertices"]
-        q = _simulate(verts, faces, pinned, body_v, collider_faces(phenotype, kind), settings)
+        body_v, body_f = run_anny(phenotype)["vertices"], collider_faces(phenotype, kind)
+        for g in over:  # one collider mesh: the body's faces, then each cloth's
+            body_f = np.concatenate([body_f, np.asarray(g.faces) + len(body_v)])
+            body_v = np.concatenate([body_v, g.vertices])
+        q = _simulate(verts, faces, pinned, body_v, body_f, settings)
         if use_cache:
             with atomic_path(path) as tmp:
                 with open(tmp, "wb") as fh:
                     np.savez(fh, vertices=q)
     return DrapedGarment(kind, q, faces, uvs, pinned, mpu, verts, pieces)
+
+
+def draped_over(kind: str, draped: Mapping[str, DrapedGarment]) -> tuple[DrapedGarment, ...]:
+    """The garments of `draped` (kind -> the character's draped garments under this one, already draped) that a
+    draped `kind` is draped over (`DRAPED_OVER`), in `DRAPED_OVER`'s order."""
+    return tuple(draped[k] for k in DRAPED_OVER.get(kind, ()) if k in draped)
 
 
 def _closest_weights(mesh, points: np.ndarray) -> np.ndarray:
@@ -1017,16 +1063,16 @@ NEAR_BODY = 0.03  # cloth closer than this to the skin in the rest pose register
 
 
 def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray,
-                settings: DrapeSettings | None = None):
+                settings: DrapeSettings | None = None, over: Sequence[DrapedGarment] = ()):
     """The draped garment as a `PartGeometry` skinned by `SkinBinding`, with a seam column duplicated so u runs
     0..1 around. `under` (body vertices' outermost offset so far) is raised where the cloth lies within
-    `NEAR_BODY` of the skin, so a top hanging over the waistband stays outside it."""
+    `NEAR_BODY` of the skin, so a top hanging over the waistband stays outside it. `over`: as `drape_garment`'s."""
     from scipy.spatial import cKDTree
 
     from .garments import PartGeometry
 
     settings = drape_settings(kind) if settings is None else settings
-    g = drape_garment(kind, phenotype, settings)
+    g = drape_garment(kind, phenotype, settings, over=over)
     if g.pieces is not None:
         src, faces, uvs = _pieces_render_mesh(g)
     elif kind == "draped_hoodie":  # an open sheet cut with its own UVs (the hood-up shape's metres)

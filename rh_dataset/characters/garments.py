@@ -31,7 +31,7 @@ from rh_common.body_model import ANNY_TOPOLOGY
 from .body import body_topology
 from .body_features import BodyFeatures
 from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP, DrapeSettings, SkinBinding,
-                    draped_part, drape_settings, shell_hem)
+                    drape_garment, draped_over, draped_part, drape_settings, shell_hem)
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
@@ -592,6 +592,7 @@ def build_garments(
     if under is None:
         under = np.zeros(len(feats.rest_vertices))
     out = []
+    draped = {}  # kind -> DrapedGarment of the draped garments built so far (a loose top's drape collides with them)
     for g in garments:
         if g.kind == "skirt":
             out.append(_skirt(feats, under))
@@ -606,7 +607,9 @@ def build_garments(
                                   hem=shell_hem(g.kind, phenotype, st)))
             elif g.kind == "draped_hoodie":
                 out.append(_shell("hoodie", feats, under, topology))
-            out.append(draped_part(g.kind, phenotype, feats, under, st))
+            over = draped_over(g.kind, draped)
+            out.append(draped_part(g.kind, phenotype, feats, under, st, over))
+            draped[g.kind] = drape_garment(g.kind, phenotype, st, over=over)  # from the drape cache draped_part wrote
         else:
             out.append(_shell(g.kind, feats, under, topology))
     return out

@@ -15,7 +15,7 @@ import numpy as np
 
 from .body import sample_phenotype
 from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, OUTERWEAR, PATTERNS, POOLS, TOPS, UNDER_COAT,
-                     CharacterRecipe, EyeSpec, Garment, HairSpec, Headwear, SkinTone)
+                     UNDER_LOOSE_TOP, CharacterRecipe, EyeSpec, Garment, HairSpec, Headwear, SkinTone)
 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
@@ -65,15 +65,15 @@ JACKET_STREAM = 1721
 JACKET_P = 1.0
 # A loose t-shirt (`draped_tshirt`: the t-shirt's shoulders and sleeves over cloth hanging from under the arms to the
 # hips) instead of the drawn t-shirt, for this share of the t-shirt wearers with nothing over it (none of
-# recipe.OUTERWEAR) and shell trousers or shorts under it (UNDER_COAT: its drape would hang through a skirt or wide
-# trousers). Our choice, not a census figure: about half the t-shirts stay close-fitting shells (fitted tees exist),
+# recipe.OUTERWEAR) and one of recipe.UNDER_LOOSE_TOP under it (shell trousers or shorts, and since 3 December a
+# draped skirt or wide trousers, whose cloth its drape collides with; not the shell skirt). Our choice, not a census figure: about half the t-shirts stay close-fitting shells (fitted tees exist),
 # the rest hang loose. Its own stream (one draw for everyone, after the jacket's), the t-shirt's colours, pattern and
 # fabric: no other draw of any seed changes.
 TSHIRT_STREAM = 1722
 TSHIRT_P = 0.5
 # A loose long sleeve (`draped_longsleeve`: the longsleeve's shoulders and sleeves over the loose t-shirt's cloth)
 # instead of the drawn longsleeve, for this share of the longsleeve wearers the hoodie draw left, with nothing over it
-# and shell trousers or shorts under it (as the loose t-shirt). Our choice, not a census figure (a sweater hangs off
+# and one of UNDER_LOOSE_TOP under it (as the loose t-shirt). Our choice, not a census figure (a sweater hangs off
 # the body; a fitted long sleeve does not). Its own stream (one draw for everyone, after the hoodie's), the
 # longsleeve's colours, pattern and fabric: no other draw of any seed changes.
 LONGSLEEVE_STREAM = 1723
@@ -241,11 +241,11 @@ def _open_jacket(rng: np.random.Generator, garments: tuple[Garment, ...], kind: 
 
 def _loose_top(rng: np.random.Generator, garments: tuple[Garment, ...], top: str, p: float) -> tuple[Garment, ...]:
     """The drawn `top` ("tshirt" or "longsleeve") made its draped kind with probability `p` where nothing is worn
-    over it and the bottom is one of UNDER_COAT (rng: the kind's stream; one draw for everyone, so the stream's use
-    is fixed)."""
+    over it and the bottom is one of UNDER_LOOSE_TOP (rng: the kind's stream; one draw for everyone, so the stream's
+    use is fixed)."""
     loose = rng.random() < p
     kinds = {g.kind for g in garments}
-    if not (loose and top in kinds and not kinds & set(OUTERWEAR) and kinds & set(UNDER_COAT)):
+    if not (loose and top in kinds and not kinds & set(OUTERWEAR) and kinds & set(UNDER_LOOSE_TOP)):
         return garments
     return tuple(dataclasses.replace(g, kind=f"draped_{top}") if g.kind == top else g for g in garments)
 

@@ -1,0 +1,110 @@
+"""A loose top over draped cloth (drape.DRAPED_OVER: a loose t-shirt or long sleeve over a draped skirt or wide
+trousers): how far the top lies under the cloth under it, at rest and posed, and what keeping it out costs.
+
+    python bench/bench_cloth_layers.py                       # benchmark subjects 5 and 39 (seed 0), 3 test poses
+    python bench/bench_cloth_layers.py --subjects 20,24 --poses 2 --drape coarse
+
+Subjects are the generator's own (rh-generate's `sample_recipe(rng_for(seed, "character", s))`, benchmark pool), so
+the numbers are those of the dataset's frames; each must wear a loose top over draped cloth.
+Per subject:
+  drape     the top draped on the body alone (as before 3 December) and over the cloth under it (`over`, its
+            collider and pattern): the seconds of each drape (a cold cache: the drape is timed) and the top's
+            vertices under the cloth's surface at rest (`cloth_pose.layer_depth`, within 3 cm, not beyond its open
+            edges): how many lie deeper than 1 mm and the worst depth;
+  posed     for the rest pose and each test pose (`sample_pose(rng_for(seed, "pose", s, "test", j))`), both cloth
+            modes of `pose_character` ("skinned", "simulated"), the same layer measure on the posed top, without
+            `cloth_pose.push_over` (the final push over the cloth under it, replaced here by the identity) and with
+            it, and the push's own seconds.
+The load average is printed with the times: the machine is shared.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def load() -> str:
+    return " ".join(open("/proc/loadavg").read().split()[:3])
+
+
+def under(points: np.ndarray, cloth_v: np.ndarray, cloth_f: np.ndarray) -> tuple[int, float]:
+    """(vertices deeper than 1 mm under the cloth, the worst depth in mm; -inf when none is within reach)."""
+    from rh_dataset.characters.cloth_pose import LAYER_REACH, layer_depth
+
+    d = layer_depth(np.asarray(points, np.float64), np.asarray(cloth_v, np.float64), cloth_f, LAYER_REACH)
+    worst = float(np.nanmax(d)) if np.isfinite(d).any() else -np.inf
+    return int((np.nan_to_num(d, nan=-1.0) > 0.001).sum()), 1e3 * worst
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--subjects", default="5,39",
+                    help="comma-separated benchmark subjects (rh-generate's, at --seed) wearing a loose top over "
+                         "draped cloth")
+    ap.add_argument("--poses", type=int, default=3, help="test poses of the pose prior per subject")
+    ap.add_argument("--seed", type=int, default=0, help="dataset seed the recipes and poses come from")
+    ap.add_argument("--drape", default="full", choices=("full", "coarse"), help="drape level (RenderSettings.drape)")
+    args = ap.parse_args(argv)
+
+    import rh_dataset.characters.character as character_module
+    from rh_common.body_model import load_anny
+    from rh_dataset.characters import build_character, pose_character, sample_recipe
+    from rh_dataset.characters.cloth_pose import push_over
+    from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_settings
+    from rh_dataset.generate import rng_for
+    from rh_dataset.poses import sample_pose
+
+    os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_cloth_layers_")  # cold: the drapes are timed
+    print(f"load average at start: {load()}; drape level {args.drape}")
+    for s in (int(x) for x in args.subjects.split(",")):
+        recipe = sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s)
+        kinds = [g.kind for g in recipe.garments]
+        top = next((k for k in kinds if k in DRAPED_OVER and set(DRAPED_OVER[k]) & set(kinds)), None)
+        if top is None:
+            ap.error(f"benchmark subject {s} wears no loose top over draped cloth: {kinds}")
+        inner = next(k for k in DRAPED_OVER[top] if k in kinds)
+        ph = recipe.phenotype
+        print(f"\nsubject {s}: {kinds}")
+        cloth = drape_garment(inner, ph, drape_settings(inner, args.drape))
+        for over in ((), (cloth,)):
+            t = time.perf_counter()
+            g = drape_garment(top, ph, drape_settings(top, args.drape), over=over)
+            n, worst = under(g.vertices, cloth.vertices, cloth.faces)
+            print(f"  drape of the {top} {'over the ' + inner if over else 'on the body alone'}: "
+                  f"{time.perf_counter() - t:.1f} s; at rest {n} vertices > 1 mm under the {inner} (worst "
+                  f"{worst:.1f} mm)  (load {load()})")
+        character = build_character(recipe, 512, drape=args.drape)
+        poses = [("rest", {})] + [(f"test {j} ({p.label})", dict(p.bones)) for j, p in enumerate(
+            sample_pose(rng_for(args.seed, "pose", s, "test", j), load_anny()) for j in range(args.poses))]
+        print(f"  {'pose':22s} {'mode':9s}  under the {inner}, vertices > 1 mm (worst mm): without push_over | "
+              f"with   push_over s")
+        for label, bones in poses:
+            for mode in ("skinned", "simulated"):
+                character_module.push_over = lambda v, *a, **k: np.asarray(v, np.float64)  # noqa: E731
+                try:
+                    raw = {m.name: m for m in pose_character(character, bones, None, mode)}
+                finally:
+                    character_module.push_over = push_over
+                t = time.perf_counter()
+                posed = {m.name: m for m in pose_character(character, bones, None, mode)}
+                t_all = time.perf_counter() - t
+                t = time.perf_counter()
+                push_over(raw[top].vertices, raw[inner].vertices, raw[inner].faces, 0.004)
+                t_push = time.perf_counter() - t
+                n0, w0 = under(raw[top].vertices, raw[inner].vertices, raw[inner].faces)
+                n1, w1 = under(posed[top].vertices, posed[inner].vertices, posed[inner].faces)
+                print(f"  {label:22s} {mode:9s}  {n0:5d} ({w0:6.1f}) | {n1:5d} ({w1:6.1f})  {t_push:5.2f} "
+                      f"(posing {t_all:.1f} s; load {load()})", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
