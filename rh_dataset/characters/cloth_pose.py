@@ -12,9 +12,12 @@ phenotype and the frame's anny bone deltas ('local-ref', as `pose_character` tak
                moves from the rest pose into the frame's pose (every bone's delta rotation slerped from identity,
                the root's translation lerped, eased in and out), the body a deforming triangle-mesh collider whose
                vertices (and velocities) are set every step, the pinned waistband kinematic on the skinned body;
-               then the cloth settles with the body still, with the cloth self-contact it was draped with.
-               `pose_character` then applies `push_out` as for skinned cloth: newton's penalty contact can leave a
-               vertex a few millimetres inside a limb that pressed the cloth.
+               then the cloth settles with the body still, with the cloth self-contact it was draped with, each
+               garment in its own fabric (`pose_fabric`). `pose_character` then applies `push_out` as for skinned
+               cloth: newton's penalty contact can leave a vertex a few millimetres inside a limb that pressed the
+               cloth.
+Either way `pose_character` then pushes a loose top out over the draped cloth under it (`push_over`,
+`drape.DRAPED_OVER`): skinned, each layer follows its own binding and a swinging thigh can carry a skirt through it.
 
 Measures of posed cloth: `self_crossings` (cloth through itself), `hem_split` (a hem wrapped round each leg),
 `layer_depth` (an outer layer under an inner garment's surface), `covers` (skin the cloth lies over).
