@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character, sample_recipe
-    from rh_dataset.characters.drape import DRAPE_LEVELS, drape_garment, drape_settings
+    from rh_dataset.characters.drape import DRAPE_LEVELS, DRAPED_OVER, drape_garment, draped_over, drape_settings
     from rh_dataset.generate.seeding import rng_for
     from rh_dataset.poses import sample_poses
     from rh_dataset.spec import load_protocol
@@ -77,8 +77,12 @@ def main(argv: list[str] | None = None) -> int:
     for kind, s in first.items():
         for level in DRAPE_LEVELS if not args.posing_only else ():
             st = drape_settings(kind, level)
+            ph = recipes[s].phenotype
+            # The draped cloth under it that it is draped over (a loose top over a skirt), draped first, not timed.
+            over = draped_over(kind, {k: drape_garment(k, ph, drape_settings(k, level)) for k in worn[s]
+                                      if k in DRAPED_OVER.get(kind, ())})
             t = time.perf_counter()
-            drape_garment(kind, recipes[s].phenotype, st)
+            drape_garment(kind, ph, st, over=over)
             secs[kind, level] = time.perf_counter() - t
             print(f"subject {s:2d} {kind:13s} {level:6s} {st.n_around}x{st.n_rings} particles, {st.steps} steps: "
                   f"drape {secs[kind, level]:6.1f} s  (load {load()})", flush=True)
