@@ -261,10 +261,10 @@ def test_loose_top_is_draped_and_posed_over_the_draped_skirt_under_it(tmp_path, 
     """A loose t-shirt over a draped skirt (benchmark subject 20 of seed 0, coarse drapes): draped on the body
     alone its cloth settles through the skirt (measured: 5 vertices more than 1 mm under it, 9.6 mm at worst; full
     drape 9, 10.1 mm); draped with the skirt in its collider and its pattern cut outside it (`over`), none is, and it
-    stays clear of the skirt by about its particle radius (measured 11.8 mm; full 11.7 mm): bound 8 mm. The two drapes are cached apart; the
-    drape refuses cloth it is not worn over. Posed (skinned) in the subject's first test pose, a walk, the top is
-    pushed out over the posed skirt (`cloth_pose.push_over`): no vertex more than 1 mm under it (measured: 1 vertex
-    1.1 mm under before the push, full drape; bench/bench_cloth_layers.py)."""
+    stays clear of the skirt by about its particle radius (measured 11.8 mm; full 11.7 mm): bound 8 mm. The two
+    drapes are cached apart; the drape refuses cloth it is not worn over. Posed (skinned) in the subject's first
+    test pose, a walk, the top is pushed out over the posed skirt (`cloth_pose.push_over`): no vertex more than 1 mm
+    under it (measured: 1 vertex 1.1 mm under before the push, full drape; bench/bench_cloth_layers.py)."""
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character, sample_recipe
     from rh_dataset.characters.cloth_pose import LAYER_REACH, layer_depth

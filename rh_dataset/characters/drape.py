@@ -1064,16 +1064,18 @@ NEAR_BODY = 0.03  # cloth closer than this to the skin in the rest pose register
 
 
 def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray,
-                settings: DrapeSettings | None = None, over: Sequence[DrapedGarment] = ()):
+                settings: DrapeSettings | None = None, over: Sequence[DrapedGarment] = (),
+                garment: DrapedGarment | None = None):
     """The draped garment as a `PartGeometry` skinned by `SkinBinding`, with a seam column duplicated so u runs
     0..1 around. `under` (body vertices' outermost offset so far) is raised where the cloth lies within
-    `NEAR_BODY` of the skin, so a top hanging over the waistband stays outside it. `over`: as `drape_garment`'s."""
+    `NEAR_BODY` of the skin, so a top hanging over the waistband stays outside it. `over`: as `drape_garment`'s;
+    `garment`: the drape itself, if the caller has it (`drape_garment(kind, phenotype, settings, over=over)`)."""
     from scipy.spatial import cKDTree
 
     from .garments import PartGeometry
 
     settings = drape_settings(kind) if settings is None else settings
-    g = drape_garment(kind, phenotype, settings, over=over)
+    g = drape_garment(kind, phenotype, settings, over=over) if garment is None else garment
     if g.pieces is not None:
         src, faces, uvs = _pieces_render_mesh(g)
     elif kind == "draped_hoodie":  # an open sheet cut with its own UVs (the hood-up shape's metres)

@@ -608,8 +608,8 @@ def build_garments(
             elif g.kind == "draped_hoodie":
                 out.append(_shell("hoodie", feats, under, topology))
             over = draped_over(g.kind, draped)
-            out.append(draped_part(g.kind, phenotype, feats, under, st, over))
-            draped[g.kind] = drape_garment(g.kind, phenotype, st, over=over)  # from the drape cache draped_part wrote
+            draped[g.kind] = drape_garment(g.kind, phenotype, st, over=over)
+            out.append(draped_part(g.kind, phenotype, feats, under, st, over, draped[g.kind]))
         else:
             out.append(_shell(g.kind, feats, under, topology))
     return out

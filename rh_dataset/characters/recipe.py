@@ -49,7 +49,8 @@ POOLS = ("benchmark", "pretrain")
 # a jacket). draped_tshirt: a top, the t-shirt's shoulders and sleeves over a body of cloth hanging loose from under
 # the arms to the hips, worn without any of OUTERWEAR, over one of UNDER_LOOSE_TOP (its drape collides with the body
 # and with a draped skirt or wide trousers under it, not with a jacket); draped_longsleeve likewise, the longsleeve's
-# shoulders and sleeves over that cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a recipe's choice.
+# shoulders and sleeves over that cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a
+# recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
                  "draped_trousers", "shoes", "draped_coat", "draped_hoodie", "draped_jacket", "draped_tshirt",
                  "draped_longsleeve")

@@ -66,9 +66,10 @@ JACKET_P = 1.0
 # A loose t-shirt (`draped_tshirt`: the t-shirt's shoulders and sleeves over cloth hanging from under the arms to the
 # hips) instead of the drawn t-shirt, for this share of the t-shirt wearers with nothing over it (none of
 # recipe.OUTERWEAR) and one of recipe.UNDER_LOOSE_TOP under it (shell trousers or shorts, and since 3 December a
-# draped skirt or wide trousers, whose cloth its drape collides with; not the shell skirt). Our choice, not a census figure: about half the t-shirts stay close-fitting shells (fitted tees exist),
-# the rest hang loose. Its own stream (one draw for everyone, after the jacket's), the t-shirt's colours, pattern and
-# fabric: no other draw of any seed changes.
+# draped skirt or wide trousers, whose cloth its drape collides with; not the shell skirt). Our choice, not a census
+# figure: about half the t-shirts stay close-fitting shells (fitted tees exist), the rest hang loose. Its own stream
+# (one draw for everyone, after the jacket's), the t-shirt's colours, pattern and fabric: no other draw of any seed
+# changes.
 TSHIRT_STREAM = 1722
 TSHIRT_P = 0.5
 # A loose long sleeve (`draped_longsleeve`: the longsleeve's shoulders and sleeves over the loose t-shirt's cloth)
