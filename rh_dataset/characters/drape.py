@@ -297,6 +297,12 @@ def _hull_radii(feats, v: np.ndarray, z: float, centre: np.ndarray, ang: np.ndar
     thighs (the collider; `hull_anchors`; arms and hands are not part of it); -inf where the band has too few
     vertices."""
     band = np.flatnonzero(feats.in_groups("torso", "shoulder", "upperleg") & (np.abs(v[:, 2] - z) < 0.015))
+    return _band_radii(v, band, centre, ang)
+
+
+def _band_radii(v: np.ndarray, band: np.ndarray, centre: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    """Radii (len(ang),) from `centre` (xy) at angles `ang` to where rays leave the convex hull of the points
+    `v[band]` (`hull_anchors`); -inf where the band has fewer than 3 points."""
     if len(band) < 3:
         return np.full(len(ang), -np.inf)
     idx, w = hull_anchors(v, band, centre, ang)
@@ -307,12 +313,7 @@ def _hull_radii(feats, v: np.ndarray, z: float, centre: np.ndarray, ang: np.ndar
 def _cloth_radii(cloth: np.ndarray, z: float, centre: np.ndarray, ang: np.ndarray) -> np.ndarray:
     """As `_hull_radii`, for the points of draped cloth (all of them within 1.5 cm of height z); -inf where fewer
     than 3 are."""
-    band = np.flatnonzero(np.abs(cloth[:, 2] - z) < 0.015)
-    if len(band) < 3:
-        return np.full(len(ang), -np.inf)
-    idx, w = hull_anchors(cloth, band, centre, ang)
-    ring = (cloth[idx] * w[..., None]).sum(1)
-    return np.linalg.norm(ring[:, :2] - centre[:2], axis=1)
+    return _band_radii(cloth, np.flatnonzero(np.abs(cloth[:, 2] - z) < 0.015), centre, ang)
 
 
 def _under_the_arms(feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float) -> float:
