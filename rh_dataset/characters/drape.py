@@ -362,7 +362,9 @@ SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dres
 # alone, the top's cloth would settle through the skirt. Their pattern is cut outside that cloth too
 # (`garment_pattern`'s `over`), and `drape_garment` adds the cloth to the collider.
 DRAPED_OVER = {"draped_tshirt": ("draped_skirt", "draped_trousers"),
-               "draped_longsleeve": ("draped_skirt", "draped_trousers")}
+               "draped_longsleeve": ("draped_skirt", "draped_trousers"),
+               "draped_jacket": ("draped_tshirt", "draped_longsleeve"),
+               "draped_coat": ("draped_tshirt", "draped_longsleeve")}
 
 
 def shell_hem(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:

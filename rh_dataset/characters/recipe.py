@@ -23,6 +23,7 @@ __all__ = [
     "DRESSES",
     "UNDER_COAT",
     "UNDER_LOOSE_TOP",
+    "OVER_LOOSE_TOP",
     "OUTERWEAR",
     "LOOSE_TOPS",
     "PATTERNS",
@@ -44,24 +45,27 @@ POOLS = ("benchmark", "pretrain")
 # draped_skirt, draped_dress, draped_trousers (wide-leg), draped_coat (open, long), draped_jacket (open, to the hips):
 # loose garments draped by newton's cloth solver (drape.py). A dress is worn instead of a top and a bottom; the coat
 # or the open jacket is the outermost layer, instead of a (shell) jacket, over close-fitting shell bottoms only
-# (UNDER_COAT: its drape collides with the body, not with cloth under it). draped_hoodie: a top, the longsleeve's
-# shell with a hood draped on the upper back, worn without any of OUTERWEAR (its hood collides with the body, not with
-# a jacket). draped_tshirt: a top, the t-shirt's shoulders and sleeves over a body of cloth hanging loose from under
-# the arms to the hips, worn without any of OUTERWEAR, over one of UNDER_LOOSE_TOP (its drape collides with the body
-# and with a draped skirt or wide trousers under it, not with a jacket); draped_longsleeve likewise, the longsleeve's
-# shoulders and sleeves over that cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a
+# (UNDER_COAT: its drape collides with the body and with a loose top's cloth, not with a skirt). draped_hoodie: a
+# top, the longsleeve's shell with a hood draped on the upper back, worn without any of OUTERWEAR (its hood collides
+# with the body, not with a jacket). draped_tshirt: a top, the t-shirt's shoulders and sleeves over a body of cloth
+# hanging loose from under the arms to the hips, worn under nothing or one of OVER_LOOSE_TOP (whose drape collides
+# with it), over one of UNDER_LOOSE_TOP (its drape collides with the body and with a draped skirt or wide trousers
+# under it); draped_longsleeve likewise, the longsleeve's shoulders and sleeves over that cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a
 # recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
                  "draped_trousers", "shoes", "draped_coat", "draped_hoodie", "draped_jacket", "draped_tshirt",
                  "draped_longsleeve")
 TOPS = ("tshirt", "longsleeve", "draped_hoodie", "draped_tshirt", "draped_longsleeve")
-LOOSE_TOPS = ("draped_tshirt", "draped_longsleeve")  # worn with nothing over them, over one of UNDER_LOOSE_TOP
+LOOSE_TOPS = ("draped_tshirt", "draped_longsleeve")  # under OVER_LOOSE_TOP or nothing, over one of UNDER_LOOSE_TOP
 BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers")
 DRESSES = ("draped_dress",)
 UNDER_COAT = ("trousers", "shorts")  # the bottoms a draped coat or jacket may be worn over
 # The bottoms a loose top may be worn over: the close-fitting shells, and the draped skirt and wide trousers, whose
 # cloth its drape collides with (drape.DRAPED_OVER); not the shell skirt, whose flare its drape would hang through.
 UNDER_LOOSE_TOP = UNDER_COAT + ("draped_skirt", "draped_trousers")
+# The outerwear a loose top may be worn under: the draped open jacket and coat, whose drape collides with the top's
+# cloth (drape.DRAPED_OVER); not the shell jacket, a second skin the top's cloth would hang through.
+OVER_LOOSE_TOP = ("draped_jacket", "draped_coat")
 OUTERWEAR = ("jacket", "draped_jacket", "draped_coat")  # the outermost layers: at most one of them
 PATTERNS = ("solid", "stripes", "checks", "noise")
 # Fabric finish (how the renderer's sheen lobe and the knit texture treat a garment; character.FABRIC_SHEEN):
@@ -312,9 +316,10 @@ class CharacterRecipe:
                              f"{UNDER_COAT}, got {kinds}")
         if "draped_hoodie" in kinds and outer:
             raise ValueError(f"garments: a draped_hoodie is worn without any of {OUTERWEAR}, got {kinds}")
-        if any(k in LOOSE_TOPS for k in kinds) and (outer or not any(k in UNDER_LOOSE_TOP for k in kinds)):
-            raise ValueError(f"garments: a loose top {LOOSE_TOPS} is worn without any of {OUTERWEAR}, over one of "
-                             f"{UNDER_LOOSE_TOP}, got {kinds}")
+        if any(k in LOOSE_TOPS for k in kinds) and (set(outer) - set(OVER_LOOSE_TOP)
+                                                    or not any(k in UNDER_LOOSE_TOP for k in kinds)):
+            raise ValueError(f"garments: a loose top {LOOSE_TOPS} is worn under none of {OUTERWEAR} but "
+                             f"{OVER_LOOSE_TOP}, over one of {UNDER_LOOSE_TOP}, got {kinds}")
         layered = sorted(kinds, key=GARMENT_LAYERS.index)
         if kinds != layered:
             raise ValueError(f"garments must be listed innermost first, i.e. {layered}, got {kinds}")

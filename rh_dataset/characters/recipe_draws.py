@@ -14,8 +14,8 @@ import hashlib
 import numpy as np
 
 from .body import sample_phenotype
-from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, OUTERWEAR, PATTERNS, POOLS, TOPS, UNDER_COAT,
-                     UNDER_LOOSE_TOP, CharacterRecipe, EyeSpec, Garment, HairSpec, Headwear, SkinTone)
+from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, OUTERWEAR, OVER_LOOSE_TOP, PATTERNS, POOLS, TOPS,
+                     UNDER_COAT, UNDER_LOOSE_TOP, CharacterRecipe, EyeSpec, Garment, HairSpec, Headwear, SkinTone)
 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
@@ -241,12 +241,13 @@ def _open_jacket(rng: np.random.Generator, garments: tuple[Garment, ...], kind: 
 
 
 def _loose_top(rng: np.random.Generator, garments: tuple[Garment, ...], top: str, p: float) -> tuple[Garment, ...]:
-    """The drawn `top` ("tshirt" or "longsleeve") made its draped kind with probability `p` where nothing is worn
-    over it and the bottom is one of UNDER_LOOSE_TOP (rng: the kind's stream; one draw for everyone, so the stream's
-    use is fixed)."""
+    """The drawn `top` ("tshirt" or "longsleeve") made its draped kind with probability `p` where nothing but one of
+    OVER_LOOSE_TOP is worn over it and the bottom is one of UNDER_LOOSE_TOP (rng: the kind's stream; one draw for
+    everyone, so the stream's use is fixed)."""
     loose = rng.random() < p
     kinds = {g.kind for g in garments}
-    if not (loose and top in kinds and not kinds & set(OUTERWEAR) and kinds & set(UNDER_LOOSE_TOP)):
+    if not (loose and top in kinds and not kinds & (set(OUTERWEAR) - set(OVER_LOOSE_TOP))
+            and kinds & set(UNDER_LOOSE_TOP)):
         return garments
     return tuple(dataclasses.replace(g, kind=f"draped_{top}") if g.kind == top else g for g in garments)
 
