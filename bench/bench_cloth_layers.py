@@ -1,11 +1,15 @@
-"""A loose top over draped cloth (drape.DRAPED_OVER: a loose t-shirt or long sleeve over a draped skirt or wide
-trousers): how far the top lies under the cloth under it, at rest and posed, and what keeping it out costs.
+"""Draped cloth over draped cloth (drape.DRAPED_OVER: a loose t-shirt or long sleeve over a draped skirt or wide
+trousers; an open jacket or coat over a loose top): how far the outer layer lies under the cloth under it, at rest
+and posed, and what keeping it out costs.
 
     python bench/bench_cloth_layers.py                       # benchmark subjects 5 and 39 (seed 0), 3 test poses
     python bench/bench_cloth_layers.py --subjects 20,24 --poses 2 --drape coarse
+    python bench/bench_cloth_layers.py --subjects 14,41,45   # open jackets and a coat over loose tops
 
 Subjects are the generator's own (rh-generate's `sample_recipe(rng_for(seed, "character", s))`, benchmark pool), so
-the numbers are those of the dataset's frames; each must wear a loose top over draped cloth.
+the numbers are those of the dataset's frames; each must wear draped cloth over draped cloth (the outermost such
+pair: the top over a skirt, or the jacket or coat over the top; the inner cloth is draped as the generator drapes it,
+over what it is worn over). Below, "the top" is the outer layer.
 Per subject:
   drape     the top draped on the body alone (as before 3 December) and over the cloth under it (`over`, its
             collider and pattern): the seconds of each drape (a cold cache: the drape is timed) and the top's
@@ -58,7 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character, sample_recipe
     from rh_dataset.characters.cloth_pose import push_over
-    from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_settings
+    from rh_dataset.characters.drape import DRAPED_KINDS, DRAPED_OVER, drape_garment, drape_settings, draped_over
+    from rh_dataset.characters.recipe import GARMENT_LAYERS
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
@@ -67,13 +72,17 @@ def main(argv: list[str] | None = None) -> int:
     for s in (int(x) for x in args.subjects.split(",")):
         recipe = sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s)
         kinds = [g.kind for g in recipe.garments]
-        top = next((k for k in kinds if k in DRAPED_OVER and set(DRAPED_OVER[k]) & set(kinds)), None)
+        top = next((k for k in reversed(kinds) if k in DRAPED_OVER and set(DRAPED_OVER[k]) & set(kinds)), None)
         if top is None:
-            ap.error(f"benchmark subject {s} wears no loose top over draped cloth: {kinds}")
+            ap.error(f"benchmark subject {s} wears no draped cloth over draped cloth: {kinds}")
         inner = next(k for k in DRAPED_OVER[top] if k in kinds)
         ph = recipe.phenotype
         print(f"\nsubject {s}: {kinds}")
-        cloth = drape_garment(inner, ph, drape_settings(inner, args.drape))
+        draped = {}  # the cloth under the top draped as build_garments drapes it, innermost first
+        for k in kinds:
+            if k in DRAPED_KINDS and GARMENT_LAYERS.index(k) <= GARMENT_LAYERS.index(inner):
+                draped[k] = drape_garment(k, ph, drape_settings(k, args.drape), over=draped_over(k, draped))
+        cloth = draped[inner]
         for over in ((), (cloth,)):
             t = time.perf_counter()
             g = drape_garment(top, ph, drape_settings(top, args.drape), over=over)
