@@ -363,7 +363,7 @@ SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dres
 # (`garment_pattern`'s `over`), and `drape_garment` adds the cloth to the collider.
 DRAPED_OVER = {"draped_tshirt": ("draped_skirt", "draped_trousers"),
                "draped_longsleeve": ("draped_skirt", "draped_trousers"),
-               "draped_jacket": ("draped_tshirt", "draped_longsleeve"),
+               "draped_jacket": ("draped_skirt", "draped_trousers", "draped_tshirt", "draped_longsleeve"),
                "draped_coat": ("draped_tshirt", "draped_longsleeve")}
 
 

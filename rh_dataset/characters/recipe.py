@@ -24,6 +24,7 @@ __all__ = [
     "UNDER_COAT",
     "UNDER_LOOSE_TOP",
     "OVER_LOOSE_TOP",
+    "JACKET_OVER_LOOSE_TOP",
     "OUTERWEAR",
     "LOOSE_TOPS",
     "PATTERNS",
@@ -66,6 +67,10 @@ UNDER_LOOSE_TOP = UNDER_COAT + ("draped_skirt", "draped_trousers")
 # The outerwear a loose top may be worn under: the draped open jacket and coat, whose drape collides with the top's
 # cloth (drape.DRAPED_OVER); not the shell jacket, a second skin the top's cloth would hang through.
 OVER_LOOSE_TOP = ("draped_jacket", "draped_coat")
+# The draped bottoms the open jacket may be worn over when a loose top is under it (its drape collides with both
+# cloths, drape.DRAPED_OVER). Over a shell top the jacket stays a shell there: that top is lifted over the skirt's
+# waistband, out of the reach of the jacket's drape, and showed through its panels (docs/ARCHITECTURE.md).
+JACKET_OVER_LOOSE_TOP = ("draped_skirt", "draped_trousers")
 OUTERWEAR = ("jacket", "draped_jacket", "draped_coat")  # the outermost layers: at most one of them
 PATTERNS = ("solid", "stripes", "checks", "noise")
 # Fabric finish (how the renderer's sheen lobe and the knit texture treat a garment; character.FABRIC_SHEEN):
@@ -311,9 +316,13 @@ class CharacterRecipe:
         if not dresses and sum(k in BOTTOMS for k in kinds) != 1:
             raise ValueError(f"garments: exactly one of {BOTTOMS} (or a dress, {DRESSES}) is required, got {kinds}")
         outer = [k for k in kinds if k in OUTERWEAR]
-        if len(outer) > 1 or (outer and outer != ["jacket"] and not any(k in UNDER_COAT for k in kinds)):
+        over_loose = outer == ["draped_jacket"] and any(k in LOOSE_TOPS for k in kinds) and any(
+            k in JACKET_OVER_LOOSE_TOP for k in kinds)
+        if len(outer) > 1 or (outer and outer != ["jacket"] and not any(k in UNDER_COAT for k in kinds)
+                              and not over_loose):
             raise ValueError(f"garments: at most one of {OUTERWEAR}, a draped_coat or draped_jacket only over one of "
-                             f"{UNDER_COAT}, got {kinds}")
+                             f"{UNDER_COAT} (a draped_jacket also over one of {JACKET_OVER_LOOSE_TOP} with a loose "
+                             f"top {LOOSE_TOPS} under it), got {kinds}")
         if "draped_hoodie" in kinds and outer:
             raise ValueError(f"garments: a draped_hoodie is worn without any of {OUTERWEAR}, got {kinds}")
         if any(k in LOOSE_TOPS for k in kinds) and (set(outer) - set(OVER_LOOSE_TOP)

@@ -14,8 +14,9 @@ import hashlib
 import numpy as np
 
 from .body import sample_phenotype
-from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, OUTERWEAR, OVER_LOOSE_TOP, PATTERNS, POOLS, TOPS,
-                     UNDER_COAT, UNDER_LOOSE_TOP, CharacterRecipe, EyeSpec, Garment, HairSpec, Headwear, SkinTone)
+from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, JACKET_OVER_LOOSE_TOP, OUTERWEAR, OVER_LOOSE_TOP,
+                     PATTERNS, POOLS, TOPS, UNDER_COAT, UNDER_LOOSE_TOP, CharacterRecipe, EyeSpec, Garment, HairSpec,
+                     Headwear, SkinTone)
 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
@@ -246,10 +247,14 @@ def _loose_top(rng: np.random.Generator, garments: tuple[Garment, ...], top: str
     everyone, so the stream's use is fixed)."""
     loose = rng.random() < p
     kinds = {g.kind for g in garments}
-    if not (loose and top in kinds and not kinds & (set(OUTERWEAR) - set(OVER_LOOSE_TOP))
+    # A shell jacket is left only over a draped skirt or wide trousers (the open jacket's draw took the others); over
+    # a loose top it is draped too (recipe.JACKET_OVER_LOOSE_TOP), as every jacket that can be is (JACKET_P = 1).
+    jacket = "jacket" in kinds and bool(kinds & set(JACKET_OVER_LOOSE_TOP)) and JACKET_P == 1.0
+    if not (loose and top in kinds and (jacket or not kinds & (set(OUTERWEAR) - set(OVER_LOOSE_TOP)))
             and kinds & set(UNDER_LOOSE_TOP)):
         return garments
-    return tuple(dataclasses.replace(g, kind=f"draped_{top}") if g.kind == top else g for g in garments)
+    kind = {top: f"draped_{top}", "jacket": "draped_jacket" if jacket else "jacket"}
+    return tuple(dataclasses.replace(g, kind=kind.get(g.kind, g.kind)) for g in garments)
 
 
 def _hoodie(rng: np.random.Generator, garments: tuple[Garment, ...], hair: HairSpec,
