@@ -1,15 +1,18 @@
 """Draped cloth over draped cloth (drape.DRAPED_OVER: a loose t-shirt or long sleeve over a draped skirt or wide
-trousers; an open jacket or coat over a loose top): how far the outer layer lies under the cloth under it, at rest
-and posed, and what keeping it out costs.
+trousers; an open jacket or coat over a loose top, and the jacket over the skirt under that top): how far the outer
+layer lies under the cloth under it, at rest and posed, and what keeping it out costs.
 
     python bench/bench_cloth_layers.py                       # benchmark subjects 5 and 39 (seed 0), 3 test poses
     python bench/bench_cloth_layers.py --subjects 20,24 --poses 2 --drape coarse
     python bench/bench_cloth_layers.py --subjects 14,41,45   # open jackets and a coat over loose tops
+    python bench/bench_cloth_layers.py --subjects 2,26       # open jackets over loose tops over draped skirts
+    python bench/bench_cloth_layers.py --seed 2 --subjects 0 # a loose top over wide trousers (none at seed 0)
 
 Subjects are the generator's own (rh-generate's `sample_recipe(rng_for(seed, "character", s))`, benchmark pool), so
 the numbers are those of the dataset's frames; each must wear draped cloth over draped cloth (the outermost such
-pair: the top over a skirt, or the jacket or coat over the top; the inner cloth is draped as the generator drapes it,
-over what it is worn over). Below, "the top" is the outer layer.
+layer over draped cloth: the top over a skirt, or the jacket or coat over the top, and over a skirt under it; the
+cloth under it is draped as the generator drapes it, each over what it is worn over). Below, "the top" is that outer
+layer, measured against each draped cloth it is draped over.
 Per subject:
   drape     the top draped on the body alone (as before 3 December) and over the cloth under it (`over`, its
             collider and pattern): the seconds of each drape (a cold cache: the drape is timed) and the top's
@@ -62,8 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character, sample_recipe
     from rh_dataset.characters.cloth_pose import push_over
-    from rh_dataset.characters.drape import DRAPED_KINDS, DRAPED_OVER, drape_garment, drape_settings, draped_over
-    from rh_dataset.characters.recipe import GARMENT_LAYERS
+    from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_settings, draped_over
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
@@ -75,26 +77,30 @@ def main(argv: list[str] | None = None) -> int:
         top = next((k for k in reversed(kinds) if k in DRAPED_OVER and set(DRAPED_OVER[k]) & set(kinds)), None)
         if top is None:
             ap.error(f"benchmark subject {s} wears no draped cloth over draped cloth: {kinds}")
-        inner = next(k for k in DRAPED_OVER[top] if k in kinds)
+        inners = [k for k in kinds if k in DRAPED_OVER[top]]  # innermost first
         ph = recipe.phenotype
         print(f"\nsubject {s}: {kinds}")
         draped = {}  # the cloth under the top draped as build_garments drapes it, innermost first
         for k in kinds:
-            if k in DRAPED_KINDS and GARMENT_LAYERS.index(k) <= GARMENT_LAYERS.index(inner):
+            if k in inners:
                 draped[k] = drape_garment(k, ph, drape_settings(k, args.drape), over=draped_over(k, draped))
-        cloth = draped[inner]
-        for over in ((), (cloth,)):
+        clothes = draped_over(top, draped)
+
+        def unders(points, layers) -> str:
+            return ", ".join("{} {:d} ({:.1f})".format(k, *under(points, v, f)) for k, (v, f) in layers.items())
+
+        for over in ((), clothes):
             t = time.perf_counter()
             g = drape_garment(top, ph, drape_settings(top, args.drape), over=over)
-            n, worst = under(g.vertices, cloth.vertices, cloth.faces)
-            print(f"  drape of the {top} {'over the ' + inner if over else 'on the body alone'}: "
-                  f"{time.perf_counter() - t:.1f} s; at rest {n} vertices > 1 mm under the {inner} (worst "
-                  f"{worst:.1f} mm)  (load {load()})")
+            secs = time.perf_counter() - t
+            print(f"  drape of the {top} {'over the ' + ', '.join(inners) if over else 'on the body alone'}: "
+                  f"{secs:.1f} s; at rest, vertices > 1 mm under (worst mm): "
+                  f"{unders(g.vertices, {c.kind: (c.vertices, c.faces) for c in clothes})}  (load {load()})")
         character = build_character(recipe, 512, drape=args.drape)
         poses = [("rest", {})] + [(f"test {j} ({p.label})", dict(p.bones)) for j, p in enumerate(
             sample_pose(rng_for(args.seed, "pose", s, "test", j), load_anny()) for j in range(args.poses))]
-        print(f"  {'pose':22s} {'mode':9s}  under the {inner}, vertices > 1 mm (worst mm): without push_over | "
-              f"with   push_over s")
+        print(f"  {'pose':22s} {'mode':9s}  vertices > 1 mm under (worst mm): without push_over | with push_over | "
+              f"push s")
         for label, bones in poses:
             for mode in ("skinned", "simulated"):
                 character_module.push_over = lambda v, *a, **k: np.asarray(v, np.float64)  # noqa: E731
@@ -106,11 +112,12 @@ def main(argv: list[str] | None = None) -> int:
                 posed = {m.name: m for m in pose_character(character, bones, None, mode)}
                 t_all = time.perf_counter() - t
                 t = time.perf_counter()
-                push_over(raw[top].vertices, raw[inner].vertices, raw[inner].faces, 0.004)
+                for k in inners:
+                    push_over(raw[top].vertices, raw[k].vertices, raw[k].faces, 0.004)
                 t_push = time.perf_counter() - t
-                n0, w0 = under(raw[top].vertices, raw[inner].vertices, raw[inner].faces)
-                n1, w1 = under(posed[top].vertices, posed[inner].vertices, posed[inner].faces)
-                print(f"  {label:22s} {mode:9s}  {n0:5d} ({w0:6.1f}) | {n1:5d} ({w1:6.1f})  {t_push:5.2f} "
+                before = unders(raw[top].vertices, {k: (raw[k].vertices, raw[k].faces) for k in inners})
+                after = unders(posed[top].vertices, {k: (posed[k].vertices, posed[k].faces) for k in inners})
+                print(f"  {label:22s} {mode:9s}  {before} | {after} | {t_push:5.2f} "
                       f"(posing {t_all:.1f} s; load {load()})", flush=True)
     return 0
 

@@ -45,14 +45,15 @@ RECIPE_FORMAT = "rh-character/1"  # headwear (optional key) kept the format: old
 POOLS = ("benchmark", "pretrain")
 # draped_skirt, draped_dress, draped_trousers (wide-leg), draped_coat (open, long), draped_jacket (open, to the hips):
 # loose garments draped by newton's cloth solver (drape.py). A dress is worn instead of a top and a bottom; the coat
-# or the open jacket is the outermost layer, instead of a (shell) jacket, over close-fitting shell bottoms only
-# (UNDER_COAT: its drape collides with the body and with a loose top's cloth, not with a skirt). draped_hoodie: a
-# top, the longsleeve's shell with a hood draped on the upper back, worn without any of OUTERWEAR (its hood collides
-# with the body, not with a jacket). draped_tshirt: a top, the t-shirt's shoulders and sleeves over a body of cloth
-# hanging loose from under the arms to the hips, worn under nothing or one of OVER_LOOSE_TOP (whose drape collides
-# with it), over one of UNDER_LOOSE_TOP (its drape collides with the body and with a draped skirt or wide trousers
-# under it); draped_longsleeve likewise, the longsleeve's shoulders and sleeves over that cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a
-# recipe's choice.
+# or the open jacket is the outermost layer, instead of a (shell) jacket, over close-fitting shell bottoms
+# (UNDER_COAT), the open jacket also over a draped skirt or wide trousers with a loose top under it
+# (JACKET_OVER_LOOSE_TOP); their drape collides with the body and with the loose top's cloth and the skirt under
+# them. draped_hoodie: a top, the longsleeve's shell with a hood draped on the upper back, worn without any of
+# OUTERWEAR (its hood collides with the body, not with a jacket). draped_tshirt: a top, the t-shirt's shoulders and
+# sleeves over a body of cloth hanging loose from under the arms to the hips, worn under nothing or one of
+# OVER_LOOSE_TOP (whose drape collides with it), over one of UNDER_LOOSE_TOP (its drape collides with the body and
+# with a draped skirt or wide trousers under it); draped_longsleeve likewise, the longsleeve's shoulders and sleeves
+# over that cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
                  "draped_trousers", "shoes", "draped_coat", "draped_hoodie", "draped_jacket", "draped_tshirt",
                  "draped_longsleeve")

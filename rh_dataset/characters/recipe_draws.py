@@ -59,9 +59,10 @@ HOODIE_HAIR = ("buzz", "short", "bob", "bun")
 # instead of every drawn jacket the coat draw left a jacket, where the bottom is one of UNDER_COAT. Our choice, not a
 # census figure: the shell jacket is a second skin from the collar to the hips, with no hem standing off the body and
 # no folds, which no jacket looks like, so wherever the draped one can be worn it is; jackets over skirts and wide
-# trousers (through which its drape would hang) stay shells. Its own stream (one draw for everyone, after the coat's),
-# the jacket's colours, pattern and fabric: no other draw of any seed changes, and a share below 1 can be chosen later
-# without moving any other draw.
+# trousers stay shells here, and are draped by the loose top's draw where a loose top is drawn under them
+# (`_loose_top`, recipe.JACKET_OVER_LOOSE_TOP: over a shell top, the top showed through the jacket's panels). Its own
+# stream (one draw for everyone, after the coat's), the jacket's colours, pattern and fabric: no other draw of any
+# seed changes, and a share below 1 can be chosen later without moving any other draw.
 JACKET_STREAM = 1721
 JACKET_P = 1.0
 # A loose t-shirt (`draped_tshirt`: the t-shirt's shoulders and sleeves over cloth hanging from under the arms to the
