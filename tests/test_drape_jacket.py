@@ -196,40 +196,55 @@ def test_jacket_drape_is_bit_identical_and_stays_outside_the_body_and_the_layers
     assert all(d < LAYER_BOUND_M and n <= LAYER_MAX_UNDER for d, n in m["under"].values()), m["under"]
 
 
-def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(tmp_path, monkeypatch):
-    """An open jacket over a loose t-shirt (benchmark subject 14 of seed 0, coarse drapes; recipe.OVER_LOOSE_TOP):
-    draped on the body alone its panels settle through the top's cloth (measured: 112 vertices more than 1 mm under
-    it, 17.3 mm at worst); draped with the top's cloth in its collider and its pattern cut outside it
-    (drape.DRAPED_OVER), none is, and every vertex stays clear of it (measured: 5.2 mm at the least, at the pinned
-    ring, which the drape keeps 6 mm outside the top's: bound 3 mm). Posed (skinned) in the subject's first test
-    pose, the jacket is pushed out over the posed top (`cloth_pose.push_over`): no vertex more than 1 mm under it
-    (measured: 6 vertices, 10.6 mm at worst, before the push; bench/bench_cloth_layers.py --subjects 14)."""
+# (benchmark subject of seed 0, its garments, the draped cloth the jacket is draped over), coarse drapes
+UNDER_JACKET = [(14, ["shoes", "trousers", "draped_tshirt", KIND], ["draped_tshirt"]),
+                (26, ["shoes", "draped_skirt", "draped_tshirt", KIND], ["draped_skirt", "draped_tshirt"])]
+
+
+@pytest.mark.parametrize("subject,kinds,inner", UNDER_JACKET, ids=["over-tee", "over-tee-and-skirt"])
+def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, inner, tmp_path, monkeypatch):
+    """An open jacket over a loose t-shirt (recipe.OVER_LOOSE_TOP; coarse drapes): subject 14 over trousers, subject
+    26 over a draped skirt too (recipe.JACKET_OVER_LOOSE_TOP). Draped on the body alone its panels settle through the
+    top's cloth (measured: 112 and 168 vertices more than 1 mm under it, 17.3 and 26.0 mm at worst; subject 26's
+    also 5 vertices through the skirt, 9.2 mm); draped with that cloth in its collider and its pattern cut outside it
+    (drape.DRAPED_OVER), none is, and every vertex stays clear of it (measured: 5.2 and 5.3 mm at the least over the
+    top, at the pinned ring, which the drape keeps 6 mm outside the top's; 15.0 mm over the skirt: bound 3 mm).
+    Posed (skinned) in the subject's first test pose, the jacket is pushed out over the posed cloth
+    (`cloth_pose.push_over`): no vertex more than 1 mm under it (measured before the push: subject 14, 6 vertices
+    10.6 mm deep at worst; subject 26, 1 vertex 2.6 mm; bench/bench_cloth_layers.py)."""
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.cloth_pose import LAYER_REACH, layer_depth
+    from rh_dataset.characters.drape import draped_over
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
     monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
-    recipe = _benchmark(15)[14]
-    top = "draped_tshirt"
-    assert [g.kind for g in recipe.garments] == ["shoes", "trousers", top, KIND]
+    recipe = _benchmark(subject + 1)[subject]
+    assert [g.kind for g in recipe.garments] == kinds
     ph = recipe.phenotype
-    tee = drape_garment(top, ph, drape_settings(top, "coarse"))
+    draped = {}
+    for k in inner:
+        draped[k] = drape_garment(k, ph, drape_settings(k, "coarse"), over=draped_over(k, draped))
     st = drape_settings(KIND, "coarse")
-    alone, over = drape_garment(KIND, ph, st), drape_garment(KIND, ph, st, over=(tee,))
+    alone, over = drape_garment(KIND, ph, st), drape_garment(KIND, ph, st, over=draped_over(KIND, draped))
 
     def depth(v, cloth_v, cloth_f):
         return np.nan_to_num(layer_depth(np.asarray(v, np.float64), np.asarray(cloth_v, np.float64), cloth_f,
                                          LAYER_REACH), nan=-1.0)
 
-    d_alone, d_over = depth(alone.vertices, tee.vertices, tee.faces), depth(over.vertices, tee.vertices, tee.faces)
-    print(f"at rest under the top: alone {(d_alone > 0.001).sum()} vertices (worst {1e3 * d_alone.max():.1f} mm), "
-          f"over {(d_over > 0.001).sum()} (worst {1e3 * d_over.max():.1f} mm)")
-    assert (d_alone > 0.001).sum() > 10 and d_over.max() < -0.003
+    for k, cloth in draped.items():
+        d_alone, d_over = depth(alone.vertices, cloth.vertices, cloth.faces), depth(over.vertices, cloth.vertices,
+                                                                                     cloth.faces)
+        print(f"at rest under the {k}: alone {(d_alone > 0.001).sum()} vertices (worst {1e3 * d_alone.max():.1f} "
+              f"mm), over {(d_over > 0.001).sum()} (worst {1e3 * d_over.max():.1f} mm)")
+        assert d_over.max() < -0.003
+        if k == "draped_tshirt":
+            assert (d_alone > 0.001).sum() > 10
     character = build_character(recipe, 64, drape="coarse")
-    pose = sample_pose(rng_for(0, "pose", 14, "test", 0), load_anny())
+    pose = sample_pose(rng_for(0, "pose", subject, "test", 0), load_anny())
     posed = {m.name: m for m in pose_character(character, dict(pose.bones))}
-    d = depth(posed[KIND].vertices, posed[top].vertices, posed[top].faces)
-    print(f"posed ({pose.label}): worst {1e3 * d.max():.1f} mm")
-    assert d.max() < 0.001
+    for k in inner:
+        d = depth(posed[KIND].vertices, posed[k].vertices, posed[k].faces)
+        print(f"posed ({pose.label}) over the {k}: worst {1e3 * d.max():.1f} mm")
+        assert d.max() < 0.001
