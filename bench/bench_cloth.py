@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body import body_topology, run_anny
-    from rh_dataset.characters.drape import (DRAPED_KINDS, DRAPED_OVER, SHELL_KINDS_OVER, bind_loose, drape_garment,
+    from rh_dataset.characters.drape import (DRAPED_KINDS, SHELL_KINDS_OVER, bind_loose, drape_garment,
                                              drape_settings, draped_over, penetration, push_clearance, push_out,
                                              skin_points)
     from rh_dataset.poses import sample_poses
@@ -146,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
             under[k] = drape_garment(k, ph, drape_settings(k), over=draped_over(k, under))
     over = draped_over(kind, under)
     if over:
-        print(f"draped over: {[k for k in under if k in DRAPED_OVER[kind]]}")
+        print(f"draped over: {[c.kind for c in over]}")
     os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_cloth_")  # a cold cache: the drape is timed
     t = time.perf_counter()
     g = drape_garment(kind, ph, st, over=over)

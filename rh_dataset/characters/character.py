@@ -451,10 +451,9 @@ def pose_character(
     `cloth`: how draped garments reach the pose (`cloth_pose.CLOTH_MODES`): "skinned" (linear-blend skinning +
     push_out) or "simulated" (newton's cloth solver while the body moves from the rest pose into this one; its
     penalty contact can leave a vertex pressed a few millimetres into a limb, which push_out then puts back on the
-    skin as it does for skinned cloth; `cloth_settings` are its settings). Either way a loose top over draped cloth
-    (`drape.DRAPED_OVER`) is then pushed out over that cloth's posed surface (`cloth_pose.push_over`, keeping
-    `drape.LAYER_GAP_DRAPE`). `cloth_stats`, if given, receives the
-    simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
+    skin as it does for skinned cloth; `cloth_settings` are its settings). Either way draped cloth over draped cloth
+    (`drape.DRAPED_OVER`: a loose top, an open jacket or coat) is then pushed out over that cloth's posed surface
+    (`cloth_pose.push_over`, keeping `drape.LAYER_GAP_DRAPE`). `cloth_stats`, if given, receives the simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
     (benches; costs a closest-point query). The meshes come first, in part order, then one `PosedStrands` per
     `character.strands`."""
     topo = body_topology()
@@ -470,7 +469,7 @@ def pose_character(
     simulated = (simulated_parts(character, bone_deltas, cloth_settings, stats=cloth_stats) if cloth == "simulated"
                  else {})
     posed = []
-    cloth_under = {}  # draped part name -> (posed vertices, faces): what a loose top over it is pushed over
+    cloth_under = {}  # draped part name -> (posed vertices, faces): what draped cloth over it is pushed over
     for part in character.parts:
         if part.skinning is not None:
             if part.name in simulated:

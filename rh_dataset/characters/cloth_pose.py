@@ -16,7 +16,7 @@ phenotype and the frame's anny bone deltas ('local-ref', as `pose_character` tak
                garment in its own fabric (`pose_fabric`). `pose_character` then applies `push_out` as for skinned
                cloth: newton's penalty contact can leave a vertex a few millimetres inside a limb that pressed the
                cloth.
-Either way `pose_character` then pushes a loose top out over the draped cloth under it (`push_over`,
+Either way `pose_character` then pushes draped cloth out over the draped cloth under it (`push_over`,
 `drape.DRAPED_OVER`): skinned, each layer follows its own binding and a swinging thigh can carry a skirt through it.
 
 Measures of posed cloth: `self_crossings` (cloth through itself), `hem_split` (a hem wrapped round each leg),

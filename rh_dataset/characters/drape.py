@@ -10,7 +10,8 @@ shoulders and sleeves are one shell, garments.py's "coat", whose hem `shell_hem`
 bodice) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
-static collider (with, for a loose top, the draped skirt or wide trousers under it: `DRAPED_OVER`), plus the
+static collider (with the draped cloth under it, `DRAPED_OVER`: a loose top's skirt or wide trousers, an open
+jacket's or coat's loose top and skirt), plus the
 skinning that moves it per frame (`SkinBinding`: the body's linear-blend weights
 transferred from the closest body point and, below the hips, diffused over the cloth so it stays one piece in a
 stride (`bind_loose`); the garment expressed in anny's bind space) and `push_out`, which puts skinned cloth that a
