@@ -209,11 +209,14 @@ def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, 
     also 5 vertices through the skirt, 9.2 mm); draped with that cloth in its collider and its pattern cut outside it
     (drape.DRAPED_OVER), none is, and every vertex stays clear of it (measured: 5.2 and 5.3 mm at the least over the
     top, at the pinned ring, which the drape keeps 6 mm outside the top's; 15.0 mm over the skirt: bound 3 mm).
-    Posed (skinned) in the subject's first test pose, the jacket is pushed out over the posed cloth
+    At rest the jacket's shell under the panels' pinned ring lies under the panels (measured: 108 and 124 vertices,
+    at least 2.6 and 1.7 mm under; before `garments._under_cover`, lifted over the top's cloth, 30 and 12 of them
+    stood outside, up to 3.7 and 2.8 mm). Posed (skinned) in the subject's first test pose, the jacket is pushed out over the posed cloth
     (`cloth_pose.push_over`): no vertex more than 1 mm under it (measured before the push: subject 14, 6 vertices
     10.6 mm deep at worst; subject 26, 1 vertex 2.6 mm; bench/bench_cloth_layers.py)."""
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
+    from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.cloth_pose import LAYER_REACH, layer_depth
     from rh_dataset.characters.drape import draped_over
     from rh_dataset.generate import rng_for
@@ -242,6 +245,17 @@ def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, 
         if k == "draped_tshirt":
             assert (d_alone > 0.001).sum() > 10
     character = build_character(recipe, 64, drape="coarse")
+    # The jacket's shell (the coat's) under the panels' pinned ring, lifted over the top's cloth (which hangs from
+    # the height of the panels' ring), stays under the panels all the same (garments._under_cover).
+    rest = {m.name: m for m in pose_character(character, {})}
+    sv = rest["coat"].vertices.astype(np.float64)
+    z_ring = float(over.vertices[over.pinned, 2].mean())
+    low = (body_features(ph).in_groups("torso")[character.part("coat").body_vertex] & (sv[:, 2] < z_ring)
+           & ((np.abs(sv[:, 0]) > 0.04) | (sv[:, 1] > 0.0)))
+    d = layer_depth(sv[low], rest[KIND].vertices.astype(np.float64), rest[KIND].faces)
+    print(f"at rest the shell's overlap: {low.sum()} vertices, {(d < 0).sum()} outside the panels, "
+          f"the least {1e3 * np.nanmin(d):.1f} mm under them")
+    assert low.sum() > 50 and np.isfinite(d).mean() > 0.5 and np.nanmin(d) > 0.0
     pose = sample_pose(rng_for(0, "pose", subject, "test", 0), load_anny())
     posed = {m.name: m for m in pose_character(character, dict(pose.bones))}
     for k in inner:

@@ -147,7 +147,7 @@ def test_posed_edges_stay_closed_onto_the_skin(phenotype, feats):
     the posed skin and within the taper's minimum (+ 0.5 mm) of it: the blend along the body edge moves with it
     (measured: 1.8-2.1 mm off the skin, the minimum, and at least 0.85 mm outside it along the face normal)."""
     from rh_dataset.characters.body import run_anny, vertex_normals
-    from rh_dataset.characters.character import _anchor
+    from rh_dataset.characters.body import anchor_points
 
     def rot(axis, deg):
         axis = np.asarray(axis, float) / np.linalg.norm(axis)
@@ -165,7 +165,7 @@ def test_posed_edges_stay_closed_onto_the_skin(phenotype, feats):
     body = trimesh.Trimesh(v, topo.faces, process=False)
     for kind in ("longsleeve", "tshirt", "trousers", "shorts"):
         part = _shell(kind, feats)
-        pos = _anchor(v, n, part.blend_vertices, part.blend_weights, part.offset)
+        pos = anchor_points(v, n, part.blend_vertices, part.blend_weights, part.offset)
         edge = part.blend_weights[:, 1] > 0
         closest, dist, tri = trimesh.proximity.closest_point(body, pos[edge])
         outward = ((pos[edge] - closest) * body.face_normals[tri]).sum(1)

@@ -107,6 +107,20 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return n / length
 
 
+def blended_normals(normals: np.ndarray, bv: np.ndarray, bw: np.ndarray) -> np.ndarray:
+    """Unit normals (P, 3) float64 of blended anchors: the `bw`-weighted sums (P, K) of body vertex normals `bv`."""
+    nb = (normals[bv] * bw.astype(np.float64)[..., None]).sum(1)
+    return nb / np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
+
+
+def anchor_points(verts: np.ndarray, normals: np.ndarray, bv: np.ndarray, bw: np.ndarray, off: np.ndarray
+                  ) -> np.ndarray:
+    """Blended anchors of body vertices plus offsets along the blended normals (P, 3) float64: where a shell's,
+    hair's or headwear's vertices sit on a posed body (`verts`, `normals`)."""
+    w = bw.astype(np.float64)[..., None]
+    return (verts[bv] * w).sum(1) + off[:, None].astype(np.float64) * blended_normals(normals, bv, bw)
+
+
 @functools.lru_cache(maxsize=1)
 def _shape_distribution():
     from anny.shape_distribution import SimpleShapeDistribution

@@ -27,7 +27,7 @@ import numpy as np
 from rh_common.body_model import ANNY_TOPOLOGY
 from rh_common.colourspace import srgb_decode
 
-from .body import body_topology, run_anny, vertex_normals
+from .body import anchor_points, blended_normals, body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, garment_parts, shoe_height_map
 from .body_features import body_features
 from .cloth_pose import CLOTH_MODES, ClothPoseSettings, push_over, simulated_parts
@@ -398,17 +398,6 @@ def _split_fibres(hair, fibres: tuple[HairFibre, ...], rng: np.random.Generator)
     return tuple(out)
 
 
-def _blended_normals(normals: np.ndarray, bv: np.ndarray, bw: np.ndarray) -> np.ndarray:
-    nb = (normals[bv] * bw.astype(np.float64)[..., None]).sum(1)
-    return nb / np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
-
-
-def _anchor(verts: np.ndarray, normals: np.ndarray, bv: np.ndarray, bw: np.ndarray, off: np.ndarray) -> np.ndarray:
-    """Blended anchors plus offsets along the blended normals (float64)."""
-    w = bw.astype(np.float64)[..., None]
-    return (verts[bv] * w).sum(1) + off[:, None].astype(np.float64) * _blended_normals(normals, bv, bw)
-
-
 def _check_transform(name: str, m: np.ndarray) -> np.ndarray:
     m = np.asarray(m, dtype=np.float64)
     if m.shape != (4, 4) or not np.all(np.isfinite(m)):
@@ -494,9 +483,9 @@ def pose_character(
             n = normals[part.body_vertex]
             v = p + part.offset[:, None].astype(np.float64) * n
         else:
-            v = _anchor(verts, normals, part.blend_vertices, part.blend_weights, part.offset)
+            v = anchor_points(verts, normals, part.blend_vertices, part.blend_weights, part.offset)
             if part.body_faces is not None:  # a shell: the body's own (interpolated) normals, as before it was cut
-                n = _blended_normals(normals, part.blend_vertices, part.blend_weights)
+                n = blended_normals(normals, part.blend_vertices, part.blend_weights)
             else:
                 n = _welded_normals(v, part.faces)
         n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
@@ -512,7 +501,7 @@ def pose_character(
             )
         )
     for h in character.strands:
-        pts = _anchor(verts, normals, h.blend_vertices, h.blend_weights, h.offset).reshape(*h.radius.shape, 3)
+        pts = anchor_points(verts, normals, h.blend_vertices, h.blend_weights, h.offset).reshape(*h.radius.shape, 3)
         posed.append(PosedStrands(h.name, _ro(pts, np.float32), h.radius, h.fibre))
     return posed
 

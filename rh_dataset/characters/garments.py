@@ -28,7 +28,7 @@ from scipy.sparse import csgraph
 
 from rh_common.body_model import ANNY_TOPOLOGY
 
-from .body import body_topology
+from .body import body_topology, run_anny
 from .body_features import BodyFeatures
 from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP, DrapeSettings, SkinBinding,
                     drape_garment, draped_over, draped_part, drape_settings, shell_hem)
@@ -224,12 +224,13 @@ def _metres_per_uv(face_ids: np.ndarray, feats: BodyFeatures, topology: str) -> 
     return float(np.sqrt(a3 / max(a2, 1e-12)))
 
 
-def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem: float | None = None
-           ) -> PartGeometry:
+def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem: float | None = None,
+           cover: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> PartGeometry:
     """A shell cut from the body along `garment_level`'s zero level (`hem`: the coat's). Every vertex is a blend of
     the two ends of a body edge (weight 1 on one end except on the cut), offset along the blended normal: the taper
     runs over the surface distance from the cut, and layering compares with the layers below interpolated the same
-    way."""
+    way. `cover` (the coat's shell): (the body's vertices in anny's rest A-pose, and the vertices and faces of the
+    draped cloth hanging from the shell's hem in that pose): the shell stays under that cloth (`_under_cover`)."""
     level = _clean_level(garment_level(kind, feats, hem), topology)
     topo = body_topology(topology)
     face_ids = np.flatnonzero((level[topo.faces] < 0).any(axis=1))
@@ -247,6 +248,8 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     t = split.cut_t
     need = np.where(under > 0, under + LAYER_GAP, 0.0)
     off = np.maximum(off, (1.0 - t) * need[split.body_vertex] + t * need[split.cut_vertex])
+    if cover is not None:
+        off = np.minimum(off, _under_cover(split, off, *cover, topology))
     whole = t == 0
     np.maximum.at(under, split.body_vertex[whole], off[whole])
     bv = np.stack([split.body_vertex, split.cut_vertex], 1)
@@ -263,6 +266,40 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
         blend_weights=bw,
         body_faces=split.body_faces,
     )
+
+
+COVER_REACH = 0.05  # metres along a shell vertex's normal within which draped cloth over it caps its offset
+COVER_RISE = 0.005  # metres above its pinned ring the cloth is taken to cover the shell (`_under_cover`)
+
+
+def _under_cover(split, off: np.ndarray, rest: np.ndarray, cloth: np.ndarray, cloth_faces: np.ndarray,
+                 topology: str) -> np.ndarray:
+    """Per shell vertex, the highest offset (metres) that keeps it LAYER_GAP under the draped cloth hanging from
+    its hem (`off` where no cloth lies within COVER_REACH along its normal), all in anny's rest A-pose (`rest`:
+    the body's vertices there; `cloth`, `cloth_faces`: the drape). TUCK alone holds the shell inside cloth pinned
+    near the skin; over a loose top the jacket's panels hang 14-39 mm off the skin, and the shell, lifted over the
+    top's cloth by `under`, came out through them (bench_cloth --kind draped_jacket). Under the cap the shell may
+    pass through the top's cloth, where both lie under the panels."""
+    import trimesh
+
+    from .body import anchor_points, blended_normals, vertex_normals
+
+    bv = np.stack([split.body_vertex, split.cut_vertex], 1)
+    bw = np.stack([1.0 - split.cut_t, split.cut_t], 1)
+    normals = vertex_normals(rest, body_topology(topology).faces)
+    origin = anchor_points(rest, normals, bv, bw, np.zeros(len(bv)))
+    direction = blended_normals(normals, bv, bw)
+    # The cloth and a copy of it COVER_RISE higher: the shell's vertices at the ring's height sit on normals that
+    # tilt down past the ring's edge, so the cloth is taken to reach that much above its ring.
+    cloth = np.asarray(cloth, np.float64)
+    f = np.asarray(cloth_faces)
+    mesh = trimesh.Trimesh(np.concatenate([cloth, cloth + (0.0, 0.0, COVER_RISE)]), np.concatenate([f, f + len(cloth)]),
+                           process=False)
+    loc, ray, _ = mesh.ray.intersects_location(origin, direction, multiple_hits=True)
+    hit = np.full(len(origin), np.inf)
+    np.minimum.at(hit, ray, ((loc - origin[ray]) * direction[ray]).sum(1))
+    cap = np.where(hit < COVER_REACH, hit - LAYER_GAP, np.inf)
+    return np.where(np.isfinite(cap), np.maximum(cap, LEVEL_MIN), off)
 
 
 SHOE_CLEARANCE = 0.006  # metres between the foot and the shoe's upper
@@ -602,13 +639,18 @@ def build_garments(
             if phenotype is None:
                 raise ValueError(f"build_garments: {g.kind} needs the phenotype (it is draped on the body)")
             st = drape_settings(g.kind, drape)
-            if g.kind in SHELL_KINDS_OVER:
-                out.append(_shell(SHELL_KINDS_OVER[g.kind], feats, under, topology,
-                                  hem=shell_hem(g.kind, phenotype, st)))
-            elif g.kind == "draped_hoodie":
-                out.append(_shell("hoodie", feats, under, topology))
             over = draped_over(g.kind, draped)
             draped[g.kind] = drape_garment(g.kind, phenotype, st, over=over)
+            if g.kind in SHELL_KINDS_OVER:
+                # Only the coat's shell can be lifted past its own cloth: over a loose top `under` raises it by the
+                # top's cloth, which hangs at the height of the panels' ring. The other shells sit at their TUCK
+                # (under LAYER_GAP) below their cloth's ring, with nothing draped under them to lift them.
+                shell = SHELL_KINDS_OVER[g.kind]
+                cover = ((run_anny(phenotype)["vertices"], draped[g.kind].vertices, draped[g.kind].faces)
+                         if shell == "coat" else None)
+                out.append(_shell(shell, feats, under, topology, hem=shell_hem(g.kind, phenotype, st), cover=cover))
+            elif g.kind == "draped_hoodie":
+                out.append(_shell("hoodie", feats, under, topology))
             out.append(draped_part(g.kind, phenotype, feats, under, st, over, draped[g.kind]))
         else:
             out.append(_shell(g.kind, feats, under, topology))
