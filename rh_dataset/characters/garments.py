@@ -28,7 +28,7 @@ from scipy.sparse import csgraph
 
 from rh_common.body_model import ANNY_TOPOLOGY
 
-from .body import body_topology, run_anny
+from .body import anchor_points, blended_normals, body_topology, run_anny, vertex_normals
 from .body_features import BodyFeatures
 from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP, DrapeSettings, SkinBinding,
                     drape_garment, draped_over, draped_part, drape_settings, shell_hem)
@@ -281,8 +281,6 @@ def _under_cover(split, off: np.ndarray, rest: np.ndarray, cloth: np.ndarray, cl
     top's cloth by `under`, came out through them (bench_cloth --kind draped_jacket). Under the cap the shell may
     pass through the top's cloth, where both lie under the panels."""
     import trimesh
-
-    from .body import anchor_points, blended_normals, vertex_normals
 
     bv = np.stack([split.body_vertex, split.cut_vertex], 1)
     bw = np.stack([1.0 - split.cut_t, split.cut_t], 1)
