@@ -20,7 +20,7 @@ Per subject:
             edges): how many lie deeper than 1 mm and the worst depth;
   posed     for the rest pose and each test pose (`sample_pose(rng_for(seed, "pose", s, "test", j))`), both cloth
             modes of `pose_character` ("skinned", "simulated"), the same layer measure on the posed top, without
-            `cloth_pose.push_over` (the final push over the cloth under it, replaced here by the identity) and with
+            `cloth_pose.push_over_layers` (the final push over the cloth under it, replaced by the identity) and with
             it, and the push's own seconds.
 The load average is printed with the times: the machine is shared.
 """
@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     import rh_dataset.characters.character as character_module
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character, sample_recipe
-    from rh_dataset.characters.cloth_pose import push_over
+    from rh_dataset.characters.cloth_pose import push_over_layers
     from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_settings, draped_over
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
@@ -103,17 +103,16 @@ def main(argv: list[str] | None = None) -> int:
               f"push s")
         for label, bones in poses:
             for mode in ("skinned", "simulated"):
-                character_module.push_over = lambda v, *a, **k: np.asarray(v, np.float64)  # noqa: E731
+                character_module.push_over_layers = lambda v, *a, **k: np.asarray(v, np.float64)  # noqa: E731
                 try:
                     raw = {m.name: m for m in pose_character(character, bones, None, mode)}
                 finally:
-                    character_module.push_over = push_over
+                    character_module.push_over_layers = push_over_layers
                 t = time.perf_counter()
                 posed = {m.name: m for m in pose_character(character, bones, None, mode)}
                 t_all = time.perf_counter() - t
                 t = time.perf_counter()
-                for k in inners:
-                    push_over(raw[top].vertices, raw[k].vertices, raw[k].faces, 0.004)
+                push_over_layers(raw[top].vertices, [(raw[k].vertices, raw[k].faces) for k in inners], 0.004)
                 t_push = time.perf_counter() - t
                 before = unders(raw[top].vertices, {k: (raw[k].vertices, raw[k].faces) for k in inners})
                 after = unders(posed[top].vertices, {k: (posed[k].vertices, posed[k].faces) for k in inners})

@@ -296,6 +296,32 @@ def test_push_over_lifts_what_lies_under_the_inner_layer():
     assert push_over(np.zeros((0, 3)), sheet, quads, 0.004).shape == (0, 3)
 
 
+def test_push_over_layers_goes_round_the_layers_where_two_cross():
+    """push_over_layers: over one layer it is push_over, bit for bit. Over two sheets crossing at 45 degrees (the
+    first outward +Z, the second outward (1, 0, -1)/sqrt(2), as a skirt and a top crossing where the thigh swings),
+    a point just over the first and under the second is pushed out over the second down through the first: one pass
+    leaves it 5.8 mm under the first; two passes (LAYER_CYCLES) under 1 mm; more passes converge on the clearance
+    over both (alternating projections onto the two half-spaces)."""
+    from rh_dataset.characters.cloth_pose import LAYER_CYCLES, LAYER_REACH, layer_depth, push_over, push_over_layers
+
+    quads = np.array([[0, 1, 2], [0, 2, 3]])
+    first = (np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float), quads)
+    second = (0.1 * np.array([[-1, -1, -1], [1, -1, 1], [1, 1, 1], [-1, 1, -1]], float), quads[:, [0, 2, 1]])
+    pts = np.array([[-0.01, 0.0, 0.002], [0.2, 0.1, -0.01]])  # the second point is beyond the second's edge
+    np.testing.assert_array_equal(push_over_layers(pts, [first], 0.004), push_over(pts, *first, 0.004))
+
+    def depths(cycles):
+        out = push_over_layers(pts, [first, second], 0.004, cycles=cycles)
+        return layer_depth(out, *first, LAYER_REACH), layer_depth(out, *second, LAYER_REACH)
+
+    assert LAYER_CYCLES == 2
+    (d1, d2), (e1, e2), (f1, f2) = depths(1), depths(LAYER_CYCLES), depths(10)
+    assert d1[0] > 0.005 and 0 < e1[0] < 0.001 and d2[0] <= -0.004 + 1e-9 and e2[0] <= -0.004 + 1e-9
+    assert f1[0] < -0.0039 and f2[0] < -0.0039
+    np.testing.assert_allclose(d1[1], -0.004, atol=1e-12)  # over the first only: one push, as push_over
+    assert np.isnan(d2[1])
+
+
 def test_covers_is_the_skin_under_the_cloth():
     """covers: a square sheet 5 cm above the plane z = 0 lies over the skin points under it (normal +Z), not over
     those beside it, nor over those whose normal points away."""

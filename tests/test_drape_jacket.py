@@ -211,9 +211,12 @@ def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, 
     top, at the pinned ring, which the drape keeps 6 mm outside the top's; 15.0 mm over the skirt: bound 3 mm).
     At rest the jacket's shell under the panels' pinned ring lies under the panels (measured: 108 and 124 vertices,
     at least 2.6 and 1.7 mm under; before `garments._under_cover`, lifted over the top's cloth, 30 and 12 of them
-    stood outside, up to 3.7 and 2.8 mm). Posed (skinned) in the subject's first test pose, the jacket is pushed out over the posed cloth
-    (`cloth_pose.push_over`): no vertex more than 1 mm under it (measured before the push: subject 14, 6 vertices
-    10.6 mm deep at worst; subject 26, 1 vertex 2.6 mm; bench/bench_cloth_layers.py)."""
+    stood outside, up to 3.7 and 2.8 mm). Posed (skinned) in the subject's first test pose (subject 26: its first
+    two, the second `random`, where the skirt and the top cross), the jacket is pushed out over the posed cloth
+    (`cloth_pose.push_over_layers`): no vertex more than 1 mm under it (measured before the push: subject 14, 6
+    vertices 10.6 mm deep at worst; subject 26, 1 vertex 2.6 mm; after one pass over subject 26's two cloths
+    instead of LAYER_CYCLES = 2, 2.4 mm under the skirt in the `random` pose, -1.2 mm after two;
+    bench/bench_cloth_layers.py)."""
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body_features import body_features
@@ -256,9 +259,11 @@ def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, 
     print(f"at rest the shell's overlap: {low.sum()} vertices, {(d < 0).sum()} outside the panels, "
           f"the least {1e3 * np.nanmin(d):.1f} mm under them")
     assert low.sum() > 50 and np.isfinite(d).mean() > 0.5 and np.nanmin(d) > 0.0
-    pose = sample_pose(rng_for(0, "pose", subject, "test", 0), load_anny())
-    posed = {m.name: m for m in pose_character(character, dict(pose.bones))}
-    for k in inner:
-        d = depth(posed[KIND].vertices, posed[k].vertices, posed[k].faces)
-        print(f"posed ({pose.label}) over the {k}: worst {1e3 * d.max():.1f} mm")
-        assert d.max() < 0.001
+    # Over two cloths, the second test pose too (`random`): there the skirt and the top cross under the jacket.
+    for j in range(len(inner)):
+        pose = sample_pose(rng_for(0, "pose", subject, "test", j), load_anny())
+        posed = {m.name: m for m in pose_character(character, dict(pose.bones))}
+        for k in inner:
+            d = depth(posed[KIND].vertices, posed[k].vertices, posed[k].faces)
+            print(f"posed ({pose.label}) over the {k}: worst {1e3 * d.max():.1f} mm")
+            assert d.max() < 0.001

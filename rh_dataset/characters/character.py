@@ -30,7 +30,7 @@ from rh_common.colourspace import srgb_decode
 from .body import anchor_points, blended_normals, body_topology, run_anny, vertex_normals
 from .garments import PartGeometry, build_garments, garment_parts, shoe_height_map
 from .body_features import body_features
-from .cloth_pose import CLOTH_MODES, ClothPoseSettings, push_over, simulated_parts
+from .cloth_pose import CLOTH_MODES, ClothPoseSettings, push_over_layers, simulated_parts
 from .drape import (DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, DrapeSettings, SkinBinding, penetration,
                     push_clearance, push_out, skin_points)
 from .eyes import eye_geometry
@@ -442,7 +442,8 @@ def pose_character(
     penalty contact can leave a vertex pressed a few millimetres into a limb, which push_out then puts back on the
     skin as it does for skinned cloth; `cloth_settings` are its settings). Either way draped cloth over draped cloth
     (`drape.DRAPED_OVER`: a loose top, an open jacket or coat) is then pushed out over that cloth's posed surface
-    (`cloth_pose.push_over`, keeping `drape.LAYER_GAP_DRAPE`). `cloth_stats`, if given, receives the simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
+    (`cloth_pose.push_over_layers`, keeping `drape.LAYER_GAP_DRAPE`). `cloth_stats`, if given, receives the
+    simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
     (benches; costs a closest-point query). The meshes come first, in part order, then one `PosedStrands` per
     `character.strands`."""
     topo = body_topology()
@@ -472,9 +473,9 @@ def pose_character(
                 cloth_stats["depth_before_push_m"] = max(cloth_stats.get("depth_before_push_m", -np.inf), depth)
             if part.collide:
                 v = push_out(v, verts, normals, topo.faces, push_clearance(part.name))
-            for inner in DRAPED_OVER.get(part.name, ()):
-                if inner in cloth_under:
-                    v = push_over(v, *cloth_under[inner], LAYER_GAP_DRAPE)
+            inners = [cloth_under[k] for k in DRAPED_OVER.get(part.name, ()) if k in cloth_under]
+            if inners:
+                v = push_over_layers(v, inners, LAYER_GAP_DRAPE)
             if part.name in DRAPED_KINDS:
                 cloth_under[part.name] = (v, part.faces)
             n = _welded_normals(v, part.faces)

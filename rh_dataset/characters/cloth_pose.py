@@ -466,3 +466,21 @@ def push_over(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, clear
         todo = todo[bad]
         p[todo] = closest[bad] + clearance * normal[bad]
     return p
+
+
+LAYER_CYCLES = 2  # passes over the inner layers in turn, for an outer layer over two draped cloths
+
+
+def push_over_layers(points: np.ndarray, layers: list[tuple[np.ndarray, np.ndarray]], clearance: float,
+                     cycles: int = LAYER_CYCLES) -> np.ndarray:
+    """An outer layer's points pushed out over each inner draped cloth in `layers` ((vertices, faces), innermost
+    first) with `push_over`. Over one layer, one push. Over two (a jacket over a loose top over a skirt), the pushes
+    go round `cycles` times: where the thigh swings, the skirt and the top over it cross, and a point pushed out
+    over the top can land under the skirt (subject 26 of seed 0, its `random` test pose: one pass left 1 vertex
+    3.1 mm under the skirt and 1 vertex 3.4 mm under the top; two passes, none deeper than 1 mm)."""
+    p = np.asarray(points, np.float64)
+    for _ in range(1 if len(layers) < 2 else int(cycles)):
+        for vertices, faces in layers:
+            p = push_over(p, vertices, faces, clearance)
+    return p
+
