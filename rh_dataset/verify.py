@@ -115,6 +115,10 @@ def _print_comparison(cmp: layout.Comparison, shown: int = 20) -> None:
         div = f"{100 * d.max_diverged_fraction:.2f} %" if d.pixels_diverged else "-"
         print(f"{key:<32} {d.max_abs:>12.4g} {psnr:>12} {d.frames_differing:>8} of {d.frames:<6} {div:>16}{flag}")
     print("(pixels diverged: the largest share of one frame's pixels that differ beyond rounding)")
+    if cmp.metadata_frames_differing:
+        print(f"cameras, poses, lights: {cmp.metadata_frames_differing} frame(s) differ within rounding (the largest "
+              f"float difference {cmp.metadata_max:.2g} of the tolerance: relative "
+              f"{layout.TOLERANCE['metadata_rel']:g}, absolute {layout.TOLERANCE['metadata_abs']:g})")
     for line in cmp.mismatches[:shown]:
         print(line)
     for rel in cmp.frames_differing[:shown]:
@@ -142,7 +146,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="with --against: what counts as the same benchmark. 'noise' (default): every file within "
                         "rounding except up to 2 %% of its pixels whose paths took another course (another CPU "
                         "vector width, strand hair); 'rounding': every file within rounding (>= 100 dB, 8-bit "
-                        "within 1 level), the check for a change of the generator on one machine")
+                        "within 1 level; both tiers take the cameras, poses and lights' floats within 1e-6 "
+                        "relative), the check for a change of the generator on one machine")
     p.add_argument("--record", type=Path, metavar="FILE",
                    help="with --against: write the comparison as JSON (rh-comparison/1), every differing frame "
                         "listed; rh-leaderboard --comparison FILE reads it to rank results of both datasets together")

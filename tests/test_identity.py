@@ -4,6 +4,7 @@ identical, within tolerance and different datasets apart, with the documented th
 from __future__ import annotations
 
 import json
+import math
 import shutil
 
 import numpy as np
@@ -174,6 +175,43 @@ def test_against_reports_missing_frames_other_metadata_and_8bit_levels(tmp_path,
     bad.write_text(json.dumps({"format": "rh-eval/1"}))
     with pytest.raises(ValueError, match="rh-verify A --against B"):
         layout.read_comparison(bad)
+
+
+def test_cameras_poses_and_lights_that_differ_in_their_last_bits_are_within_rounding(tmp_path, frames, capsys):
+    """Another CPU's BLAS kernel changes the last bits of the float64 pose matrices and SH coefficients in the frame
+    JSON (measured: the same pixels, OpenBLAS's Zen against its SkylakeX kernel, up to 1e-14 relative, the light's
+    scale 8e-9): the same benchmark within rounding, not identical. A change of a millionth and more is another
+    light; so are another key, a string or an integer."""
+    a = _dataset(tmp_path / "a", frames)
+
+    def variant(name, change):
+        out = tmp_path / name
+        shutil.copytree(a, out)
+        jp = out / "subject_000/protocol_a/test/frame_000000.json"
+        rec = read_json(jp)
+        change(rec)
+        write_json(jp, rec)
+        layout.write_manifest(out)
+        return layout.compare_datasets(a, out, layout.read_identity(a), layout.read_identity(out))
+
+    def bits(rec):
+        rec["light"]["sh_world"][0][1] = float(np.nextafter(0.2, 1.0))
+        rec["camera"]["fov_y_deg"] = 40.0 * (1 + 8e-9)
+
+    cmp = variant("bits", bits)
+    assert not cmp.identical and cmp.within_rounding and cmp.mismatches == [] and cmp.frames_differing == []
+    assert cmp.metadata_frames_differing == 1 and 0.005 < cmp.metadata_max < 0.02
+    assert cmp.to_json()["metadata"]["frames_differing_within_rounding"] == 1
+    for name, change in (("light", lambda r: r["light"]["sh_world"][0].__setitem__(1, 0.2 * (1 + 2e-6))),
+                         ("kind", lambda r: r["light"].__setitem__("kind", "envmap")),
+                         ("size", lambda r: r.__setitem__("width", 9)),
+                         ("key", lambda r: r["camera"].__setitem__("fov_x_deg", 50.0))):
+        cmp = variant(name, change)
+        assert not cmp.within("noise") and any("differs (another camera, pose or light)" in m for m in cmp.mismatches)
+    assert layout.metadata_difference({"a": [1.0, 2]}, {"a": [1.0, 2.0]}) == math.inf  # an int is not a float
+    assert layout.metadata_difference(1e-12, -1e-12) == pytest.approx(2e-3)  # the absolute floor near zero
+    assert verify_main([str(a), "--against", str(tmp_path / "bits"), "--no-progress"]) == 0
+    assert "1 frame(s) differ within rounding" in capsys.readouterr().out
 
 
 def test_a_few_pixels_that_took_another_path_are_within_sampling_noise_not_rounding(tmp_path, rng, capsys):

@@ -7,7 +7,8 @@ datasets compared (`compare`), the body-pose reader (`pose`).
 Everything that writes or reads a dataset — rh-generate's writer, rh-verify, rana, rh-eval, the exporters, the
 bench and the test fakes — goes through here, so the format exists once.
 """
-from .compare import COMPARISON_FORMAT, NOISE_TOLERANCE, TIERS, TOLERANCE, Comparison, compare_datasets, read_comparison
+from .compare import (COMPARISON_FORMAT, NOISE_TOLERANCE, TIERS, TOLERANCE, Comparison, compare_datasets,
+                      metadata_difference, read_comparison)
 from .frames import LAYERS, frame_is_complete, layer_files, write_frame
 from .manifest import (MANIFEST_FORMAT, ManifestEntry, check_entry, content_identity, read_identity, read_manifest,
                        split_identity, split_key, unlisted_files, write_manifest)
@@ -30,5 +31,6 @@ __all__ = [
     "MANIFEST_FORMAT", "ManifestEntry", "write_manifest", "read_manifest", "unlisted_files", "check_entry",
     "read_identity", "content_identity", "split_key", "split_identity",
     "PoseArrays", "read_body_pose", "rigid_matrix",
-    "COMPARISON_FORMAT", "NOISE_TOLERANCE", "TIERS", "TOLERANCE", "Comparison", "compare_datasets", "read_comparison",
+    "COMPARISON_FORMAT", "NOISE_TOLERANCE", "TIERS", "TOLERANCE", "Comparison", "compare_datasets", "metadata_difference",
+    "read_comparison",
 ]

@@ -2,7 +2,8 @@
 
 In: two dataset roots (`rh-verify A --against B`). Out: a `Comparison`: per split and layer (file kind, e.g.
 `image.exr`) the largest absolute difference and the lowest per-frame PSNR, the frames that differ, and the
-verdict: identical (same content identity), the same benchmark within rounding (`TOLERANCE`), the same benchmark
+verdict: identical (same content identity), the same benchmark within rounding (`TOLERANCE`; the frame JSON's
+cameras, poses and lights too, `metadata_difference`), the same benchmark
 within sampling noise (`NOISE_TOLERANCE`: a few pixels' paths took another course, the rest within rounding), or
 different. Its `to_json()` is the record `rh-leaderboard --comparison` reads to put results of the two datasets side
 by side.
@@ -27,12 +28,17 @@ from rh_common.imageio import read_json, write_json
 
 from .paths import iter_frame_jsons
 
-__all__ = ["COMPARISON_FORMAT", "TOLERANCE", "NOISE_TOLERANCE", "TIERS", "LayerDiff", "Comparison", "compare_datasets", "read_comparison"]
+__all__ = ["COMPARISON_FORMAT", "TOLERANCE", "NOISE_TOLERANCE", "TIERS", "LayerDiff", "Comparison", "compare_datasets",
+           "metadata_difference", "read_comparison"]
 
 COMPARISON_FORMAT = "rh-comparison/1"
 # Within tolerance: every float layer of every frame at >= min_psnr_db against the other dataset's, every 8-bit
-# layer off by at most max_8bit_levels, and the same frames with the same cameras, poses and lights.
-TOLERANCE = {"min_psnr_db": 100.0, "max_8bit_levels": 1}
+# layer off by at most max_8bit_levels, and the same frames with the same cameras, poses and lights: the same keys,
+# strings and integers, and every float of them within metadata_rel of the larger magnitude or metadata_abs. Floats
+# in the frame JSON are float64 results of BLAS products (pose matrices, SH coefficients), and another CPU's BLAS
+# kernel changes their last bits (OpenBLAS's Zen against its SkylakeX kernel: up to 1e-14 relative, the light's
+# scale 8e-9); 1e-6 is a micrometre at the camera's distance and a microradian of a joint.
+TOLERANCE = {"min_psnr_db": 100.0, "max_8bit_levels": 1, "metadata_rel": 1e-6, "metadata_abs": 1e-9}
 # Within sampling noise: as TOLERANCE, except that in each file up to this fraction of the pixels may have diverged
 # (their paths took another course: a ray grazing a hair curve hits it at one LLVM vector width and misses at the
 # other), whatever their difference. Measured 8 vs 16 lanes, strand-hair subjects: at most 0.81 % of a file's pixels
@@ -82,6 +88,8 @@ class Comparison:
     layers: dict[str, LayerDiff] = field(default_factory=dict)  # "protocol_a/test/image.exr" -> difference
     frames_differing: list[str] = field(default_factory=list)   # frame JSON paths whose layers differ
     mismatches: list[str] = field(default_factory=list)         # frames missing on one side, or other metadata
+    metadata_frames_differing: int = 0  # frames whose cameras, poses or lights differ within rounding only
+    metadata_max: float = 0.0           # the largest such float difference, in units of the tolerance (<= 1)
 
     @property
     def identical(self) -> bool:
@@ -129,7 +137,9 @@ class Comparison:
                 "identical": self.identical, "within_tolerance": self.within_tolerance,
                 "within_rounding": self.within_rounding, "verdict": self.verdict,
                 "layers": {k: v.to_json() for k, v in sorted(self.layers.items())},
-                "frames_differing": self.frames_differing, "mismatches": self.mismatches}
+                "frames_differing": self.frames_differing, "mismatches": self.mismatches,
+                "metadata": {"frames_differing_within_rounding": self.metadata_frames_differing,
+                             "max_difference_in_tolerances": self.metadata_max}}
 
     def write(self, path: str | os.PathLike) -> Path:
         write_json(path, self.to_json())
@@ -154,6 +164,26 @@ def _diverged(x: np.ndarray, y: np.ndarray, is_8bit: bool) -> np.ndarray:
     return d > limit
 
 
+def metadata_difference(x, y) -> float:
+    """How far two frame-JSON values (a semantic key's) are apart: 0.0 when equal, the largest difference of two
+    floats in units of the tolerance (|a - b| / max(metadata_rel * max(|a|, |b|), metadata_abs): within rounding
+    when <= 1), inf when they differ otherwise (keys, lengths, strings, integers, booleans, None)."""
+    if isinstance(x, dict) and isinstance(y, dict):
+        if set(x) != set(y):
+            return math.inf
+        return max((metadata_difference(x[k], y[k]) for k in x), default=0.0)
+    if isinstance(x, list) and isinstance(y, list):
+        if len(x) != len(y):
+            return math.inf
+        return max((metadata_difference(u, v) for u, v in zip(x, y)), default=0.0)
+    if isinstance(x, float) and isinstance(y, float) and not (math.isnan(x) or math.isnan(y)):
+        if x == y:
+            return 0.0
+        limit = max(TOLERANCE["metadata_rel"] * max(abs(x), abs(y)), TOLERANCE["metadata_abs"])
+        return abs(x - y) / limit
+    return 0.0 if (type(x) is type(y) and x == y) else math.inf
+
+
 def compare_datasets(a: str | os.PathLike, b: str | os.PathLike, identity_a: dict | None = None,
                      identity_b: dict | None = None, progress: bool = False, tier: str = "noise") -> Comparison:
     """Decode every frame of both datasets and compare them (the identities are recorded in the result). `tier`:
@@ -172,9 +202,17 @@ def compare_datasets(a: str | os.PathLike, b: str | os.PathLike, identity_a: dic
     cmp.mismatches += [f"{r}: only in {b}" for r in sorted(rel_b - rel_a)]
     for rel in tqdm(sorted(rel_a & rel_b), disable=not progress, unit="frame", desc="compare"):
         ra, rb = read_json(a / rel), read_json(b / rel)
+        metadata_differs = False
         for k in SEMANTIC_KEYS:
-            if canonical_json(ra.get(k)) != canonical_json(rb.get(k)):
+            if canonical_json(ra.get(k)) == canonical_json(rb.get(k)):
+                continue
+            off = metadata_difference(ra.get(k), rb.get(k))
+            if off > 1.0:
                 cmp.mismatches.append(f"{rel}: '{k}' differs (another camera, pose or light)")
+            else:
+                metadata_differs = True
+                cmp.metadata_max = max(cmp.metadata_max, off)
+        cmp.metadata_frames_differing += metadata_differs
         if set(ra["files"]) != set(rb["files"]):
             cmp.mismatches.append(f"{rel}: the two frames list other files")
             continue
