@@ -31,6 +31,6 @@ __all__ = [
     "MANIFEST_FORMAT", "ManifestEntry", "write_manifest", "read_manifest", "unlisted_files", "check_entry",
     "read_identity", "content_identity", "split_key", "split_identity",
     "PoseArrays", "read_body_pose", "rigid_matrix",
-    "COMPARISON_FORMAT", "NOISE_TOLERANCE", "TIERS", "TOLERANCE", "Comparison", "compare_datasets", "metadata_difference",
-    "read_comparison",
+    "COMPARISON_FORMAT", "NOISE_TOLERANCE", "TIERS", "TOLERANCE", "Comparison", "compare_datasets",
+    "metadata_difference", "read_comparison",
 ]
