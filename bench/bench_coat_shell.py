@@ -12,6 +12,10 @@ trunk vertices under the pinned ring in anny's rest A-pose, but for the open fro
 depth under the panels (negative: the worst poke out); the shell's largest offset off the skin. Over a loose top the
 shell is lifted over the top's cloth (`garments._shell`'s `under`) and, before `garments._under_cover`, came out
 through the panels under their ring.
+Then the slot: how far the panels' pinned ring stands off the shell under it (each ring vertex's height over the
+shell, `layer_depth` against the shell, within 3 cm): its median and largest. Seen from above (a bending pose) a wide
+slot shows as a dark line across the chest; the loose t-shirt's ring was brought to 2.5 mm over its shell for that
+(docs/ARCHITECTURE.md, "The loose t-shirt").
 """
 from __future__ import annotations
 
@@ -38,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     from bench_cloth import coat_overlap
     from rh_dataset.characters import build_character, pose_character, sample_recipe
     from rh_dataset.characters.cloth_pose import layer_depth
-    from rh_dataset.characters.drape import drape_garment, drape_settings
+    from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_settings, draped_over
     from rh_dataset.generate import rng_for
 
     print(f"load average at start: {' '.join(open('/proc/loadavg').read().split()[:3])}; drape {args.drape}")
@@ -50,15 +54,24 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"benchmark subject {s} wears no open jacket or coat: {kinds}")
         t0 = time.perf_counter()
         ch = build_character(recipe, 64, drape=args.drape)
-        g = drape_garment(kind, recipe.phenotype, drape_settings(kind, args.drape))  # cached by the build
+        draped = {}  # the cloth under the panels, draped as build_garments drapes it (cached by the build)
+        for k in kinds:
+            if k in DRAPED_OVER.get(kind, ()):
+                draped[k] = drape_garment(k, recipe.phenotype, drape_settings(k, args.drape),
+                                          over=draped_over(k, draped))
+        g = drape_garment(kind, recipe.phenotype, drape_settings(kind, args.drape), over=draped_over(kind, draped))
         low = coat_overlap(ch, float(g.vertices[g.pinned, 2].mean()))
         rest = {m.name: m for m in pose_character(ch, {})}
-        d = layer_depth(rest["coat"].vertices[low].astype(np.float64), rest[kind].vertices.astype(np.float64),
-                        rest[kind].faces)
+        shell_v, shell_f = rest["coat"].vertices.astype(np.float64), rest["coat"].faces
+        d = layer_depth(shell_v[low], rest[kind].vertices.astype(np.float64), rest[kind].faces)
+        slot = -layer_depth(rest[kind].vertices[g.pinned].astype(np.float64), shell_v, shell_f)
         print(f"subject {s:2d} {', '.join(kinds)}: {int(low.sum())} shell vertices under the ring, "
               f"{int((d < 0).sum())} outside the panels, the least {1e3 * float(np.nanmin(d)):.2f} mm under them; "
-              f"shell offset up to {1e3 * float(ch.part('coat').offset.max()):.1f} mm "
-              f"({time.perf_counter() - t0:.0f} s, load {open('/proc/loadavg').read().split()[0]})", flush=True)
+              f"shell offset up to {1e3 * float(ch.part('coat').offset.max()):.1f} mm; the ring over the shell "
+              f"{1e3 * float(np.nanmedian(slot)):.1f} mm (median), {1e3 * float(np.nanmax(slot)):.1f} mm at most "
+              f"({int(np.isfinite(slot).sum())} of {int(g.pinned.sum()) if g.pinned.dtype == bool else len(g.pinned)}"
+              f" ring vertices over it) ({time.perf_counter() - t0:.0f} s, load "
+              f"{open('/proc/loadavg').read().split()[0]})", flush=True)
     return 0
 
 
