@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character, sample_recipe
     from rh_dataset.characters.cloth_pose import push_over_layers
-    from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_settings, draped_over
+    from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_layers, drape_settings, draped_over
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
@@ -80,10 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         inners = [k for k in kinds if k in DRAPED_OVER[top]]  # innermost first
         ph = recipe.phenotype
         print(f"\nsubject {s}: {kinds}")
-        draped = {}  # the cloth under the top draped as build_garments drapes it, innermost first
-        for k in kinds:
-            if k in inners:
-                draped[k] = drape_garment(k, ph, drape_settings(k, args.drape), over=draped_over(k, draped))
+        draped = drape_layers(inners, ph, args.drape)  # the cloth under the top, as build_garments drapes it
         clothes = draped_over(top, draped)
 
         def unders(points, layers) -> str:

@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     from bench_cloth import coat_overlap
     from rh_dataset.characters import build_character, pose_character, sample_recipe
     from rh_dataset.characters.cloth_pose import layer_depth
-    from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_settings, draped_over
+    from rh_dataset.characters.drape import drape_layers
     from rh_dataset.generate import rng_for
 
     print(f"load average at start: {' '.join(open('/proc/loadavg').read().split()[:3])}; drape {args.drape}")
@@ -54,12 +54,7 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"benchmark subject {s} wears no open jacket or coat: {kinds}")
         t0 = time.perf_counter()
         ch = build_character(recipe, 64, drape=args.drape)
-        draped = {}  # the cloth under the panels, draped as build_garments drapes it (cached by the build)
-        for k in kinds:
-            if k in DRAPED_OVER.get(kind, ()):
-                draped[k] = drape_garment(k, recipe.phenotype, drape_settings(k, args.drape),
-                                          over=draped_over(k, draped))
-        g = drape_garment(kind, recipe.phenotype, drape_settings(kind, args.drape), over=draped_over(kind, draped))
+        g = drape_layers(kinds, recipe.phenotype, args.drape)[kind]  # as the build drapes it (cached by it)
         low = coat_overlap(ch, float(g.vertices[g.pinned, 2].mean()))
         rest = {m.name: m for m in pose_character(ch, {})}
         shell_v, shell_f = rest["coat"].vertices.astype(np.float64), rest["coat"].faces
@@ -69,8 +64,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{int((d < 0).sum())} outside the panels, the least {1e3 * float(np.nanmin(d)):.2f} mm under them; "
               f"shell offset up to {1e3 * float(ch.part('coat').offset.max()):.1f} mm; the ring over the shell "
               f"{1e3 * float(np.nanmedian(slot)):.1f} mm (median), {1e3 * float(np.nanmax(slot)):.1f} mm at most "
-              f"({int(np.isfinite(slot).sum())} of {int(g.pinned.sum()) if g.pinned.dtype == bool else len(g.pinned)}"
-              f" ring vertices over it) ({time.perf_counter() - t0:.0f} s, load "
+              f"({int(np.isfinite(slot).sum())} of {int(g.pinned.sum())} ring vertices over it)"
+              f" ({time.perf_counter() - t0:.0f} s, load "
               f"{open('/proc/loadavg').read().split()[0]})", flush=True)
     return 0
 

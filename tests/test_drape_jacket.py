@@ -221,7 +221,7 @@ def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, 
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.cloth_pose import LAYER_REACH, layer_depth
-    from rh_dataset.characters.drape import draped_over
+    from rh_dataset.characters.drape import drape_layers, draped_over
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
@@ -229,9 +229,7 @@ def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, 
     recipe = _benchmark(subject + 1)[subject]
     assert [g.kind for g in recipe.garments] == kinds
     ph = recipe.phenotype
-    draped = {}
-    for k in inner:
-        draped[k] = drape_garment(k, ph, drape_settings(k, "coarse"), over=draped_over(k, draped))
+    draped = drape_layers(inner, ph, "coarse")
     st = drape_settings(KIND, "coarse")
     alone, over = drape_garment(KIND, ph, st), drape_garment(KIND, ph, st, over=draped_over(KIND, draped))
 

@@ -939,6 +939,16 @@ def draped_over(kind: str, draped: Mapping[str, DrapedGarment]) -> tuple[DrapedG
     return tuple(draped[k] for k in DRAPED_OVER.get(kind, ()) if k in draped)
 
 
+def drape_layers(kinds: Sequence[str], phenotype: dict[str, float], level: str = "full") -> dict[str, DrapedGarment]:
+    """Each draped kind of `kinds` (a recipe's garments, innermost first) draped as `build_garments` drapes it: in
+    that order, each over those before it that `DRAPED_OVER` names, at drape `level` (the same cache entries)."""
+    draped: dict[str, DrapedGarment] = {}
+    for k in kinds:
+        if k in DRAPED_KINDS:
+            draped[k] = drape_garment(k, phenotype, drape_settings(k, level), over=draped_over(k, draped))
+    return draped
+
+
 def _closest_weights(mesh, points: np.ndarray) -> np.ndarray:
     """Dense bone weights (P, J) of `points` from their closest point on `mesh` (a trimesh of anny's topology
     restricted to the collider): the three corner vertices' linear-blend weights blended by barycentrics."""
