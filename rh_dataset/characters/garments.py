@@ -65,6 +65,16 @@ COAT_LAPEL = 0.25
 # sleeve's shell over the same cloth likewise.
 TUCK = {"coat": 0.009, "bodice": 0.003, "tee": 0.0075}
 TUCK["longtop"] = TUCK["tee"]
+# Shells tucked to TUCK only at their hem and lifted over it to their own offset at the cloth's pinned ring: the
+# coat's, whose panels' ring stands ~16 mm off the skin (`drape.COAT_CLEARANCE` + 2 mm out of the hull). Tucked to
+# 9 mm from its hem up to 5 mm above the ring, the shell left the ring standing 6.5-7.0 mm (median) over it, a dark
+# slot across the chest seen from above (bench/bench_coat_shell.py); lifted to 17 mm down to its hem, it came out
+# through panels that swung in when simulated (a bending pose).
+RING_LIFT = ("coat",)
+# Metres above its hem over which such a shell's lift over the layers under it (`under` + LAYER_GAP) fades in: below
+# the ring it lies under the panels and may pass through a loose top's cloth, and lifted over that cloth down to its
+# hem (18-33 mm off the skin behind the armpits) it came out through the posed panels there (bench_coat_shell.py).
+UNDER_FADE = 0.008
 # Shells cut as another kind but for their hem (`garment_level`): neckline and sleeves of the named kind.
 CUT_AS = {"hoodie": "longsleeve", "tee": "tshirt", "longtop": "longsleeve"}
 LAYER_GAP = 0.003  # minimum distance between two layers (well above ray-tracing epsilon at body scale)
@@ -243,11 +253,26 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
         # the full offset 2 cm above that. The 5 mm: bind space is the A-pose frame turned by ~1.5 degrees about X as
         # well as raised, so at the back a bind-space height is a few millimetres off the ring's.
         z = split.points(feats.rest_vertices)[:, 2]
-        cap = TUCK[kind] + (BASE_OFFSET[kind] - TUCK[kind]) * _smoothstep((z - hem - SHELL_OVERLAP - 0.005) / 0.02)
-        off = np.maximum(off, cap) if TUCK[kind] > BASE_OFFSET[kind] else np.minimum(off, cap)
+        rise = _smoothstep((z - hem - SHELL_OVERLAP - 0.005) / 0.02)
+        if kind in RING_LIFT:
+            # The coat's: at most TUCK at its hem, rising to its own offset at the panels' ring (SHELL_OVERLAP
+            # higher), and its trunk lifted to that over the hem's taper up to 5 mm above the ring, fading 2 cm
+            # higher; `_under_cover` then holds it LAYER_GAP under the panels at rest. Sleeves (their cuffs hang at
+            # the ring's height in the A-pose) keep their taper.
+            cap = TUCK[kind] + (BASE_OFFSET[kind] - TUCK[kind]) * _smoothstep((z - hem) / SHELL_OVERLAP)
+            trunk = feats.in_groups("torso")
+            lifted = np.where(split.cut_t > 0.5, trunk[split.cut_vertex], trunk[split.body_vertex])
+            off = np.minimum(off, cap)
+            off = np.where(lifted, np.maximum(off, cap * (1.0 - rise)), off)
+        else:
+            cap = TUCK[kind] + (BASE_OFFSET[kind] - TUCK[kind]) * rise
+            off = np.maximum(off, cap) if TUCK[kind] > BASE_OFFSET[kind] else np.minimum(off, cap)
     t = split.cut_t
     need = np.where(under > 0, under + LAYER_GAP, 0.0)
-    off = np.maximum(off, (1.0 - t) * need[split.body_vertex] + t * need[split.cut_vertex])
+    need = (1.0 - t) * need[split.body_vertex] + t * need[split.cut_vertex]
+    if kind in RING_LIFT:
+        need = need * _smoothstep((z - hem) / UNDER_FADE)
+    off = np.maximum(off, need)
     if cover is not None:
         off = np.minimum(off, _under_cover(split, off, *cover, topology))
     whole = t == 0
