@@ -119,6 +119,14 @@ def test_coat_shell_is_a_jacket_cut_at_the_chest_with_an_open_front():
     on_trunk = feats.in_groups("torso")[shell.body_vertex]
     ring = on_trunk & (z > hem + SHELL_OVERLAP - 0.002) & (z < hem + SHELL_OVERLAP + 0.005)  # up to 5 mm above it
     assert ring.sum() > 10 and shell.offset[ring].min() >= 0.95 * BASE_OFFSET["coat"]
+    # Over a layer 20 mm off the skin (a loose top's cloth, raised into `under` by its drape): lifted over it at the
+    # ring, but not at its hem, which stays inside the panels (garments.UNDER_FADE).
+    from rh_dataset.characters.garments import LAYER_GAP, UNDER_FADE
+
+    over = _shell("coat", feats, np.full(len(v), 0.02), ANNY_TOPOLOGY, hem=hem)
+    assert np.array_equal(over.blend_vertices, shell.blend_vertices)
+    assert over.offset[tucked].max() <= TUCK["coat"] + 1e-4
+    assert over.offset[on_trunk & (z > hem + UNDER_FADE)].min() >= 0.02 + LAYER_GAP - 1e-6
     assert shell.offset.max() == pytest.approx(BASE_OFFSET["coat"]) and len(top) == 1
 
 
