@@ -134,11 +134,10 @@ def figure(out: Path, s: int, seed: int, chars: dict, kind: str, g) -> None:
     from rh_dataset.spec import load_protocol
     from rh_dataset.variant import load_mitsuba, select_variant
     from rh_common.body_model import load_anny
+    from subjects_gallery import studio_environment
 
     select_variant(None)
-    mi = load_mitsuba()
-    env = {"type": "envmap", "filename": "/usr/share/blender/datafiles/studiolights/world/studio.exr",
-           "to_world": mi.ScalarTransform4f().rotate([0, 0, 1], 200).rotate([1, 0, 0], 90)}
+    env = studio_environment(load_mitsuba())
     test = next(x for x in load_protocol("protocol_a").splits if x.name == "test")
     settings = render_settings("standard", spp=64, aov_spp=4).for_split(test)
     bones = dict(sample_pose(rng_for(seed, "pose", s, "test", 0), load_anny()).bones)

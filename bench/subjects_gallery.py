@@ -35,6 +35,12 @@ COLOURS = {"black": (20, 16, 14), "brown": (80, 54, 36), "blonde": (205, 170, 11
            "grey": (170, 168, 165)}
 
 
+def studio_environment(mi) -> dict:
+    """The galleries' light: Blender's studio HDRI, turned so its key light falls from the front-left."""
+    return {"type": "envmap", "filename": str(STUDIO_HDRI),
+            "to_world": mi.ScalarTransform4f().rotate([0, 0, 1], 200).rotate([1, 0, 0], 90)}
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=Path("docs/subjects.png"),
@@ -59,9 +65,7 @@ def main() -> None:
     from rh_dataset.variant import load_mitsuba, select_variant
 
     select_variant(None)
-    mi = load_mitsuba()
-    env = {"type": "envmap", "filename": str(STUDIO_HDRI),
-           "to_world": mi.ScalarTransform4f().rotate([0, 0, 1], 200).rotate([1, 0, 0], 90)}
+    env = studio_environment(load_mitsuba())
     if args.headwear:
         return _headwear(args, env)
     if args.benchmark:

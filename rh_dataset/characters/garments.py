@@ -247,6 +247,7 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     split = split_faces(face_ids, topology, level=level)
     dist = boundary_distance(split, feats.rest_vertices)
     off = BASE_OFFSET[kind] * (TAPER_MIN + (1.0 - TAPER_MIN) * _smoothstep(dist / TAPER_WIDTH))
+    nearest = np.where(split.cut_t > 0.5, split.cut_vertex, split.body_vertex)  # each vertex's nearer body vertex
     if kind in TUCK:
         # Tucked under the draped cloth: at most TUCK off the skin up to 5 mm above its pinned ring (SHELL_OVERLAP
         # above the hem; the drape keeps the ring its particle radius + 2 mm off the body's hull), rising smoothly to
@@ -260,8 +261,7 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
             # higher; `_under_cover` then holds it LAYER_GAP under the panels at rest. Sleeves (their cuffs hang at
             # the ring's height in the A-pose) keep their taper.
             cap = TUCK[kind] + (BASE_OFFSET[kind] - TUCK[kind]) * _smoothstep((z - hem) / SHELL_OVERLAP)
-            trunk = feats.in_groups("torso")
-            lifted = np.where(split.cut_t > 0.5, trunk[split.cut_vertex], trunk[split.body_vertex])
+            lifted = feats.in_groups("torso")[nearest]
             off = np.minimum(off, cap)
             off = np.where(lifted, np.maximum(off, cap * (1.0 - rise)), off)
         else:
@@ -283,7 +283,7 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
         name=kind,
         faces=split.faces,
         uvs=split.uvs,
-        body_vertex=np.where(t > 0.5, split.cut_vertex, split.body_vertex),
+        body_vertex=nearest,
         offset=off.astype(np.float32),
         uv_layout="body",
         metres_per_uv=_metres_per_uv(face_ids, feats, topology),
