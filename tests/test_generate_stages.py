@@ -83,3 +83,32 @@ def test_the_ray_crash_hook_is_not_on_the_frame_path_unless_armed(monkeypatch, t
     assert seen == [(FrameTask(0, "test", 0), False)]
     source = (ROOT / "rh_dataset" / "backends" / "ray_backend.py").read_text()
     assert source.count("os.environ.get(CRASH_HOOK_ENV)") == 1
+
+
+def test_a_frame_scene_pickled_and_rendered_again_is_the_frame_rh_generate_wrote(tmp_path):
+    """The render stage's whole input is the FrameScene: pickled (as bench_render_stage ships it to a GPU machine)
+    and rendered by `render_scene`, it gives the written frame's float layers bit for bit, and its mask within
+    8-bit rounding of the written PNG."""
+    import pickle
+
+    from rh_common.imageio import read_exr, read_png
+    from rh_dataset.generate import (DatasetPlan, frame_scenes, render_frame_to_disk, render_scene, resolve_plan,
+                                     subject_source)
+    from rh_dataset.render.scene import RenderSettings
+    from rh_dataset.spec import load_protocol
+
+    spec = load_protocol("a").with_overrides(subjects=1, resolution=(24, 24))
+    plan = resolve_plan(DatasetPlan(out=tmp_path / "ds", spec=spec, seed=3,
+                                    settings=RenderSettings(spp=4, aov_spp=2, max_depth=3, drape="coarse")))
+    source = subject_source(plan)
+    subject, split = source.subject(0), spec.split("test")
+    written = render_frame_to_disk(plan, source, subject, split, 1)
+    [scene] = frame_scenes(plan, source, subject, split, 1)
+    assert scene.light is not None and scene.settings == plan.settings.for_split(split)
+    layers = render_scene(pickle.loads(pickle.dumps(scene))).layers
+    stem = written.json_path.stem
+    for name in ("image", "albedo", "normal", "depth"):
+        on_disk = read_exr(written.json_path.with_name(f"{stem}_{name}.exr"))
+        np.testing.assert_array_equal(layers[name], on_disk.reshape(layers[name].shape))
+    mask = read_png(written.json_path.with_name(f"{stem}_mask.png")).astype(np.float64)
+    assert np.max(np.abs(layers["mask"] * 255.0 - mask)) <= 0.5 + 1e-6

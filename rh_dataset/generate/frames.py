@@ -3,7 +3,9 @@ files and JSON on disk and a `FrameResult` (what was written, the seconds of eac
 
 `render_frame_to_disk` is the one function that renders and writes a frame: the local backend, the Ray backend
 (through `run_subject`) and bench/bench_generate.py all call it, so they render the same scene (camera, culling,
-lights, settings). `run_subject` renders a subject's missing frames and writes its contact sheets.
+lights, settings). `run_subject` renders a subject's missing frames and writes its contact sheets. The render
+stage's whole input for one camera is a `FrameScene` (plain data: meshes, light, camera, settings, seed), rendered
+by `render_scene`; bench/bench_render_stage.py saves these and renders them again on another machine (a GPU one).
 """
 from __future__ import annotations
 
@@ -30,7 +32,8 @@ from rh_dataset.variant import select_variant
 from rh_dataset.spec import SplitSpec
 from rh_dataset.writer import contact_sheet, write_frame
 
-__all__ = ["FrameResult", "OnFrame", "render_frame_to_disk", "run_subject", "contact_sheets", "light_for", "olat_light",
+__all__ = ["FrameResult", "FrameScene", "OnFrame", "render_frame_to_disk", "render_scene", "frame_scenes", "run_subject",
+           "contact_sheets", "light_for", "olat_light",
            "exposure_for", "frame_meta", "versions"]
 
 OnFrame = Callable[[FrameTask, bool], None]
@@ -47,6 +50,37 @@ class FrameResult:
     """What the renderer built (also the frame JSON's render.scene_model; a multi-view frame's last camera's)."""
     json_paths: tuple[Path, ...] = ()
     """Every frame JSON written: one per camera of a multi-view frame (`json_path` is the first)."""
+
+
+@dataclass(frozen=True)
+class FrameScene:
+    """What the render stage takes for one camera of one frame, decided upstream (pose, light, culling, the split's
+    settings, the frame's seed) and nothing else: `render_scene` renders it on the process's Mitsuba variant. Plain
+    data (numpy arrays and the project's dataclasses; no Mitsuba object, the emitter is built from `light` where it
+    is rendered), so one made on this machine can be pickled and rendered on another variant or machine."""
+
+    meshes: tuple
+    """The posed shapes: triangle meshes (`render.scene.MeshLike`) and hair strands (`StrandsLike`)."""
+    light: object | None
+    """The frame's `rh_dataset.lights.Light`; None for a split that does not path-trace (no emitter)."""
+    camera: object
+    settings: RenderSettings
+    """The plan's settings for this split (`RenderSettings.for_split`: the scene class's path depth)."""
+    layers: tuple[str, ...]
+    seed: int
+    hidden: dict | None
+    """Faces hidden under clothes, per mesh name (`render.cull`), or None without culling."""
+    exposure: float
+
+
+def render_scene(scene: FrameScene):
+    """Render a `FrameScene` (`render.passes.render_frame`'s `FrameRender`: the layers, each pass's seconds)."""
+    from rh_dataset.lights import mitsuba_emitter_dict
+    from rh_dataset.render.passes import render_frame
+
+    emitter = mitsuba_emitter_dict(scene.light) if scene.light is not None else None
+    return render_frame(scene.meshes, emitter, scene.camera, scene.settings, scene.layers, scene.seed,
+                        hidden=scene.hidden, exposure=scene.exposure)
 
 
 def light_for(plan: DatasetPlan, split: SplitSpec, s: int, i: int, library: dict):
@@ -166,9 +200,6 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
     A multi-view split's frame (protocol c) is posed and lit once, then rendered from each camera of `views` (default
     every camera of the split), each camera-frame written whole in its own folder; `seconds` add up over them.
     Renders whether or not the frame is already on disk: skipping complete frames is `run_subject`'s job."""
-    from rh_dataset.lights import mitsuba_emitter_dict
-    from rh_dataset.render.passes import render_frame
-
     s = subject.index
     seconds: dict[str, float] = {}
     t = time.perf_counter()
@@ -179,11 +210,7 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
     light = light_for(plan, split, s, index, light_library(plan.spec))
     exposure = exposure_for(light)
     seconds["light"] = time.perf_counter() - t
-    key = f"protocol_{plan.spec.protocol}"
-    # Only what the split needs: its scene class's path depth, no emitter without path tracing, no skin the clothes
-    # hide (rh_dataset.render.cull); the frame JSON records it under render.scene_model.
     settings = plan.settings.for_split(split)
-    emitter = mitsuba_emitter_dict(light) if split.path_traced else None
     hidden = source.hidden_faces(subject) if settings.cull else None
     t = time.perf_counter()
     olat = None
@@ -194,20 +221,13 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
     body = source.body_record(subject, split, index, pose)
     seconds["meta"] = time.perf_counter() - t
     json_paths, info = [], {}
-    for view, folder in plan.view_dirs(s, split):
-        if views is not None and view not in views:
-            continue
-        camera = subject.camera if view is None else subject.views[view]
-        # Each camera its own sample stream; a single-camera frame keeps the stream it always had.
-        keys = (split.name, index) if view is None else (split.name, index, view)
-        render_seed = int(rng_for(plan.seed, "render", s, key, *keys).integers(0, 2**31 - 2))
-        result = render_frame(meshes, emitter, camera, settings, split.layers, render_seed, hidden=hidden,
-                              exposure=exposure)
+    for view, folder, scene in _scenes(plan, subject, split, index, views, meshes, light, exposure, hidden):
+        result = render_scene(scene)
         for k, v in result.seconds.items():
             seconds[k] = seconds.get(k, 0.0) + v
         t = time.perf_counter()
-        meta = frame_meta(plan.spec.protocol, settings, subject, split.name, body, light, render_seed, exposure,
-                          olat, camera=camera, view=None if view is None else layout.view_name(view))
+        meta = frame_meta(plan.spec.protocol, scene.settings, subject, split.name, body, light, scene.seed, exposure,
+                          olat, camera=scene.camera, view=None if view is None else layout.view_name(view))
         meta["render"]["scene_model"] = info = result.info
         seconds["meta"] += time.perf_counter() - t
         t = time.perf_counter()
@@ -215,6 +235,36 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
         seconds["write"] = seconds.get("write", 0.0) + time.perf_counter() - t
         json_paths.append(layout.frame_json_path(folder, index))
     return FrameResult(FrameTask(s, split.name, index), json_paths[0], seconds, info, tuple(json_paths))
+
+
+def frame_scenes(plan: DatasetPlan, source: SubjectSource, subject: Subject, split: SplitSpec, index: int,
+                 views: list[int | None] | None = None) -> list[FrameScene]:
+    """The `FrameScene` of each camera of frame `index` (of `views`, default all), exactly what
+    `render_frame_to_disk` renders for it; nothing is rendered or written."""
+    pose = source.pose(subject, split, index)
+    meshes = source.meshes(subject, pose, plan.settings.cloth)
+    light = light_for(plan, split, subject.index, index, light_library(plan.spec))
+    hidden = source.hidden_faces(subject) if plan.settings.for_split(split).cull else None
+    return [scene for _, _, scene in _scenes(plan, subject, split, index, views, meshes, light, exposure_for(light),
+                                             hidden)]
+
+
+def _scenes(plan, subject, split, index, views, meshes, light, exposure, hidden):
+    """(view, its folder, its FrameScene) for each camera of the frame in `views` (None: all)."""
+    # Only what the split needs: its scene class's path depth, no emitter without path tracing, no skin the clothes
+    # hide (rh_dataset.render.cull); the frame JSON records it under render.scene_model.
+    settings = plan.settings.for_split(split)
+    s, key = subject.index, f"protocol_{plan.spec.protocol}"
+    for view, folder in plan.view_dirs(s, split):
+        if views is not None and view not in views:
+            continue
+        camera = subject.camera if view is None else subject.views[view]
+        # Each camera its own sample stream; a single-camera frame keeps the stream it always had.
+        keys = (split.name, index) if view is None else (split.name, index, view)
+        seed = int(rng_for(plan.seed, "render", s, key, *keys).integers(0, 2**31 - 2))
+        yield view, folder, FrameScene(meshes=tuple(meshes), light=light if split.path_traced else None, camera=camera,
+                                       settings=settings, layers=tuple(split.layers), seed=seed, hidden=hidden,
+                                       exposure=exposure)
 
 
 def contact_sheets(plan: DatasetPlan, s: int, split: SplitSpec) -> None:
