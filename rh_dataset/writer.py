@@ -19,15 +19,17 @@ from rh_common.imageio import write_png
 __all__ = ["write_frame", "contact_sheet"]
 
 
-def write_frame(split_dir: str | os.PathLike, index: int, layers: Mapping[str, np.ndarray], meta: dict) -> Path:
-    """`rh_common.layout.write_frame`, with `render.fireflies` recorded when the frame has an image."""
+def write_frame(split_dir: str | os.PathLike, index: int, layers: Mapping[str, np.ndarray], meta: dict,
+                workers: int | None = None) -> Path:
+    """`rh_common.layout.write_frame` (`workers`: its encoding threads), with `render.fireflies` recorded when the
+    frame has an image."""
     record = dict(meta)
     if "image" in layers and np.all(np.isfinite(layers["image"])):  # a NaN image: layout.write_frame refuses it
         # Reported, never hidden: the count of isolated over-bright pixels of the image as written (no clamping).
         from rh_dataset.render.passes import count_fireflies
 
         record["render"] = {**record.get("render", {}), "fireflies": count_fireflies(layers["image"])}
-    return layout.write_frame(split_dir, index, layers, record)
+    return layout.write_frame(split_dir, index, layers, record, workers=workers)
 
 
 def contact_sheet(split_dir: str | os.PathLike, indices: list[int], layers: Iterable[str], *, tile: int = 128,

@@ -59,6 +59,28 @@ def test_non_finite_layers_are_refused_and_leave_no_json(tmp_path, rng):
     assert not frame_is_complete(tmp_path, 0, L.keys())
 
 
+def test_layers_written_in_threads_are_the_bytes_written_one_after_another(tmp_path, rng):
+    L = layers(rng, 64, 48)
+    for workers in (1, None, 3):
+        write_frame(tmp_path / str(workers), 0, L, frame_meta(L, 0.5), workers=workers)
+    names = sorted(p.name for p in (tmp_path / "1").iterdir())
+    assert len(names) == 9 and not any(n.endswith(".tmp") for n in names)
+    for other in ("None", "3"):
+        assert sorted(p.name for p in (tmp_path / other).iterdir()) == names
+        for n in names:
+            assert (tmp_path / other / n).read_bytes() == (tmp_path / "1" / n).read_bytes(), n
+
+
+def test_a_layer_failing_in_a_thread_leaves_no_json_and_no_temporary(tmp_path, rng):
+    L = layers(rng)
+    L["depth"] = L["depth"].copy()
+    L["depth"][0, 0] = np.nan  # the last layer fails while the others are being written
+    with pytest.raises(ValueError, match="NaN"):
+        write_frame(tmp_path, 0, L, frame_meta(L), workers=5)
+    assert not (tmp_path / "frame_000000.json").exists()
+    assert not list(tmp_path.glob("*.tmp")) and not list(tmp_path.glob(".*.tmp"))
+
+
 def test_a_damaged_or_partial_frame_is_not_complete(tmp_path, rng):
     L = layers(rng)
     write_frame(tmp_path, 0, L, frame_meta(L))

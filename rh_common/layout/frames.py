@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterable, Mapping
 
@@ -67,8 +68,10 @@ def _encode_layer(split_dir: Path, index: int, layer: str, data: np.ndarray, exp
     return {f: sha256_file(p) for f, p in zip(files, paths)}
 
 
-def write_frame(split_dir: str | os.PathLike, index: int, layers: Mapping[str, np.ndarray], meta: Mapping) -> Path:
+def write_frame(split_dir: str | os.PathLike, index: int, layers: Mapping[str, np.ndarray], meta: Mapping,
+                workers: int | None = None) -> Path:
     """Write every layer then the frame JSON (`meta` plus the file list with checksums). Returns the JSON path.
+    `workers`: threads encoding the layers (None: one per layer, at most one per core; 1: one after another).
 
     `meta` is checked as a `FrameRecord`, and the layers against its width and height, before any file is written,
     so a bad record leaves no orphan layers."""
@@ -79,10 +82,26 @@ def write_frame(split_dir: str | os.PathLike, index: int, layers: Mapping[str, n
         if tuple(np.shape(data)[:2]) != (record.height, record.width):
             raise ValueError(f"{split_dir}: layer {layer!r} is {np.shape(data)[:2]} (H, W) but the frame record says "
                              f"{record.width}x{record.height} (WxH)")
-    listed: dict[str, FileEntry] = {}
-    for layer, data in layers.items():
-        for name, digest in _encode_layer(split_dir, index, layer, data, float(record.exposure)).items():
-            listed[name] = FileEntry(layer, digest)
+    items = list(layers.items())
+
+    def encode(item):
+        return _encode_layer(split_dir, index, item[0], item[1], float(record.exposure))
+
+    # The layers are encoded side by side: zlib, OpenEXR and hashlib release the GIL while they work, and on a GPU
+    # the writer was the larger part of a `standard` frame (bench/bench_render_stage.py, docs/TRADEOFFS.md "The GPU
+    # path"). Threads rather than processes: the arrays are not copied. Same files, same bytes, in any order; a
+    # layer that fails leaves the others' files complete (atomic) and no JSON, so the frame is redone on a rerun.
+    workers = min(len(items), os.cpu_count() or 1) if workers is None else max(1, min(len(items), int(workers)))
+    if workers > 1:
+        pool = ThreadPoolExecutor(workers, thread_name_prefix="write_frame")
+        try:
+            encoded = list(pool.map(encode, items))
+        finally:  # on an error or a stop, layers not yet started are not started
+            pool.shutdown(wait=True, cancel_futures=True)
+    else:
+        encoded = [encode(item) for item in items]
+    listed = {name: FileEntry(layer, digest) for (layer, _), files in zip(items, encoded)
+              for name, digest in files.items()}
     return write_frame_record(frame_json_path(split_dir, index), dataclasses.replace(record, files=listed))
 
 
