@@ -5,7 +5,9 @@ are compared layer by layer with `rh-verify --against`'s comparison. The two var
 (Mitsuba's samplers are seeded identically on both backends); they differ only in floating-point evaluation
 order, fused multiply-adds and the GPU's intersection code, so the frames agree closely but not bit for bit.
 Where no CUDA device works (this project's CI, the 2-core development machines), the test is skipped and says
-so. On a device machine: `bash tools/device_check.sh` runs this test and the per-preset timing bench.
+so. On a device machine: `bash tools/device_check.sh` runs this test and the per-preset timing bench; where that
+machine cannot install the environment, bench/bench_render_stage.py compares the two variants on saved frames
+(docs/TRADEOFFS.md, "The GPU path").
 """
 from __future__ import annotations
 

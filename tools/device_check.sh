@@ -3,6 +3,8 @@
 # (the demo generated on both variants and compared layer by layer) and seconds per frame per preset at 512x512
 # on cuda_ad_rgb (bench_generate.py picks cuda_ad_rgb where a GPU works). Writes its logs under ${OUT:-/tmp}.
 #   bash setup.sh && bash tools/device_check.sh
+# It needs the whole environment (setup.sh: a package index). A GPU machine with none (this workplace's device
+# machines) renders saved frames instead: tools/device_bundle.sh here, tools/device_render_stage.sh there.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp}
