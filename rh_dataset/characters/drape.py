@@ -876,11 +876,12 @@ PUSH_REACH = 0.2  # metres: deeper than any point of the body lies under its ski
 
 def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, pattern: np.ndarray, faces: np.ndarray,
                pinned: np.ndarray, over: Sequence[DrapedGarment] = ()) -> str:
-    import newton
-    import warp as wp
+    # The installed versions from their metadata (the same strings as the modules' __version__): importing newton
+    # only to read its version cost every process ~2 s, also where every drape comes from the cache.
+    from importlib.metadata import version
 
     key = {"v": DRAPE_VERSION, "kind": kind, "phenotype": {k: float(phenotype[k]) for k in PHENOTYPE_LABELS},
-           "settings": dataclasses.asdict(st), "newton": newton.__version__, "warp": wp.__version__,
+           "settings": dataclasses.asdict(st), "newton": version("newton"), "warp": version("warp-lang"),
            "topology": ANNY_TOPOLOGY,
            # The pattern itself, points, triangles and pins: a change to how it is cut or sewn (the same points
            # joined otherwise, as the hood's flipped faces were) cannot read back a drape of the old one.
