@@ -32,6 +32,8 @@ import numpy as np
 
 KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")
 SEEDS = (2, 4, 6)
+# The galleries' light, as subjects_gallery.studio_environment builds it; not imported from there, because that
+# module puts this checkout first on sys.path, and the --dump run of another TREE must import TREE's code.
 STUDIO_HDRI = Path("/usr/share/blender/datafiles/studiolights/world/studio.exr")
 
 

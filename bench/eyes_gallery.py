@@ -11,12 +11,15 @@ eyeballs (what every subject looked like before). The camera is 32 cm from the e
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-STUDIO_HDRI = Path("/usr/share/blender/datafiles/studiolights/world/studio.exr")
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the bench folder's modules
+from subjects_gallery import studio_environment  # noqa: E402
+
 
 
 def main() -> None:
@@ -38,8 +41,7 @@ def main() -> None:
 
     select_variant(None)
     mi = load_mitsuba()
-    env = {"type": "envmap", "filename": str(STUDIO_HDRI),
-           "to_world": mi.ScalarTransform4f().rotate([0, 0, 1], 200).rotate([1, 0, 0], 90)}
+    env = studio_environment(mi)  # the galleries' light (subjects_gallery.py)
     picks, seen, k = [], set(), 0
     while len(picks) < args.subjects:
         k += 1

@@ -26,12 +26,15 @@ import argparse
 import dataclasses
 import math
 import os
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-STUDIO_HDRI = Path("/usr/share/blender/datafiles/studiolights/world/studio.exr")
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the bench folder's modules
+from subjects_gallery import studio_environment  # noqa: E402
+
 RES, FOV = 512, 30.0
 
 
@@ -107,9 +110,6 @@ def main() -> None:
                                                 "(image before, after; albedo before, after)")
     args = ap.parse_args()
 
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     from subject_diversity import benchmark_recipes
 
     from rh_common.camera import frame_body
@@ -153,8 +153,7 @@ def main() -> None:
         return
     select_variant(None)
     mi = load_mitsuba()
-    env = {"type": "envmap", "filename": str(STUDIO_HDRI),
-           "to_world": mi.ScalarTransform4f().rotate([0, 0, 1], 200).rotate([1, 0, 0], 90)}
+    env = studio_environment(mi)  # the galleries' light (subjects_gallery.py)
     settings = RenderSettings(spp=args.spp, aov_spp=4, max_depth=3, sampler="multijitter")
     args.out.mkdir(parents=True, exist_ok=True)
     print(f"   seconds per {RES}x{RES} frame ({args.spp} spp, depth 3, aov 4; load average "
