@@ -20,4 +20,5 @@ from rh_dataset.generate.subjects import Subject, SubjectSource, subject_source
 
 __all__ = ["generate", "Backend", "DatasetPlan", "FrameTask", "FrameResult", "OnFrame", "GenerateError",
            "DATASET_FORMAT", "frame_tasks", "resolve_plan", "rng_for", "exposure_for",
-           "render_frame_to_disk", "run_subject", "FrameScene", "frame_scenes", "render_scene", "Subject", "SubjectSource", "subject_source"]
+           "render_frame_to_disk", "run_subject", "FrameScene", "frame_scenes", "render_scene", "Subject",
+           "SubjectSource", "subject_source"]

@@ -17,7 +17,7 @@ import platform
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -31,6 +31,11 @@ from rh_dataset.render.scene import RenderSettings
 from rh_dataset.variant import select_variant
 from rh_dataset.spec import SplitSpec
 from rh_dataset.writer import contact_sheet, write_frame
+
+if TYPE_CHECKING:  # annotations only: the render stage and the lights import Mitsuba's loader
+    from rh_common.camera import Camera
+    from rh_dataset.lights import Light
+    from rh_dataset.render.passes import FrameRender
 
 __all__ = ["FrameResult", "FrameScene", "OnFrame", "render_frame_to_disk", "render_scene", "frame_scenes", "run_subject",
            "contact_sheets", "light_for", "olat_light",
@@ -61,9 +66,9 @@ class FrameScene:
 
     meshes: tuple
     """The posed shapes: triangle meshes (`render.scene.MeshLike`) and hair strands (`StrandsLike`)."""
-    light: object | None
-    """The frame's `rh_dataset.lights.Light`; None for a split that does not path-trace (no emitter)."""
-    camera: object
+    light: Light | None
+    """The frame's light; None for a split that does not path-trace (no emitter)."""
+    camera: Camera
     settings: RenderSettings
     """The plan's settings for this split (`RenderSettings.for_split`: the scene class's path depth)."""
     layers: tuple[str, ...]
@@ -73,8 +78,8 @@ class FrameScene:
     exposure: float
 
 
-def render_scene(scene: FrameScene):
-    """Render a `FrameScene` (`render.passes.render_frame`'s `FrameRender`: the layers, each pass's seconds)."""
+def render_scene(scene: FrameScene) -> FrameRender:
+    """Render a `FrameScene`: `render.passes.render_frame`'s result (the layers, each pass's seconds)."""
     from rh_dataset.lights import mitsuba_emitter_dict
     from rh_dataset.render.passes import render_frame
 
