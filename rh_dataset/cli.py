@@ -79,8 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "benchmark's, 1-3 min a subject on 2 cores, cached) or 'coarse' (the draft preset's, ~1/8 of "
                         "that); recorded under render.drape")
     p.add_argument("--seed", type=int, default=0, help="dataset seed: characters, poses, lights and sampler seeds")
-    p.add_argument("--variant", default=None, choices=["llvm_ad_rgb", "cuda_ad_rgb", "scalar_rgb"],
-                   help="Mitsuba variant (default: cuda_ad_rgb if a GPU works, else llvm_ad_rgb)")
+    p.add_argument("--variant", default=None, choices=["llvm_ad_rgb", "cuda_ad_rgb"],
+                   help="Mitsuba variant (default: cuda_ad_rgb if a GPU works, else llvm_ad_rgb); a split "
+                        "begun on one variant is not resumed on the other (their frames are not the same benchmark)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes rendering subjects in parallel (each uses cores/workers threads)")
     p.add_argument("--backend", default="local", choices=["local", "ray"],

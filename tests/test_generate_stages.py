@@ -112,3 +112,32 @@ def test_a_frame_scene_pickled_and_rendered_again_is_the_frame_rh_generate_wrote
         np.testing.assert_array_equal(layers[name], on_disk.reshape(layers[name].shape))
     mask = read_png(written.json_path.with_name(f"{stem}_mask.png")).astype(np.float64)
     assert np.max(np.abs(layers["mask"] * 255.0 - mask)) <= 0.5 + 1e-6
+
+
+def test_a_split_is_not_resumed_on_another_mitsuba_variant_and_a_worker_error_is_one_line(tmp_path):
+    """Frames of cuda_ad_rgb and llvm_ad_rgb are not the same benchmark (docs/ARCHITECTURE.md, "Content identity"):
+    a resumed split whose frames another variant rendered is refused with one line naming the variant to resume
+    with, also from a worker process (whose exit, terminated by the parent, used to print a traceback)."""
+    import json
+    import subprocess
+    import sys
+
+    out = tmp_path / "ds"
+    args = [sys.executable, "-m", "rh_dataset.cli", "--protocol", "a", "--subjects", "1", "--frames", "2",
+            "--resolution", "16", "--spp", "2", "--aov-spp", "1", "--max-depth", "2", "--drape", "coarse",
+            "--no-progress", "--variant", "llvm_ad_rgb", "--out", str(out)]
+    subprocess.run(args, check=True, capture_output=True, cwd=ROOT)
+    split = out / "subject_000" / "protocol_a" / "test"
+    first = split / "frame_000000.json"
+    record = json.loads(first.read_text())
+    assert record["render"]["variant"] == "llvm_ad_rgb"
+    record["render"]["variant"] = "cuda_ad_rgb"  # as if a GPU machine had begun the dataset
+    first.write_text(json.dumps(record))
+    (split / "frame_000001.json").unlink()
+    for workers in ("1", "2"):
+        proc = subprocess.run(args + ["--workers", workers], capture_output=True, text=True, cwd=ROOT)
+        assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+        lines = [line for line in proc.stderr.splitlines() if line.startswith("rh-generate: ")]
+        assert len(lines) == 1 and "rendered with Mitsuba's cuda_ad_rgb" in lines[0]
+        assert "resume with --variant cuda_ad_rgb" in lines[0]
+    assert not (split / "frame_000001.json").exists()

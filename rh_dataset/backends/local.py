@@ -104,5 +104,12 @@ def _worker(plan: DatasetPlan, workers: int, s: int, queue) -> None:
         except Exception:
             exc = GenerateError(f"subject {s}: {type(exc).__name__}: {exc}")
         queue.put(("error", s, exc))
+        # Handed over: the worker now only flushes its queue while the parent, raising the error, terminates it.
+        # A stop from here on ends it quietly (the default action) instead of raising through multiprocessing's
+        # exit hooks, which printed a traceback beside the parent's one-line error.
+        import signal
+
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, signal.SIG_DFL)
         return
     queue.put(("done", s))

@@ -22,9 +22,10 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from rh_common import layout, sh
+from rh_common.imageio import read_json
 from rh_dataset import __version__
 from rh_dataset.generate.folder import keep_character_record
-from rh_dataset.generate.plan import DatasetPlan, FrameTask, light_library, olat_frame
+from rh_dataset.generate.plan import DatasetPlan, FrameTask, GenerateError, light_library, olat_frame
 from rh_dataset.generate.seeding import rng_for
 from rh_dataset.generate.subjects import Subject, SubjectSource
 from rh_dataset.render.scene import RenderSettings
@@ -38,7 +39,7 @@ if TYPE_CHECKING:  # annotations only: the render stage and the lights import Mi
     from rh_dataset.render.passes import FrameRender
 
 __all__ = ["FrameResult", "FrameScene", "OnFrame", "render_frame_to_disk", "render_scene", "frame_scenes", "run_subject",
-           "contact_sheets", "light_for", "olat_light",
+           "check_same_variant", "contact_sheets", "light_for", "olat_light",
            "exposure_for", "frame_meta", "versions"]
 
 OnFrame = Callable[[FrameTask, bool], None]
@@ -278,6 +279,24 @@ def contact_sheets(plan: DatasetPlan, s: int, split: SplitSpec) -> None:
         contact_sheet(folder, list(range(split.frames)), split.layers)
 
 
+def check_same_variant(plan: DatasetPlan, s: int, split: SplitSpec, variant: str) -> None:
+    """Refuse to add frames rendered on `variant` to a split whose frames on disk another Mitsuba variant rendered
+    (the first frame JSON found tells; each records `render.variant`). cuda_ad_rgb and llvm_ad_rgb draw the same
+    samples with other last bits, and their frames are not the same benchmark by `rh-verify --against`
+    (docs/ARCHITECTURE.md, "Content identity"), so a split must not mix them. Checked where the frames are rendered
+    (a Ray worker's own variant, not the head's)."""
+    for _, folder in plan.view_dirs(s, split):
+        for path in sorted(Path(folder).glob("frame_*.json"))[:1]:
+            try:
+                made = read_json(path).get("render", {}).get("variant")
+            except (OSError, ValueError):
+                continue  # an unreadable frame is redone anyway; rh-verify reports it
+            if made is not None and made != variant:
+                raise GenerateError(f"{path} was rendered with Mitsuba's {made}, this run uses {variant}: the two "
+                                    f"variants' frames are not the same benchmark; resume with --variant {made}, or "
+                                    "choose another --out")
+
+
 def run_subject(plan: DatasetPlan, source: SubjectSource, s: int, on_frame: OnFrame, *,
                 frames: dict[str, range] | None = None, sheets: bool = True) -> None:
     """Render every missing frame of one subject (all splits) and its contact sheets.
@@ -285,17 +304,21 @@ def run_subject(plan: DatasetPlan, source: SubjectSource, s: int, on_frame: OnFr
     `frames` (split name -> frame indices) restricts the work to those frames (a distributed task's share);
     `sheets=False` leaves the contact sheets to whoever knows that every frame of the split is done. A frame of a
     multi-view split is done when every camera's is complete; a rerun renders only the cameras still missing."""
-    select_variant(plan.variant)
+    variant = select_variant(plan.variant)
     subject = None
     for split in plan.spec.splits:
         if frames is not None and split.name not in frames:
             continue
+        checked = False
         for i in (range(split.frames) if frames is None else frames[split.name]):
             task = FrameTask(s, split.name, i)
             missing = [v for v, d in plan.view_dirs(s, split) if not layout.frame_is_complete(d, i, split.layers)]
             if not missing:
                 on_frame(task, True)
                 continue
+            if not checked:
+                check_same_variant(plan, s, split, variant)
+                checked = True
             if subject is None:  # built only when a frame is missing: a finished subject resumes at once
                 subject = source.subject(s)
                 keep_character_record(plan, s, subject.record)
