@@ -185,6 +185,24 @@ def test_layer_depth_is_signed_under_a_sheet_and_blank_beyond_its_edges():
     assert np.isnan(got[2:]).all()
 
 
+def test_push_under_puts_points_above_a_sheet_under_it_and_leaves_the_rest():
+    """cloth_pose.push_under (the coat's shell under its posed panels): a point above an outward (+Z) sheet goes
+    `gap` under it; points already under it, farther than `near`, or beyond its edge stay where they are."""
+    from rh_dataset.characters.cloth_pose import layer_depth, push_under
+
+    g = np.stack(np.meshgrid(np.linspace(0.0, 1.0, 11), np.linspace(0.0, 1.0, 11), indexing="ij"), -1).reshape(-1, 2)
+    verts = np.c_[g, np.zeros(len(g))]
+    idx = np.arange(121).reshape(11, 11)
+    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[:-1, 1:], idx[1:, 1:]
+    faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    pts = np.array([[0.31, 0.66, 0.006], [0.52, 0.47, -0.004], [0.5, 0.5, 0.05], [1.01, 0.5, 0.004]])
+    got, moved = push_under(pts, verts, faces, 0.003)
+    assert moved.tolist() == [0]
+    np.testing.assert_allclose(got[0], [0.31, 0.66, -0.003], atol=1e-12)
+    np.testing.assert_array_equal(got[1:], pts[1:])
+    np.testing.assert_allclose(layer_depth(got[:1], verts, faces), [0.003], atol=1e-12)
+
+
 # Bounds (metres, vertices) for PHENO in the test recipe below, full drape, skinned into 6 sampled poses (rng 7).
 # At rest newton keeps the panels about COAT_CLEARANCE (14 mm) off the body to within its contact stiffness
 # (measured 10.9 mm for PHENO, 13.0 mm for bench_cloth's subject). Skinned (`bind_loose`) and pushed out
@@ -268,6 +286,9 @@ def drape_measures(kind: str, pheno: dict[str, float], top: str | None = "tshirt
         d = np.concatenate([layer_depth(panel, posed[n].vertices, f) for n, f in trunk.items()])
         d = np.nan_to_num(d, nan=-1.0)
         out["under"][k, pose.label] = (float(d.max()), int((d > 0.001).sum()))
+        # The shell's trunk under the ring, posed: under the panels where over them (character._shell_under_panels)
+        out.setdefault("shell_out_posed", []).append(
+            float(np.nanmin(np.r_[layer_depth(posed[shell].vertices[low], panel, posed[kind].faces), np.inf])))
     print(kind, {k: v for k, v in out.items() if k not in ("heads", "shell_out")},
           f"shell {np.nanmin(out['shell_out'])}")
     return out
@@ -288,6 +309,7 @@ def test_coat_drape_is_bit_identical_hangs_and_stays_outside_the_body_and_the_la
     assert m["rest_depth"] < -REST_OFF_M and m["crossings"] <= REST_CROSSINGS
     assert knee - HEM_BELOW_KNEE_M[1] < m["hem"] < knee - HEM_BELOW_KNEE_M[0]
     assert m["n_low"] > 50 and np.nan_to_num(m["shell_out"], nan=1.0).min() > 0.0  # the overlap lies under the panels
+    assert min(m["shell_out_posed"]) >= 0.0, m["shell_out_posed"]  # and posed, too
     assert max(m["worst"].values()) < POSED_BOUND_M, f"worst depth (m) per pose: {m['worst']}"
     assert all(d < LAYER_BOUND_M and n <= LAYER_MAX_UNDER for d, n in m["under"].values()), m["under"]
 

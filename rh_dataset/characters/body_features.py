@@ -21,7 +21,7 @@ from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body import BodyTopology, body_topology, run_anny, vertex_normals
 
-__all__ = ["BodyFeatures", "body_features", "mask_image", "anny_data_dir", "GROUPS"]
+__all__ = ["BodyFeatures", "body_features", "group_mask", "mask_image", "anny_data_dir", "GROUPS"]
 
 # Bone groups: each body vertex is labelled with the group that holds most of its skinning weight. Garment regions
 # are cut from these labels, so a sleeve is made of exactly the vertices the arm bones move.
@@ -143,6 +143,12 @@ class BodyFeatures:
 def _segment_t(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     d = b - a
     return (points - a) @ d / float(d @ d)
+
+
+def group_mask(topology: str, *names: str) -> np.ndarray:
+    """(V,) bool: the body vertices whose bone group is one of `names` (GROUPS; the same labels for every
+    phenotype, `BodyFeatures.in_groups` without building the features)."""
+    return np.isin(_static_features(topology)["group"], [GROUPS.index(n) for n in names])
 
 
 @functools.lru_cache(maxsize=16)

@@ -28,9 +28,9 @@ from rh_common.body_model import ANNY_TOPOLOGY
 from rh_common.colourspace import srgb_decode
 
 from .body import anchor_points, blended_normals, body_topology, run_anny, vertex_normals
-from .garments import PartGeometry, build_garments, garment_parts, shoe_height_map
-from .body_features import body_features
-from .cloth_pose import CLOTH_MODES, ClothPoseSettings, push_over_layers, simulated_parts
+from .garments import LAYER_GAP, PartGeometry, build_garments, garment_parts, shoe_height_map
+from .body_features import body_features, group_mask
+from .cloth_pose import CLOTH_MODES, ClothPoseSettings, push_over_layers, push_under, simulated_parts
 from .drape import (DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, DrapeSettings, SkinBinding, penetration,
                     push_clearance, push_out, skin_points)
 from .eyes import eye_geometry
@@ -501,10 +501,35 @@ def pose_character(
                 material=part.material,
             )
         )
+    _shell_under_panels(character, posed, cloth_under, verts, normals, topo.faces)
     for h in character.strands:
         pts = anchor_points(verts, normals, h.blend_vertices, h.blend_weights, h.offset).reshape(*h.radius.shape, 3)
         posed.append(PosedStrands(h.name, _ro(pts, np.float32), h.radius, h.fibre))
     return posed
+
+
+def _shell_under_panels(character: Character, posed: list, cloth_under: dict, verts, normals, faces) -> None:
+    """In place: the coat's (or open jacket's) shell, posed on the skin, put back LAYER_GAP under its draped panels
+    where its trunk came out through them (`cloth_pose.push_under`), then out of the skin where that took it in (an
+    arm pressing the panel against the trunk leaves no room: the skin wins, the panel hides the rest). Only the
+    trunk's vertices (bone group "torso", by each vertex's nearer body vertex): a sleeve beside a panel is outside it
+    by right. At rest the trunk lies under the panels already (`garments._under_cover`)."""
+    panels = next((cloth_under[k] for k in ("draped_coat", "draped_jacket") if k in cloth_under), None)
+    at = next((i for i, m in enumerate(posed) if m.name == "coat"), None)
+    if panels is None or at is None:
+        return
+    part = character.part("coat")
+    nearer = (part.body_vertex if part.blend_vertices is None else
+              part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)])
+    trunk = np.flatnonzero(group_mask(ANNY_TOPOLOGY, "torso")[nearer])
+    v = posed[at].vertices.astype(np.float64)
+    w, moved = push_under(v[trunk], *panels, LAYER_GAP)
+    if not len(moved):
+        return
+    moved = trunk[moved]
+    v[trunk] = w
+    v[moved] = push_out(v[moved], verts, normals, faces)
+    posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32))
 
 
 def body_bounds(posed_meshes: list[PosedMesh | PosedStrands]) -> tuple[np.ndarray, np.ndarray]:

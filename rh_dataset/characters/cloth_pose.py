@@ -468,6 +468,30 @@ def push_over(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, clear
     return p
 
 
+def push_under(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, gap: float, near: float = LAYER_REACH,
+               rounds: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """An inner layer's points put back under an outer garment's surface (`vertices`, `faces`, outward): those above
+    it (`layer_depth` < 0, within `near`, not beyond its open edges) go to their closest surface point and `gap`
+    under it along its interpolated normal; the moved points are looked at again, `rounds` times in all. Returns
+    (the points, the indices moved). For the coat's shell under its draped panels: the two are posed apart (the shell
+    anchored to the skin, the panels skinned and pushed out of it), and where an arm presses a panel against the
+    trunk the shell came out through it (bench/bench_coat_shell.py --poses)."""
+    p = np.array(points, dtype=np.float64)
+    v = np.asarray(vertices, np.float64)
+    # Only points within `near` of the garment's box can be under it (the shoulders above a coat's ring are not).
+    todo = np.flatnonzero(np.all((p >= v.min(0) - near) & (p <= v.max(0) + near), axis=1))
+    moved = []
+    for _ in range(int(rounds)):
+        if not len(todo):
+            break
+        depth, closest, normal = _layer_closest(p[todo], vertices, faces, near)
+        bad = np.isfinite(depth) & (depth < 0.0)
+        todo = todo[bad]
+        p[todo] = closest[bad] - gap * normal[bad]
+        moved.append(todo)
+    return p, (np.unique(np.concatenate(moved)) if moved else np.zeros(0, np.int64))
+
+
 LAYER_CYCLES = 2  # passes over the inner layers in turn, for an outer layer over two draped cloths
 
 
