@@ -168,16 +168,22 @@ def test_benchmark_recipes_draw_coats_from_their_own_stream(monkeypatch):
             dataclasses.replace(r, garments=gs)
 
 
-def test_layer_depth_is_signed_under_a_sheet_and_blank_beyond_its_edges():
-    """cloth_pose.layer_depth: points under an outward (+Z) square sheet get their depth, points above it minus
-    their height, points farther than `near` or whose closest point is on the sheet's edge NaN."""
-    from rh_dataset.characters.cloth_pose import layer_depth
-
+def _unit_sheet() -> tuple[np.ndarray, np.ndarray]:
+    """A 1 m square sheet in z = 0, 10 x 10 quads, its faces wound outward (+Z)."""
     g = np.stack(np.meshgrid(np.linspace(0.0, 1.0, 11), np.linspace(0.0, 1.0, 11), indexing="ij"), -1).reshape(-1, 2)
     verts = np.c_[g, np.zeros(len(g))]
     idx = np.arange(121).reshape(11, 11)
     a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[:-1, 1:], idx[1:, 1:]
     faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    return verts, faces
+
+
+def test_layer_depth_is_signed_under_a_sheet_and_blank_beyond_its_edges():
+    """cloth_pose.layer_depth: points under an outward (+Z) square sheet get their depth, points above it minus
+    their height, points farther than `near` or whose closest point is on the sheet's edge NaN."""
+    from rh_dataset.characters.cloth_pose import layer_depth
+
+    verts, faces = _unit_sheet()
     assert (np.cross(verts[faces[:, 1]] - verts[faces[:, 0]], verts[faces[:, 2]] - verts[faces[:, 0]])[:, 2] > 0).all()
     pts = np.array([[0.52, 0.47, -0.004], [0.31, 0.66, 0.006], [0.5, 0.5, 0.05], [1.01, 0.5, -0.004]])
     got = layer_depth(pts, verts, faces)
@@ -190,11 +196,7 @@ def test_push_under_puts_points_above_a_sheet_under_it_and_leaves_the_rest():
     `gap` under it; points already under it, farther than `near`, or beyond its edge stay where they are."""
     from rh_dataset.characters.cloth_pose import layer_depth, push_under
 
-    g = np.stack(np.meshgrid(np.linspace(0.0, 1.0, 11), np.linspace(0.0, 1.0, 11), indexing="ij"), -1).reshape(-1, 2)
-    verts = np.c_[g, np.zeros(len(g))]
-    idx = np.arange(121).reshape(11, 11)
-    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[:-1, 1:], idx[1:, 1:]
-    faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    verts, faces = _unit_sheet()
     pts = np.array([[0.31, 0.66, 0.006], [0.52, 0.47, -0.004], [0.5, 0.5, 0.05], [1.01, 0.5, 0.004]])
     got, moved = push_under(pts, verts, faces, 0.003)
     assert moved.tolist() == [0]
