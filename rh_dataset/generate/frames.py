@@ -208,16 +208,7 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
     Renders whether or not the frame is already on disk: skipping complete frames is `run_subject`'s job."""
     s = subject.index
     seconds: dict[str, float] = {}
-    t = time.perf_counter()
-    pose = source.pose(subject, split, index)
-    meshes = source.meshes(subject, pose, plan.settings.cloth)
-    seconds["pose"] = time.perf_counter() - t
-    t = time.perf_counter()
-    light = light_for(plan, split, s, index, light_library(plan.spec))
-    exposure = exposure_for(light)
-    seconds["light"] = time.perf_counter() - t
-    settings = plan.settings.for_split(split)
-    hidden = source.hidden_faces(subject) if settings.cull else None
+    pose, meshes, light, exposure, hidden = _pose_and_light(plan, source, subject, split, index, seconds)
     t = time.perf_counter()
     olat = None
     if split.light == "olat":
@@ -247,12 +238,23 @@ def frame_scenes(plan: DatasetPlan, source: SubjectSource, subject: Subject, spl
                  views: list[int | None] | None = None) -> list[FrameScene]:
     """The `FrameScene` of each camera of frame `index` (of `views`, default all), exactly what
     `render_frame_to_disk` renders for it; nothing is rendered or written."""
+    _, meshes, light, exposure, hidden = _pose_and_light(plan, source, subject, split, index, {})
+    return [scene for _, _, scene in _scenes(plan, subject, split, index, views, meshes, light, exposure, hidden)]
+
+
+def _pose_and_light(plan, source, subject, split, index, seconds: dict[str, float]):
+    """The frame's pose, posed meshes, light, display exposure and culled faces (None unless the split culls);
+    the posing's and the light's seconds go into `seconds` under "pose" and "light"."""
+    t = time.perf_counter()
     pose = source.pose(subject, split, index)
     meshes = source.meshes(subject, pose, plan.settings.cloth)
+    seconds["pose"] = time.perf_counter() - t
+    t = time.perf_counter()
     light = light_for(plan, split, subject.index, index, light_library(plan.spec))
+    exposure = exposure_for(light)
+    seconds["light"] = time.perf_counter() - t
     hidden = source.hidden_faces(subject) if plan.settings.for_split(split).cull else None
-    return [scene for _, _, scene in _scenes(plan, subject, split, index, views, meshes, light, exposure_for(light),
-                                             hidden)]
+    return pose, meshes, light, exposure, hidden
 
 
 def _scenes(plan, subject, split, index, views, meshes, light, exposure, hidden):
