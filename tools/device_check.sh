@@ -4,7 +4,7 @@
 # on cuda_ad_rgb (bench_generate.py picks cuda_ad_rgb where a GPU works). Writes its logs under ${OUT:-/tmp}.
 #   bash setup.sh && bash tools/device_check.sh
 # It needs the whole environment (setup.sh: a package index). A GPU machine with none (this workplace's device
-# machines) renders saved frames instead: tools/device_bundle.sh here, tools/device_render_stage.sh there.
+# machines) runs tools/device_pipeline.sh there instead, one part of `tools/device_bundle.sh pipeline` a call.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp}
