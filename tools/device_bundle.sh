@@ -30,7 +30,7 @@ pkgs=(mitsuba drjit colour-science openexr)
 for pkg in "${pkgs[@]}"; do
   python -m pip download -q --disable-pip-version-check --no-deps --only-binary=:all: --python-version "$py" \
     --implementation cp --platform manylinux_2_28_x86_64 --platform manylinux_2_27_x86_64 \
-    --platform manylinux_2_17_x86_64 --platform manylinux2014_x86_64 -d "$work/wheels" "$(pin "$pkg")" 2>/dev/null
+    --platform manylinux_2_17_x86_64 --platform manylinux2014_x86_64 -d "$work/wheels" "$(pin "$pkg")"
 done
 mkdir -p "$work/site" .dev
 for w in "$work"/wheels/*.whl; do python -m zipfile -e "$w" "$work/site"; done

@@ -30,9 +30,13 @@ cp -r "$site"/extra/drape/. "$HOME/.cache/relighting-humans/drape/"
 export PYTHONPATH="$site/site:$PWD" PATH="$site/site/bin:$PATH" PYTHONUNBUFFERED=1
 step() { echo "== $* ($(date -u +%T), load $(cut -d' ' -f1-3 /proc/loadavg))"; }
 # Wall seconds of a command (the image may lack /usr/bin/time), printed after its output.
-timed() { local t0; t0=$(date +%s.%N); "$@"; local rc=$?; echo "[$(python3 -c "print(round($(date +%s.%N) - $t0, 2))") s wall, rc $rc]"; }
+timed() {
+  local t0 rc; t0=$(date +%s.%N); "$@"; rc=$?
+  echo "[$(python3 -c "print(round($(date +%s.%N) - $t0, 2))") s wall, rc $rc]"
+}
 { nvidia-smi; python3 -V; nproc; grep -m1 'model name' /proc/cpuinfo
-  python3 -c "import torch, numpy; print('torch', torch.__version__, 'numpy', numpy.__version__)"; } > "$OUT/machine.txt" 2>&1
+  python3 -c "import torch, numpy; print('torch', torch.__version__, 'numpy', numpy.__version__)"
+} > "$OUT/machine.txt" 2>&1
 {
   step "anny cache"; timed python3 -c "import rh_common.body_model as b; b.warm_cache()" 2>&1 | tail -2
   for run in 1 2; do
@@ -53,7 +57,8 @@ timed() { local t0; t0=$(date +%s.%N); "$@"; local rc=$?; echo "[$(python3 -c "p
   timed timeout 150 rh-generate --protocol a --subjects 1 --frames 8 --resolution 512 \
     --preset standard --variant cuda_ad_rgb --out /tmp/rh_a 2>&1 | grep -v -i 'warp\|^Module' | tail -4
   step "rh-verify"; timeout 60 rh-verify /tmp/rh_a 2>&1 | tail -4
-  (cd /tmp && tar cf "$OUT/a_frame.tar" $(find rh_a -path '*/test/*' \( -name 'frame_000000*' -o -name contact_sheet.png \) | head -20))
+  (cd /tmp && tar cf "$OUT/a_frame.tar" \
+    $(find rh_a -path '*/test/*' \( -name 'frame_000000*' -o -name contact_sheet.png \) | head -20))
   step done
 } 2>&1 | tee "$OUT/pipeline.log"
 ls -la "$OUT"
