@@ -27,6 +27,13 @@ Per (subject, pose), both ways of `pose_character(..., cloth=)`:
   self      cloth edges that pass through the cloth's own triangles (`cloth_pose.self_crossings`);
   cover     of the body vertices the part covers in the rest pose (`cloth_pose.covers`: the ray out along the
             skin's normal meets it), the share it still covers in the pose: a thigh that left its trouser leg is bare;
+  through   of those body vertices that lie inside the part at rest (`cloth_pose.layer_depth` > 0 within 10 cm:
+            not a hand hanging beside a skirt), how many lie outside the posed cloth's surface (`layer_depth`
+            < 0: within THROUGH_REACH of it, not beyond a hem or cuff) and the farthest (mm): skin that came out
+            through the cloth, which a camera on that side sees in place of the fabric (it is not culled under draped
+            cloth); and of those, how many a camera sees ("seen": from 2 mm off the skin along its normal, the ray
+            towards at least one of 8 cameras around the subject at the height of the point meets none of the
+            posed character's meshes; trimesh). Skin pressed into a crease counts as through, but not as seen;
   image     512x512 renders at the standard preset (its sampler, spp, env_spp, the pose's scene-class depth, skin
             under clothes culled) under the bundled `interior` map (mean luminance 1), camera framed as the generator
             frames the subject: rh-eval's PSNR (display space over the person's dilated box, over white) of the
@@ -54,6 +61,35 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+THROUGH_REACH = 0.03  # metres: skin farther than this from the cloth is not counted as through it (a limb beside it)
+
+
+def seen_around(points: np.ndarray, normals: np.ndarray, meshes, n_views: int = 8) -> np.ndarray:
+    """(P,) bool: is each skin point seen by at least one of `n_views` cameras around the subject (horizontal,
+    far away): the ray from 2 mm off the skin along its normal towards the camera meets none of `meshes` (the posed
+    character's triangle meshes, the body included; strands left out)."""
+    import trimesh
+
+    seen = np.zeros(len(points), bool)
+    tris = [m for m in meshes if hasattr(m, "faces")]
+    if not len(points) or not tris:
+        return seen
+    verts, faces, base = [], [], 0
+    for m in tris:
+        verts.append(np.asarray(m.vertices, np.float64))
+        faces.append(np.asarray(m.faces) + base)
+        base += len(m.vertices)
+    scene = trimesh.Trimesh(np.concatenate(verts), np.concatenate(faces), process=False)
+    origin = np.asarray(points, np.float64) + 2e-3 * np.asarray(normals, np.float64)
+    for k in range(n_views):
+        a = 2 * math.pi * k / n_views
+        d = np.tile([math.cos(a), math.sin(a), 0.0], (len(points), 1))
+        todo = ~seen
+        if todo.any():
+            seen[todo] = ~scene.ray.intersects_any(origin[todo], d[todo])
+    return seen
 
 
 def load() -> str:
@@ -129,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
-    from rh_dataset.characters.cloth_pose import covers, self_crossings
+    from rh_dataset.characters.cloth_pose import covers, layer_depth, self_crossings
     from rh_dataset.characters.drape import DRAPED_KINDS, penetration
     from rh_dataset.cli import render_settings
     from rh_dataset.generate import rng_for
@@ -167,6 +203,10 @@ def main(argv: list[str] | None = None) -> int:
         part_faces = next(p for p in character.parts if p.name == args.kind).faces
         under = np.flatnonzero(covers(next(x for x in rest if x.name == args.kind).vertices, part_faces, rest_body,
                                       vertex_normals(rest_body, faces)))  # the skin the part covers at rest
+        # Of it, the skin inside the part at rest (a hand hanging beside a skirt is covered by that ray, not inside).
+        rest_depth = layer_depth(rest_body[under], next(x for x in rest if x.name == args.kind).vertices, part_faces,
+                                 near=0.1)
+        inside = under[np.isfinite(rest_depth) & (rest_depth > 0)]
         scene = None if args.no_render else scene_for(character, args.resolution)
         poses = [("turntable", turntable(4)[1])]
         poses += [(f"test {j}", sample_pose(rng_for(args.seed, "pose", recipe.index, "test", j), load_anny()))
@@ -202,6 +242,12 @@ def main(argv: list[str] | None = None) -> int:
                     row[f"in_{mode}_pct"] = 100.0 * float((pen > 0).mean())
                     row[f"self_{mode}"] = self_crossings(v, part.faces)
                     row[f"cover_{mode}_pct"] = 100.0 * float(covers(v, part.faces, body[under], normals[under]).mean())
+                    depth = layer_depth(body[inside], v, part.faces, near=THROUGH_REACH)
+                    through = inside[np.isfinite(depth) & (depth < 0)]
+                    row[f"through_{mode}"] = len(through)
+                    row[f"through_{mode}_mm"] = -1e3 * float(np.nanmin(depth)) if len(through) else 0.0
+                    meshes = out["skinned" if mode == "skin" else "simulated"][0]
+                    row[f"seen_{mode}"] = int(seen_around(body[through], normals[through], meshes).sum())
             if scene is not None:
                 depth = presets["standard"].depth_for("posed-envmap" if row["posed"] else "apose-envmap")
                 st = dataclasses.replace(standard, max_depth=depth)
@@ -225,7 +271,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 HEAD = ("subject pose                  skin s   sim s steps  mean mm  max mm  Haus mm | body mm skin/sim (sim raw)"
-        "  inside % skin/sim  self skin/sim | cover % skin/sim | PSNR sim  noise  load")
+        "  inside % skin/sim  self skin/sim | cover % skin/sim | through, seen, mm: skin / sim | PSNR sim  noise  load")
 
 
 def _line(r: dict) -> str:
@@ -235,7 +281,8 @@ def _line(r: dict) -> str:
             f"{r['max_mm']:7.1f} {r['haus_mm']:8.1f} | {r['pen_skin_mm']:7.2f} {r['pen_sim_mm']:7.2f} "
             f"({r['raw_mm']:5.2f})   "
             f"{r['in_skin_pct']:6.2f} {r['in_sim_pct']:6.2f}   {r['self_skin']:5d} {r['self_sim']:5d} | "
-            f"{r['cover_skin_pct']:5.1f} {r['cover_sim_pct']:5.1f}{img}  "
+            f"{r['cover_skin_pct']:5.1f} {r['cover_sim_pct']:5.1f} | {r['through_skin']:4d} {r['seen_skin']:4d} "
+            f"{r['through_skin_mm']:5.1f} {r['through_sim']:4d} {r['seen_sim']:4d} {r['through_sim_mm']:5.1f}{img}  "
             f"{r['load']}")
 
 
@@ -254,7 +301,11 @@ def _summary(rows: list[dict], presets: dict, standard) -> None:
           f" self-crossing edges skinned "
           f"{sum(r['self_skin'] for r in posed)}, simulated {sum(r['self_sim'] for r in posed)}; skin covered at rest "
           f"still covered, worst pose: skinned {min(r['cover_skin_pct'] for r in posed):.1f} %, simulated "
-          f"{min(r['cover_sim_pct'] for r in posed):.1f} %  (load {load()})")
+          f"{min(r['cover_sim_pct'] for r in posed):.1f} %; skin through the cloth, all posed frames: skinned "
+          f"{sum(r['through_skin'] for r in posed)} vertices ({sum(r['seen_skin'] for r in posed)} seen; worst "
+          f"{max(r['through_skin_mm'] for r in posed):.1f} mm out), simulated {sum(r['through_sim'] for r in posed)} "
+          f"({sum(r['seen_sim'] for r in posed)} seen; worst {max(r['through_sim_mm'] for r in posed):.1f} mm)"
+          f"  (load {load()})")
     if "psnr_sim" not in posed[0]:
         return
     diff_db = med("psnr_sim")
