@@ -201,11 +201,11 @@ def main(argv: list[str] | None = None) -> int:
         rest = pose_character(character, None, None, "simulated")  # the drape (cached on disk) and kernels, not timed
         rest_body = run_anny(character.phenotype)["vertices"]
         part_faces = next(p for p in character.parts if p.name == args.kind).faces
-        under = np.flatnonzero(covers(next(x for x in rest if x.name == args.kind).vertices, part_faces, rest_body,
+        rest_part = next(x for x in rest if x.name == args.kind).vertices
+        under = np.flatnonzero(covers(rest_part, part_faces, rest_body,
                                       vertex_normals(rest_body, faces)))  # the skin the part covers at rest
         # Of it, the skin inside the part at rest (a hand hanging beside a skirt is covered by that ray, not inside).
-        rest_depth = layer_depth(rest_body[under], next(x for x in rest if x.name == args.kind).vertices, part_faces,
-                                 near=0.1)
+        rest_depth = layer_depth(rest_body[under], rest_part, part_faces, near=0.1)
         inside = under[np.isfinite(rest_depth) & (rest_depth > 0)]
         scene = None if args.no_render else scene_for(character, args.resolution)
         poses = [("turntable", turntable(4)[1])]
