@@ -8,6 +8,8 @@ penetration and the image difference, and from them which preset poses cloth whi
     python bench/bench_cloth_pose.py --kind draped_coat               # another draped kind (DRAPED_KINDS)
     python bench/bench_cloth_pose.py --kind draped_hoodie --simulate-all     # a kind "simulated" leaves skinned
     python bench/bench_cloth_pose.py --kind draped_trousers --drape-fabric   # the trousers in their drape's fabric
+    python bench/bench_cloth_pose.py --kind draped_dress --no-lift           # without cloth_pose.lift_over_skin
+    python bench/bench_cloth_pose.py --kind draped_coat --lift-all           # lifted, though LIFT_KINDS leaves it
 
 Subjects: the first benchmark-pool recipes that draw `--kind` (default the skirt; recipe_from_seed(derive_seed(
 "benchmark", i, --seed)), as bench/bench_cloth.py draws them: bench_cloth.draped_recipe; every skirt drawn is the
@@ -155,6 +157,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--drape-fabric", action="store_true",
                     help="simulate every kind with the fabric it was draped with (cloth_pose.POSE_FABRIC emptied: the "
                          "wide-leg trousers as simulated before 3 December)")
+    ap.add_argument("--no-lift", action="store_true",
+                    help="pose the draped cloth without cloth_pose.lift_over_skin (as before 4 December): the "
+                         "through / seen columns with and without it are how LIFT_KINDS was chosen")
+    ap.add_argument("--lift-all", action="store_true",
+                    help="also lift --kind's cloth over the skin if cloth_pose.LIFT_KINDS leaves it unlifted")
     ap.add_argument("--figure", type=Path, default=None,
                     help="write skinned | simulated of the pose whose surfaces differ most (front, then its left side)")
     args = ap.parse_args(argv)
@@ -165,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
-    from rh_dataset.characters.cloth_pose import covers, layer_depth, self_crossings
+    from rh_dataset.characters.cloth_pose import covers, layer_depth, self_crossings, skin_inside
     from rh_dataset.characters.drape import DRAPED_KINDS, penetration
     from rh_dataset.cli import render_settings
     from rh_dataset.generate import rng_for
@@ -196,17 +203,23 @@ def main(argv: list[str] | None = None) -> int:
         recipe = draped_recipe(index, args.seed, args.kind)
         index = recipe.index + 1
         character = build_character(recipe, 512)
+        if args.no_lift:  # the draped parts posed without cloth_pose.lift_over_skin
+            character = dataclasses.replace(character, parts=list(dataclasses.replace(p, inside_skin=None)
+                                                                   for p in character.parts))
         kinds = [p.name for p in character.parts if p.name in DRAPED_KINDS]
         assert args.kind in kinds, (args.kind, kinds)
         rest = pose_character(character, None, None, "simulated")  # the drape (cached on disk) and kernels, not timed
         rest_body = run_anny(character.phenotype)["vertices"]
         part_faces = next(p for p in character.parts if p.name == args.kind).faces
         rest_part = next(x for x in rest if x.name == args.kind).vertices
-        under = np.flatnonzero(covers(rest_part, part_faces, rest_body,
-                                      vertex_normals(rest_body, faces)))  # the skin the part covers at rest
+        rest_normals = vertex_normals(rest_body, faces)
+        under = np.flatnonzero(covers(rest_part, part_faces, rest_body, rest_normals))  # the skin it covers at rest
         # Of it, the skin inside the part at rest (a hand hanging beside a skirt is covered by that ray, not inside).
-        rest_depth = layer_depth(rest_body[under], rest_part, part_faces, near=0.1)
-        inside = under[np.isfinite(rest_depth) & (rest_depth > 0)]
+        inside = skin_inside(rest_part, part_faces, rest_body, rest_normals)
+        if args.lift_all and not args.no_lift:  # lift the measured kind's cloth too if LIFT_KINDS leaves it
+            character = dataclasses.replace(character, parts=[
+                dataclasses.replace(p, inside_skin=inside) if p.name == args.kind and p.inside_skin is None else p
+                for p in character.parts])
         scene = None if args.no_render else scene_for(character, args.resolution)
         poses = [("turntable", turntable(4)[1])]
         poses += [(f"test {j}", sample_pose(rng_for(args.seed, "pose", recipe.index, "test", j), load_anny()))

@@ -30,7 +30,8 @@ from rh_common.colourspace import srgb_decode
 from .body import anchor_points, blended_normals, body_topology, run_anny, vertex_normals
 from .garments import LAYER_GAP, PartGeometry, build_garments, garment_parts, shoe_height_map
 from .body_features import body_features, group_mask
-from .cloth_pose import CLOTH_MODES, ClothPoseSettings, push_over_layers, push_under, simulated_parts
+from .cloth_pose import (CLOTH_MODES, ClothPoseSettings, lift_over_skin, push_over_layers, push_under,
+                         simulated_parts)
 from .drape import (DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, DrapeSettings, SkinBinding, penetration,
                     push_clearance, push_out, skin_points)
 from .eyes import eye_geometry
@@ -123,6 +124,7 @@ class CharacterPart:
     # Skinned points are pushed clear of the posed skin (cloth, headwear); eyeballs sit inside the head by design.
     collide: bool = True
     drape: DrapeSettings | None = None  # draped garments: the simulation they were draped with (drape.py)
+    inside_skin: np.ndarray | None = None  # draped LIFT_KINDS: body vertices kept under the cloth (cloth_pose.py)
 
     def __post_init__(self) -> None:
         faces = _ro(self.faces, np.int32)
@@ -163,6 +165,12 @@ class CharacterPart:
                 raise ValueError(f"CharacterPart {self.name}: body_faces must be ({len(faces)},) face indices of a "
                                  "blend-anchored shell")
             object.__setattr__(self, "body_faces", bf)
+        if self.inside_skin is not None:
+            inside = _ro(self.inside_skin, np.int64)
+            if inside.ndim != 1 or self.skinning is None or (len(inside) and inside.min() < 0):
+                raise ValueError(f"CharacterPart {self.name}: inside_skin must be body vertex indices (N,) of a "
+                                 "skinned (draped) part")
+            object.__setattr__(self, "inside_skin", inside)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -290,6 +298,7 @@ def _to_part(geo: PartGeometry, material: Material) -> CharacterPart:
         skinning=geo.skinning,
         body_faces=geo.body_faces,
         drape=geo.drape,
+        inside_skin=geo.inside_skin,
     )
 
 
@@ -473,6 +482,9 @@ def pose_character(
                 cloth_stats["depth_before_push_m"] = max(cloth_stats.get("depth_before_push_m", -np.inf), depth)
             if part.collide:
                 v = push_out(v, verts, normals, topo.faces, push_clearance(part.name))
+                if part.inside_skin is not None:  # skin that came out between the cloth's vertices: lift it over
+                    v = lift_over_skin(v, part.faces, part.inside_skin, verts, normals, topo.faces,
+                                       push_clearance(part.name))
             inners = [cloth_under[k] for k in DRAPED_OVER.get(part.name, ()) if k in cloth_under]
             if inners:
                 v = push_over_layers(v, inners, LAYER_GAP_DRAPE)

@@ -1151,9 +1151,10 @@ def _pieces_render_mesh(g: DrapedGarment):
     return np.concatenate(src), np.concatenate(faces), np.clip(np.concatenate(uvs), 0.0, 1.0)
 
 
-def _closest(body_vertices, body_faces, points, body_normals=None, mesh=None):
-    """(depth (P,) > 0 inside, closest surface points (P, 3), unit interpolated normals there (P, 3)). `mesh`: the
-    trimesh of (body_vertices, body_faces) if the caller has one (its search tree is reused)."""
+def _closest(body_vertices, body_faces, points, body_normals=None, mesh=None, triangles: bool = False):
+    """(depth (P,) > 0 inside, closest surface points (P, 3), unit interpolated normals there (P, 3)), and with
+    `triangles` the index of the face each closest point lies on (P,) as a fourth. `mesh`: the trimesh of
+    (body_vertices, body_faces) if the caller has one (its search tree is reused)."""
     import trimesh
 
     from .body import vertex_normals
@@ -1168,7 +1169,8 @@ def _closest(body_vertices, body_faces, points, body_normals=None, mesh=None):
     bary = trimesh.triangles.points_to_barycentric(v[f[tri]], closest)
     n = (vn[f[tri]] * bary[..., None]).sum(1)
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-    return np.where(((p - closest) * n).sum(1) < 0.0, dist, -dist), closest, n
+    depth = np.where(((p - closest) * n).sum(1) < 0.0, dist, -dist)
+    return (depth, closest, n, tri) if triangles else (depth, closest, n)
 
 
 def penetration(body_vertices: np.ndarray, body_faces: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -32,6 +32,7 @@ from .body import anchor_points, blended_normals, body_topology, run_anny, verte
 from .body_features import BodyFeatures
 from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP, DrapeSettings, SkinBinding,
                     drape_garment, draped_over, draped_part, drape_settings, shell_hem)
+from .cloth_pose import LIFT_KINDS, skin_inside
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
 
@@ -104,6 +105,9 @@ class PartGeometry:
     skinning: "SkinBinding | None" = None  # draped garments: linear-blend skinning instead of anchors (drape.py)
     body_faces: np.ndarray | None = None  # (F,) shells: the body face each face lies in (normals are the body's)
     drape: "DrapeSettings | None" = None  # draped garments: the simulation they were draped with (drape.py)
+    # Draped `cloth_pose.LIFT_KINDS`: the body vertices inside the cloth at rest (`cloth_pose.skin_inside`), which
+    # posing keeps under it (`cloth_pose.lift_over_skin`).
+    inside_skin: np.ndarray | None = None
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
@@ -674,7 +678,13 @@ def build_garments(
                 out.append(_shell(shell, feats, under, topology, hem=shell_hem(g.kind, phenotype, st), cover=cover))
             elif g.kind == "draped_hoodie":
                 out.append(_shell("hoodie", feats, under, topology))
-            out.append(draped_part(g.kind, phenotype, feats, under, st, over, draped[g.kind]))
+            part = draped_part(g.kind, phenotype, feats, under, st, over, draped[g.kind])
+            if g.kind in LIFT_KINDS:
+                rest = run_anny(phenotype)["vertices"]
+                inside = skin_inside(draped[g.kind].vertices, draped[g.kind].faces, rest,
+                                     vertex_normals(rest, body_topology().faces))
+                part = dataclasses.replace(part, inside_skin=inside)
+            out.append(part)
         else:
             out.append(_shell(g.kind, feats, under, topology))
     return out
