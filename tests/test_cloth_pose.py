@@ -377,6 +377,8 @@ def test_lift_over_skin_puts_skin_that_came_through_back_under_the_cloth():
     assert lift_over_skin(twin, tf, inside, sv, sn, sf, 0.003).tobytes() == out.tobytes()
     far = twin + np.array([1.0, 0.0, 0.0])
     assert lift_over_skin(far, tf, inside, sv, sn, sf, 0.003).tobytes() == far.tobytes()
+    with pytest.raises(ValueError, match="bisector"):
+        lift_over_skin(twin, tf, inside, sv, sn, sf, 0.003, way="up")
 
 
 def test_lift_over_skin_leaves_skin_inside_the_body():

@@ -529,13 +529,13 @@ def push_over_layers(points: np.ndarray, layers: list[tuple[np.ndarray, np.ndarr
 LIFT_KINDS = ("draped_skirt", "draped_dress", "draped_trousers")
 LIFT_GAP = 0.002  # metres: how far under the cloth `lift_over_skin` leaves the skin it lifts the cloth over
 # Skin farther out through the cloth than this is not lifted over: there the cloth lies across a limb that swung
-# through it, and a lift as large would tear the fold pattern. Chosen by hand (4 December, scratch scripts, the
-# first trousers and dress subjects' posed frames, an earlier lift along the cloth's normals): 15 mm left 2 seen skin
-# vertices on the trousers where 8 mm left 10, and moved 73 cloth vertices more than 1 cm (8 mm: 17). Not tried deeper.
+# through it, and a lift as large tears the fold pattern. bench/bench_cloth_lift.py --reaches 0.008 0.015 0.025 (the
+# test body's leg in 4 seated poses, 4 December): bare skin through the trousers 78 / 55 / 122 (unlifted 222).
 LIFT_REACH = 0.015
 LIFT_SLOPE = 0.5  # metres of lift lost per metre of cloth away from a lifted triangle: the lift fades over ~1 edge
 LIFT_SPREAD = 4  # edges the fade runs over at most
 LIFT_ROUNDS = 2  # lift, look again (a lifted triangle can leave the skin under its neighbour), lift
+LIFT_WAYS = ("bisector", "skin", "cloth")  # the directions `lift_over_skin` can move cloth in (the first is used)
 INSIDE_NEAR = 0.1  # metres: skin deeper than this inside the cloth at rest is not `skin_inside` it
 
 
@@ -560,11 +560,11 @@ def _largest_per(keys: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, body_vertices: np.ndarray,
                    body_normals: np.ndarray, body_faces: np.ndarray, clearance: float, gap: float = LIFT_GAP,
-                   reach: float = LIFT_REACH, rounds: int = LIFT_ROUNDS) -> np.ndarray:
+                   reach: float = LIFT_REACH, rounds: int = LIFT_ROUNDS, way: str = "bisector") -> np.ndarray:
     """A draped garment's posed points (`points`, `faces`, outward) lifted where skin that lies inside it at rest
     (`inside`: `skin_inside`'s body vertex indices) came out through it, or closer than `gap` under it, by at most
-    `reach`: the cloth triangle closest to each such skin vertex moves out (along the bisector of the skin's and the
-    cloth's normals) until the skin lies `gap` under it, and its neighbours follow, the lift fading by LIFT_SLOPE per
+    `reach`: the cloth triangle closest to each such skin vertex moves out (`way`, LIFT_WAYS: along the bisector of
+    the skin's and the cloth's normals, or either alone) until the skin lies `gap` under it, and its neighbours follow, the lift fading by LIFT_SLOPE per
     metre of cloth over at most LIFT_SPREAD edges. Skin that is inside the body itself is left (a calf pressed into
     a thigh behind a bent knee: the ray out along its normal crosses the body's surface an odd number of times;
     trimesh); no camera sees it, and lifting the cloth over it would puff the fabric out over the other limb.
@@ -575,6 +575,8 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
 
     from .drape import _closest
 
+    if way not in LIFT_WAYS:
+        raise ValueError(f"lift_over_skin: way must be one of {LIFT_WAYS}, got {way!r}")
     p = np.asarray(points, np.float64)
     inside = np.asarray(inside, np.int64)
     if not len(p) or not len(inside):
@@ -608,25 +610,22 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
         inner = np.flatnonzero(np.bincount(hit, minlength=len(sel)) % 2 == 0)
         if not len(inner):
             break
-        # Along the bisector of the skin's normal and the cloth's. Measured by hand (4 December, scratch scripts,
-        # skin through / seen by a camera / self-crossing edges): along the cloth's normal, which in a bend leans
-        # along the fold, the lift slid the cloth off other skin (the test body's left leg in 4 seated poses under
-        # coarse trousers: 160 bare skin vertices through, from 222 unlifted); along the skin's normal, 35, but a
-        # skirt hanging over a raised thigh was lifted up rather than out (dress subjects 2 and 6, `random`: 13 seen,
-        # from 36); along the bisector, 55 on the test body, 2 seen on the dresses, and 0 on trousers subject 4
-        # sitting and bending (from 49). Self-crossing edges rise (the dresses 62 -> 162, the trousers 423 -> 479).
-        out_n = skin_n[sel[inner]] + normal[inner]
+        # Along the bisector of the skin's normal and the cloth's (bench/bench_cloth_lift.py): along the cloth's
+        # normal, which in a bend leans along the fold, the lift slid the cloth off other skin; along the skin's, a
+        # skirt hanging over a raised thigh was lifted up rather than out.
+        skin_way = skin_n[sel[inner]]
+        out_n = {"skin": skin_way, "cloth": normal[inner], "bisector": skin_way + normal[inner]}[way]
         size = np.linalg.norm(out_n, axis=1, keepdims=True)
-        out_n = np.where(size > 1e-6, out_n / np.maximum(size, 1e-12), skin_n[sel[inner]])
+        out_n = np.where(size > 1e-6, out_n / np.maximum(size, 1e-12), skin_way)
         lean = np.maximum((out_n * normal[inner]).sum(1), 0.5)
         corner = f[tri[inner]].ravel()
         need = np.repeat((gap - depth[inner]) / lean, 3)
-        way = np.repeat(out_n, 3, axis=0)
+        heading = np.repeat(out_n, 3, axis=0)
         win = _largest_per(corner, need)
         lift = np.zeros(len(v))
         along = np.zeros_like(v)
         lift[corner[win]] = need[win]
-        along[corner[win]] = way[win]
+        along[corner[win]] = heading[win]
         fade = LIFT_SLOPE * np.linalg.norm(v[src] - v[dst], axis=1)
         for _ in range(LIFT_SPREAD):
             reached = lift[src] - fade
