@@ -527,7 +527,10 @@ def push_over_layers(points: np.ndarray, layers: list[tuple[np.ndarray, np.ndarr
 # the skirt 6 -> 0, the dress 37 -> 3, the wide trousers 57 -> 8 (simulated 22 -> 0). Not the open coat (36 -> 37,
 # with more skin through and more of the cloth through itself) or the jacket (1 -> 1); the loose tops let none be seen.
 LIFT_KINDS = ("draped_skirt", "draped_dress", "draped_trousers")
-LIFT_GAP = 0.002  # metres: how far under the cloth `lift_over_skin` leaves the skin it lifts the cloth over
+# Metres: how far under the cloth `lift_over_skin` leaves the skin it lifts the cloth over. Only skin out through
+# the cloth is lifted over: lifting also skin less than this under it moved 24 vertices of benchmark subject 0's dress
+# by up to 0.5 mm at rest, and changed its turntable frames' images.
+LIFT_GAP = 0.002
 # Skin farther out through the cloth than this is not lifted over: there the cloth lies across a limb that swung
 # through it, and a lift as large tears the fold pattern. bench/bench_cloth_lift.py --reaches 0.008 0.015 0.025 (the
 # test body's leg in 4 seated poses, 4 December): bare skin through the trousers 78 / 55 / 122 (unlifted 222).
@@ -562,15 +565,16 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
                    body_normals: np.ndarray, body_faces: np.ndarray, clearance: float, gap: float = LIFT_GAP,
                    reach: float = LIFT_REACH, rounds: int = LIFT_ROUNDS, way: str = "bisector") -> np.ndarray:
     """A draped garment's posed points (`points`, `faces`, outward) lifted where skin that lies inside it at rest
-    (`inside`: `skin_inside`'s body vertex indices) came out through it, or closer than `gap` under it, by at most
-    `reach`: the cloth triangle closest to each such skin vertex moves out (`way`, LIFT_WAYS: along the bisector of
-    the skin's and the cloth's normals, or either alone) until the skin lies `gap` under it, and its neighbours follow, the lift fading by LIFT_SLOPE per
-    metre of cloth over at most LIFT_SPREAD edges. Skin that is inside the body itself is left (a calf pressed into
-    a thigh behind a bent knee: the ray out along its normal crosses the body's surface an odd number of times;
-    trimesh); no camera sees it, and lifting the cloth over it would puff the fabric out over the other limb.
-    Vertices at the same position (a seam's duplicated column) move together. The moved points are then pushed out
-    of the skin again at `clearance` (`drape.push_out`, as the caller pushed them before: a lift can carry cloth
-    into another limb); the others are returned bit for bit."""
+    (`inside`: `skin_inside`'s body vertex indices) came out through it, by at most `reach`: the cloth triangle
+    closest to each such skin vertex moves out (`way`, LIFT_WAYS: along the bisector of the skin's and the cloth's
+    normals, or either alone) until the skin lies `gap` under it, and its neighbours follow, the lift fading by
+    LIFT_SLOPE per metre of cloth over at most LIFT_SPREAD edges. Skin under the cloth, however close, is left (in
+    the rest pose all of `inside` is, so a rest-pose frame keeps its bits), and so is skin inside the body itself (a
+    calf pressed into a thigh behind a bent knee: the ray out along its normal crosses the body's surface an odd
+    number of times; trimesh): no camera sees it, and lifting the cloth over it would puff the fabric out over the
+    other limb. Vertices at the same position (a seam's duplicated column) move together. The moved points are then
+    pushed out of the skin again at `clearance` (`drape.push_out`, as the caller pushed them before: a lift can carry
+    cloth into another limb); the others are returned bit for bit."""
     import trimesh
 
     from .drape import _closest
@@ -597,10 +601,10 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
             break
         # The closest cloth points of all the skin, then the open-edge test (`layer_depth`'s) for the few near it.
         depth, closest, _ = _closest(v, f, skin)
-        sel = np.flatnonzero((depth < gap) & (np.linalg.norm(skin - closest, axis=1) <= reach))
+        sel = np.flatnonzero((depth < 0.0) & (np.linalg.norm(skin - closest, axis=1) <= reach))
         if len(sel):
             depth, _, normal, tri = _layer_closest(skin[sel], v, f, reach, triangles=True)
-            keep = np.isfinite(depth) & (depth < gap)
+            keep = np.isfinite(depth) & (depth < 0.0)
             sel, depth, normal, tri = sel[keep], depth[keep], normal[keep], tri[keep]
         if not len(sel):
             break
