@@ -524,7 +524,7 @@ def push_over_layers(points: np.ndarray, layers: list[tuple[np.ndarray, np.ndarr
 # `lift_over_skin` lifts the cloth there. Applied to the kinds below (pose_character, after push_out, in both cloth
 # modes), chosen by bench/bench_cloth_pose.py with and without --no-lift (--lift-all for the others; docs/TRADEOFFS.md,
 # "Skin through draped cloth, lifted"), skin vertices a camera sees through the cloth over 6 posed frames, skinned:
-# the skirt 6 -> 0, the dress 37 -> 3, the wide trousers 57 -> 8 (simulated 22 -> 0). Not the open coat (36 -> 37,
+# the skirt 6 -> 0, the dress 37 -> 3, the wide trousers 57 -> 10 (simulated 22 -> 0). Not the open coat (36 -> 37,
 # with more skin through and more of the cloth through itself) or the jacket (1 -> 1); the loose tops let none be seen.
 LIFT_KINDS = ("draped_skirt", "draped_dress", "draped_trousers")
 # Metres: how far under the cloth `lift_over_skin` leaves the skin it lifts the cloth over. Only skin out through
@@ -533,7 +533,7 @@ LIFT_KINDS = ("draped_skirt", "draped_dress", "draped_trousers")
 LIFT_GAP = 0.002
 # Skin farther out through the cloth than this is not lifted over: there the cloth lies across a limb that swung
 # through it, and a lift as large tears the fold pattern. bench/bench_cloth_lift.py --reaches 0.008 0.015 0.025 (the
-# test body's leg in 4 seated poses, 4 December): bare skin through the trousers 78 / 55 / 122 (unlifted 222).
+# test body's leg in 4 seated poses, 4 December): bare skin through the trousers 77 / 54 / 120 (unlifted 222).
 LIFT_REACH = 0.015
 LIFT_SLOPE = 0.5  # metres of lift lost per metre of cloth away from a lifted triangle: the lift fades over ~1 edge
 LIFT_SPREAD = 4  # edges the fade runs over at most
