@@ -4,6 +4,7 @@
     python bench/bench_cloth_lift.py                                  # the test body's leg in 4 seated poses
     python bench/bench_cloth_lift.py --kind draped_dress --subjects 2 --poses 1 2    # benchmark recipes' test poses
     python bench/bench_cloth_lift.py --reaches 0.008 0.015 0.025      # other reaches
+    python bench/bench_cloth_lift.py --kind draped_trousers --subjects 1 --poses 2 --figure docs/cloth_lift_trousers.png
 
 Cases. Default: the tests' body (tests/test_cloth_pose.py's PHENO) in wide trousers at the `coarse` drape level,
 its left thigh raised and knee bent (hip, knee degrees: -90/90, -90/0, -60/60, -110/120). With `--kind K`: the first
@@ -18,6 +19,9 @@ every reach. Printed per variant, summed over the cases:
   self      cloth edges through the cloth's own triangles (`cloth_pose.self_crossings`);
   moved     cloth vertices the lift moved more than 1 cm;
   seconds   the lift's wall time, summed (on this machine; the load average is printed).
+`--figure PATH` (with --kind): the last case rendered as pose_character poses it, unlifted (top row) and lifted
+(bottom row), front, left and right, cropped to the hips and legs (standard preset at 64 spp, the subjects gallery's
+studio light, 384 px a view).
 """
 from __future__ import annotations
 
@@ -94,7 +98,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--poses", type=int, nargs="+", default=[0, 1, 2], help="with --kind: test pose numbers")
     ap.add_argument("--reaches", type=float, nargs="+", default=None,
                     help="LIFT_REACH values in metres (default: the module's)")
+    ap.add_argument("--figure", type=Path, default=None,
+                    help="with --kind: write the last case's renders, unlifted over lifted, to this PNG")
     args = ap.parse_args(argv)
+    if args.figure is not None and args.kind is None:
+        ap.error("--figure needs --kind (a benchmark recipe to render)")
 
     import trimesh
 
@@ -110,7 +118,9 @@ def main(argv: list[str] | None = None) -> int:
     faces = body_topology().faces
     totals = {name: np.zeros(6) for name, _, _ in variants}
     print(f"load average at start: {load()}")
+    last = None
     for label, g, phenotype, bones, others in cases(args):
+        last = bones
         rest = run_anny(phenotype)["vertices"]
         inside = skin_inside(g.vertices, g.faces, rest, vertex_normals(rest, faces))
         run = run_anny(phenotype, bones)
@@ -147,7 +157,57 @@ def main(argv: list[str] | None = None) -> int:
         seen = f" {int(t[2]):5d}" if args.kind else ""
         print(f"  {name:28s} {int(t[0]):6d} {int(t[1]):6d}{seen} {int(t[3]):6d} {int(t[4]):6d} {t[5]:8.2f}")
     print(f"(load {load()})")
+    if args.figure is not None and last is not None:
+        figure(args.figure, args.kind, args.subjects, last)
     return 0
+
+
+def figure(path: Path, kind: str, subjects: int, bones) -> None:
+    """Unlifted over lifted renders of the last subject drawing `kind` in the pose `bones`."""
+    import dataclasses
+
+    from bench_cloth import draped_recipe
+    from subjects_gallery import studio_environment
+
+    from rh_common.camera import frame_body
+    from rh_common.colourspace import quantize8, srgb_encode
+    from rh_common.imageio import write_png
+    from rh_dataset.characters import body_bounds, build_character, pose_character
+    from rh_dataset.cli import render_settings
+    from rh_dataset.render.passes import render_frame
+    from rh_dataset.spec import load_protocol
+    from rh_dataset.variant import load_mitsuba, select_variant
+
+    index, recipe = 0, None
+    for _ in range(subjects):
+        recipe = draped_recipe(index, 0, kind)
+        index = recipe.index + 1
+    select_variant(None)
+    env = studio_environment(load_mitsuba())
+    test = next(x for x in load_protocol("protocol_a").splits if x.name == "test")
+    settings = render_settings("standard", spp=64, aov_spp=4).for_split(test)
+    lifted = build_character(recipe, 1024)
+    plain = dataclasses.replace(lifted, parts=[dataclasses.replace(p, inside_skin=None) for p in lifted.parts])
+    rows = []
+    for character in (plain, lifted):
+        posed = pose_character(character, bones, None, "skinned")
+        lo, hi = body_bounds(posed)
+        top, bottom = lo.copy(), hi.copy()
+        top[2] = lo[2] + 0.15 * (hi[2] - lo[2])
+        bottom[2] = lo[2] + 0.62 * (hi[2] - lo[2])
+        cam = frame_body(top, bottom, 384, 384, 30.0, fill=0.9)
+        centre = np.array(cam.target)
+        reach = np.linalg.norm(np.array(cam.origin) - centre)
+        views = []
+        for deg in (0, 90, 270):  # front, the subject's left, right
+            a = np.radians(deg)
+            origin = centre + reach * np.array([-np.sin(a), -np.cos(a), 0.0])
+            img = render_frame(posed, env, dataclasses.replace(cam, origin=tuple(map(float, origin))), settings,
+                               ["image"], seed=recipe.index).layers["image"]
+            views.append(quantize8(srgb_encode(np.clip(img * 1.3, 0, None))))
+        rows.append(np.concatenate(views, 1))
+    write_png(path, np.concatenate(rows, 0))
+    print(f"wrote {path}: subject {recipe.index}, unlifted (top) over lifted (bottom), front | left | right")
 
 
 if __name__ == "__main__":
