@@ -36,7 +36,10 @@ timed() {
 }
 { nvidia-smi; python3 -V; nproc; grep -m1 'model name' /proc/cpuinfo
   python3 -c "import torch, numpy; print('torch', torch.__version__, 'numpy', numpy.__version__)"
+  # Does Mitsuba's CUDA backend start here at all? (If not, every step below fails the same way.)
+  python3 -c "import mitsuba as mi; mi.set_variant('cuda_ad_rgb'); print('cuda_ad_rgb:', mi.Float([1, 2]) * 2)"
 } > "$OUT/machine.txt" 2>&1
+cat "$OUT/machine.txt"
 {
   step "anny cache"; timed python3 -c "import rh_common.body_model as b; b.warm_cache()" 2>&1 | tail -2
   for run in 1 2; do
