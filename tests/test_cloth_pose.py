@@ -305,9 +305,12 @@ def test_push_over_layers_goes_round_the_layers_where_two_cross():
     """push_over_layers: over one layer it is push_over, bit for bit. Over two sheets crossing at 45 degrees (the
     first outward +Z, the second outward (1, 0, -1)/sqrt(2), as a skirt and a top crossing where the thigh swings),
     a point just over the first and under the second is pushed out over the second down through the first: one pass
-    leaves it 5.8 mm under the first; two passes (LAYER_CYCLES) under 1 mm; more passes converge on the clearance
-    over both (alternating projections onto the two half-spaces)."""
-    from rh_dataset.characters.cloth_pose import LAYER_CYCLES, LAYER_REACH, layer_depth, push_over, push_over_layers
+    leaves it 5.8 mm under the first; two passes (LAYER_CYCLES) 0.9 mm, within LAYER_TOLERANCE, so no more are
+    made and the result is two passes' bit for bit; more passes converge on the clearance over both (alternating
+    projections onto the two half-spaces). A point twice as far in is left 3.4 mm under the first by two passes:
+    then a third pass is made (of LAYER_CYCLES_MAX at most), which leaves it 0.3 mm over, and no fourth."""
+    from rh_dataset.characters.cloth_pose import (LAYER_CYCLES, LAYER_CYCLES_MAX, LAYER_REACH, LAYER_TOLERANCE,
+                                                  layer_depth, push_over, push_over_layers)
 
     quads = np.array([[0, 1, 2], [0, 2, 3]])
     first = (np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float), quads)
@@ -315,16 +318,23 @@ def test_push_over_layers_goes_round_the_layers_where_two_cross():
     pts = np.array([[-0.01, 0.0, 0.002], [0.2, 0.1, -0.01]])  # the second point is beyond the second's edge
     np.testing.assert_array_equal(push_over_layers(pts, [first], 0.004), push_over(pts, *first, 0.004))
 
-    def depths(cycles):
-        out = push_over_layers(pts, [first, second], 0.004, cycles=cycles)
+    def depths(cycles, most=None, points=pts):
+        out = push_over_layers(points, [first, second], 0.004, cycles=cycles, max_cycles=most or cycles)
         return layer_depth(out, *first, LAYER_REACH), layer_depth(out, *second, LAYER_REACH)
 
-    assert LAYER_CYCLES == 2
+    assert LAYER_CYCLES == 2 and LAYER_CYCLES_MAX == 4 and LAYER_TOLERANCE == 0.001
     (d1, d2), (e1, e2), (f1, f2) = depths(1), depths(LAYER_CYCLES), depths(10)
     assert d1[0] > 0.005 and 0 < e1[0] < 0.001 and d2[0] <= -0.004 + 1e-9 and e2[0] <= -0.004 + 1e-9
     assert f1[0] < -0.0039 and f2[0] < -0.0039
     np.testing.assert_allclose(d1[1], -0.004, atol=1e-12)  # over the first only: one push, as push_over
     assert np.isnan(d2[1])
+    # Nothing left more than LAYER_TOLERANCE under after LAYER_CYCLES: no more passes, the same bits.
+    np.testing.assert_array_equal(push_over_layers(pts, [first, second], 0.004),
+                                  push_over_layers(pts, [first, second], 0.004, cycles=2, max_cycles=2))
+    deep = np.array([[-0.02, 0.0, 0.002]])
+    (g1, _), (h1, h2), (k1, _) = depths(2, points=deep), depths(2, LAYER_CYCLES_MAX, deep), depths(3, points=deep)
+    assert g1[0] > 0.003 and -0.001 < h1[0] < 0.0 and h2[0] <= -0.004 + 1e-9
+    np.testing.assert_array_equal(h1, k1)  # three passes were made, not four
 
 
 def test_covers_is_the_skin_under_the_cloth():
