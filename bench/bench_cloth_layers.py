@@ -7,9 +7,12 @@ layer lies under the cloth under it, at rest and posed, and what keeping it out 
     python bench/bench_cloth_layers.py --subjects 14,41,45   # open jackets and a coat over loose tops
     python bench/bench_cloth_layers.py --subjects 2,26       # open jackets over loose tops over draped skirts
     python bench/bench_cloth_layers.py --seed 2 --subjects 0 # a loose top over wide trousers (none at seed 0)
+    python bench/bench_cloth_layers.py --pool --subjects 4,17,52 --poses 4 --modes skinned --two-passes
+                                                             # tops and jackets over the lifted wide trousers
 
 Subjects are the generator's own (rh-generate's `sample_recipe(rng_for(seed, "character", s))`, benchmark pool), so
-the numbers are those of the dataset's frames; each must wear draped cloth over draped cloth (the outermost such
+the numbers are those of the dataset's frames (with `--pool`, the benchmark pool's recipes by index instead,
+`recipe_from_seed(derive_seed("benchmark", i, seed))`, as bench_cloth.draped_recipe draws them); each must wear draped cloth over draped cloth (the outermost such
 layer over draped cloth: the top over a skirt, or the jacket or coat over the top, and over a skirt under it; the
 cloth under it is draped as the generator drapes it, each over what it is worn over). Below, "the top" is that outer
 layer, measured against each draped cloth it is draped over.
@@ -21,12 +24,15 @@ Per subject:
   posed     for the rest pose and each test pose (`sample_pose(rng_for(seed, "pose", s, "test", j))`), both cloth
             modes of `pose_character` ("skinned", "simulated"), the same layer measure on the posed top, without
             `cloth_pose.push_over_layers` (the final push over the cloth under it, replaced by the identity) and with
-            it, and the push's own seconds.
+            it, and the push's own seconds. With `--two-passes`, also the layer measure after two passes of
+            `push_over_layers` alone (`cycles=2, max_cycles=2`, its behaviour before LAYER_CYCLES_MAX) and whether
+            the posed top is the same bits both ways. `--no-lift`: posed without `cloth_pose.lift_over_skin`.
 The load average is printed with the times: the machine is shared.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import tempfile
@@ -59,12 +65,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--poses", type=int, default=3, help="test poses of the pose prior per subject")
     ap.add_argument("--seed", type=int, default=0, help="dataset seed the recipes and poses come from")
     ap.add_argument("--drape", default="full", choices=("full", "coarse"), help="drape level (RenderSettings.drape)")
+    ap.add_argument("--pool", action="store_true",
+                    help="--subjects are benchmark pool recipe indices (bench_cloth.draped_recipe's), not rh-generate's")
+    ap.add_argument("--modes", nargs="+", default=["skinned", "simulated"], choices=("skinned", "simulated"),
+                    help="cloth modes of pose_character to measure")
+    ap.add_argument("--no-lift", action="store_true",
+                    help="pose without cloth_pose.lift_over_skin (the dress's and wide trousers' lift over skin)")
+    ap.add_argument("--two-passes", action="store_true",
+                    help="also push over the layers with two passes only (before LAYER_CYCLES_MAX) and compare")
     args = ap.parse_args(argv)
 
     import rh_dataset.characters.character as character_module
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character, sample_recipe
     from rh_dataset.characters.cloth_pose import push_over_layers
+    from rh_dataset.characters.recipe_draws import derive_seed, recipe_from_seed
     from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_layers, drape_settings, draped_over
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
@@ -72,14 +87,16 @@ def main(argv: list[str] | None = None) -> int:
     os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_cloth_layers_")  # cold: the drapes are timed
     print(f"load average at start: {load()}; drape level {args.drape}")
     for s in (int(x) for x in args.subjects.split(",")):
-        recipe = sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s)
+        recipe = (recipe_from_seed(derive_seed("benchmark", s, args.seed), "benchmark", s) if args.pool else
+                  sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s))
         kinds = [g.kind for g in recipe.garments]
         top = next((k for k in reversed(kinds) if k in DRAPED_OVER and set(DRAPED_OVER[k]) & set(kinds)), None)
         if top is None:
-            ap.error(f"benchmark subject {s} wears no draped cloth over draped cloth: {kinds}")
+            ap.error(f"benchmark {'pool recipe' if args.pool else 'subject'} {s} wears no draped cloth over draped "
+                     f"cloth: {kinds}")
         inners = [k for k in kinds if k in DRAPED_OVER[top]]  # innermost first
         ph = recipe.phenotype
-        print(f"\nsubject {s}: {kinds}")
+        print(f"\n{'pool recipe' if args.pool else 'subject'} {s}: {kinds}")
         draped = drape_layers(inners, ph, args.drape)  # the cloth under the top, as build_garments drapes it
         clothes = draped_over(top, draped)
 
@@ -94,12 +111,15 @@ def main(argv: list[str] | None = None) -> int:
                   f"{secs:.1f} s; at rest, vertices > 1 mm under (worst mm): "
                   f"{unders(g.vertices, {c.kind: (c.vertices, c.faces) for c in clothes})}  (load {load()})")
         character = build_character(recipe, 512, drape=args.drape)
+        if args.no_lift:
+            character = dataclasses.replace(character, parts=[dataclasses.replace(p, inside_skin=None)
+                                                              for p in character.parts])
         poses = [("rest", {})] + [(f"test {j} ({p.label})", dict(p.bones)) for j, p in enumerate(
             sample_pose(rng_for(args.seed, "pose", s, "test", j), load_anny()) for j in range(args.poses))]
         print(f"  {'pose':22s} {'mode':9s}  vertices > 1 mm under (worst mm): without push_over | with push_over | "
-              f"push s")
+              f"push s" + (" | two passes only, same bits?" if args.two_passes else ""))
         for label, bones in poses:
-            for mode in ("skinned", "simulated"):
+            for mode in args.modes:
                 character_module.push_over_layers = lambda v, *a, **k: np.asarray(v, np.float64)  # noqa: E731
                 try:
                     raw = {m.name: m for m in pose_character(character, bones, None, mode)}
@@ -113,7 +133,17 @@ def main(argv: list[str] | None = None) -> int:
                 t_push = time.perf_counter() - t
                 before = unders(raw[top].vertices, {k: (raw[k].vertices, raw[k].faces) for k in inners})
                 after = unders(posed[top].vertices, {k: (posed[k].vertices, posed[k].faces) for k in inners})
-                print(f"  {label:22s} {mode:9s}  {before} | {after} | {t_push:5.2f} "
+                two = ""
+                if args.two_passes:
+                    character_module.push_over_layers = lambda v, layers, gap: push_over_layers(  # noqa: E731
+                        v, layers, gap, cycles=2, max_cycles=2)
+                    try:
+                        old = {m.name: m for m in pose_character(character, bones, None, mode)}
+                    finally:
+                        character_module.push_over_layers = push_over_layers
+                    two = (f" | {unders(old[top].vertices, {k: (old[k].vertices, old[k].faces) for k in inners})}, "
+                           f"{'same' if np.array_equal(old[top].vertices, posed[top].vertices) else 'differs'}")
+                print(f"  {label:22s} {mode:9s}  {before} | {after} | {t_push:5.2f}{two} "
                       f"(posing {t_all:.1f} s; load {load()})", flush=True)
     return 0
 
