@@ -9,6 +9,7 @@ layer lies under the cloth under it, at rest and posed, and what keeping it out 
     python bench/bench_cloth_layers.py --seed 2 --subjects 0 # a loose top over wide trousers (none at seed 0)
     python bench/bench_cloth_layers.py --pool --subjects 4,17,52 --poses 4 --modes skinned --two-passes
                                                              # tops and jackets over the lifted wide trousers
+    python bench/bench_cloth_layers.py --subjects 26 --poses 2 --modes skinned --through   # cloth out through the top
 
 Subjects are the generator's own (rh-generate's `sample_recipe(rng_for(seed, "character", s))`, benchmark pool), so
 the numbers are those of the dataset's frames (with `--pool`, the benchmark pool's recipes by index instead,
@@ -27,6 +28,10 @@ Per subject:
             it, and the push's own seconds. With `--two-passes`, also the layer measure after two passes of
             `push_over_layers` alone (`cycles=2, max_cycles=2`, its behaviour before LAYER_CYCLES_MAX) and whether
             the posed top is the same bits both ways. `--no-lift`: posed without `cloth_pose.lift_over_skin`.
+  through   with `--through`, the other way round, after the push: of each draped cloth under the top, how many
+            vertices lie over the top's surface (`layer_depth` < 0, within 3 cm, not beyond the top's open edges)
+            and the farthest (mm): the inner cloth come out through the top between the top's vertices, which
+            the push, moving only the top's vertices, cannot see.
 The load average is printed with the times: the machine is shared.
 """
 from __future__ import annotations
@@ -57,6 +62,15 @@ def under(points: np.ndarray, cloth_v: np.ndarray, cloth_f: np.ndarray) -> tuple
     return int((np.nan_to_num(d, nan=-1.0) > 0.001).sum()), 1e3 * worst
 
 
+def over_top(points: np.ndarray, cloth_v: np.ndarray, cloth_f: np.ndarray) -> tuple[int, float]:
+    """(points lying over the cloth's surface within reach, the farthest in mm; 0.0 when none)."""
+    from rh_dataset.characters.cloth_pose import LAYER_REACH, layer_depth
+
+    d = layer_depth(np.asarray(points, np.float64), np.asarray(cloth_v, np.float64), cloth_f, LAYER_REACH)
+    out = np.nan_to_num(d, nan=1.0) < 0.0
+    return int(out.sum()), (-1e3 * float(d[out].min()) if out.any() else 0.0)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--subjects", default="5,39",
@@ -71,6 +85,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="cloth modes of pose_character to measure")
     ap.add_argument("--no-lift", action="store_true",
                     help="pose without cloth_pose.lift_over_skin (the dress's and wide trousers' lift over skin)")
+    ap.add_argument("--through", action="store_true",
+                    help="also count the inner cloths' vertices that lie over the posed top (come out through it)")
     ap.add_argument("--two-passes", action="store_true",
                     help="also push over the layers with two passes only (before LAYER_CYCLES_MAX) and compare")
     args = ap.parse_args(argv)
@@ -143,6 +159,9 @@ def main(argv: list[str] | None = None) -> int:
                         character_module.push_over_layers = push_over_layers
                     two = (f" | {unders(old[top].vertices, {k: (old[k].vertices, old[k].faces) for k in inners})}, "
                            f"{'same' if np.array_equal(old[top].vertices, posed[top].vertices) else 'differs'}")
+                if args.through:
+                    two += " | through: " + ", ".join("{} {:d} ({:.1f})".format(k, *over_top(
+                        posed[k].vertices, posed[top].vertices, posed[top].faces)) for k in inners)
                 print(f"  {label:22s} {mode:9s}  {before} | {after} | {t_push:5.2f}{two} "
                       f"(posing {t_all:.1f} s; load {load()})", flush=True)
     return 0
