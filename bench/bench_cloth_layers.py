@@ -13,10 +13,10 @@ layer lies under the cloth under it, at rest and posed, and what keeping it out 
 
 Subjects are the generator's own (rh-generate's `sample_recipe(rng_for(seed, "character", s))`, benchmark pool), so
 the numbers are those of the dataset's frames (with `--pool`, the benchmark pool's recipes by index instead,
-`recipe_from_seed(derive_seed("benchmark", i, seed))`, as bench_cloth.draped_recipe draws them); each must wear draped cloth over draped cloth (the outermost such
-layer over draped cloth: the top over a skirt, or the jacket or coat over the top, and over a skirt under it; the
-cloth under it is draped as the generator drapes it, each over what it is worn over). Below, "the top" is that outer
-layer, measured against each draped cloth it is draped over.
+`recipe_from_seed(derive_seed("benchmark", i, seed))`, as bench_cloth.draped_recipe draws them); each must wear
+draped cloth over draped cloth (the outermost such layer over draped cloth: the top over a skirt, or the jacket or
+coat over the top, and over a skirt under it; the cloth under it is draped as the generator drapes it, each over
+what it is worn over). Below, "the top" is that outer layer, measured against each draped cloth it is draped over.
 Per subject:
   drape     the top draped on the body alone (as before 3 December) and over the cloth under it (`over`, its
             collider and pattern): the seconds of each drape (a cold cache: the drape is timed) and the top's
@@ -80,7 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="dataset seed the recipes and poses come from")
     ap.add_argument("--drape", default="full", choices=("full", "coarse"), help="drape level (RenderSettings.drape)")
     ap.add_argument("--pool", action="store_true",
-                    help="--subjects are benchmark pool recipe indices (bench_cloth.draped_recipe's), not rh-generate's")
+                    help="--subjects are benchmark pool recipe indices (bench_cloth.draped_recipe's), "
+                         "not rh-generate's")
     ap.add_argument("--modes", nargs="+", default=["skinned", "simulated"], choices=("skinned", "simulated"),
                     help="cloth modes of pose_character to measure")
     ap.add_argument("--no-lift", action="store_true",
