@@ -27,7 +27,8 @@ Per subject:
             `cloth_pose.push_over_layers` (the final push over the cloth under it, replaced by the identity) and with
             it, and the push's own seconds. With `--two-passes`, also the layer measure after two passes of
             `push_over_layers` alone (`cycles=2, max_cycles=2`, its behaviour before LAYER_CYCLES_MAX) and whether
-            the posed top is the same bits both ways. `--no-lift`: posed without `cloth_pose.lift_over_skin`.
+            the posed top is the same bits both ways. `--no-lift`: posed without `cloth_pose.lift_over_skin`;
+            `--max-passes N`: posed (and pushed, `push s`) with at most N passes instead of LAYER_CYCLES_MAX.
   through   with `--through`, the other way round, after the push: of each draped cloth under the top, how many
             vertices lie over the top's surface (`layer_depth` < 0, within 3 cm, not beyond the top's open edges)
             and the farthest (mm): the inner cloth come out through the top between the top's vertices, which
@@ -88,6 +89,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="pose without cloth_pose.lift_over_skin (the dress's and wide trousers' lift over skin)")
     ap.add_argument("--through", action="store_true",
                     help="also count the inner cloths' vertices that lie over the posed top (come out through it)")
+    ap.add_argument("--max-passes", type=int, default=None,
+                    help="push_over_layers' max_cycles for the posed runs (default: LAYER_CYCLES_MAX)")
     ap.add_argument("--two-passes", action="store_true",
                     help="also push over the layers with two passes only (before LAYER_CYCLES_MAX) and compare")
     args = ap.parse_args(argv)
@@ -101,6 +104,10 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
+    if args.max_passes is not None:  # every push below, pose_character's included
+        def push_over_layers(v, layers, gap, _push=push_over_layers, _most=args.max_passes, **kw):
+            return _push(v, layers, gap, **{"max_cycles": _most, **kw})
+        character_module.push_over_layers = push_over_layers
     os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_cloth_layers_")  # cold: the drapes are timed
     print(f"load average at start: {load()}; drape level {args.drape}")
     for s in (int(x) for x in args.subjects.split(",")):

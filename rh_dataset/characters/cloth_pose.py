@@ -504,8 +504,8 @@ def push_under(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, gap:
 LAYER_CYCLES = 2  # passes over the inner layers in turn, for an outer layer over two draped cloths
 # Passes at most, while a point is left more than LAYER_TOLERANCE (metres) under an inner layer after LAYER_CYCLES:
 # an open jacket over a loose long sleeve over wide trousers, sitting (pool recipe 4 of seed 0, its third test pose),
-# kept 10 vertices under the trousers after two passes, one 29.7 mm deep, and 5, at most 2.1 mm, after four; six
-# passes made another pose worse (a vertex 8.3 mm under where two left none). bench/bench_cloth_layers.py --pool.
+# kept 10 vertices under the trousers after two passes, one 29.7 mm deep, and 5, at most 2.1 mm, after four; at
+# most six did no better there and cost 40 % more (bench/bench_cloth_layers.py --pool --max-passes; ARCHITECTURE).
 LAYER_CYCLES_MAX = 4
 LAYER_TOLERANCE = 0.001
 
