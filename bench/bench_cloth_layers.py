@@ -10,6 +10,7 @@ layer lies under the cloth under it, at rest and posed, and what keeping it out 
     python bench/bench_cloth_layers.py --pool --subjects 4,17,52 --poses 4 --modes skinned --two-passes
                                                              # tops and jackets over the lifted wide trousers
     python bench/bench_cloth_layers.py --subjects 26 --poses 2 --modes skinned --through   # cloth out through the top
+    python bench/bench_cloth_layers.py --pool --subjects 4 --poses 4 --modes skinned --through --no-tuck
 
 Subjects are the generator's own (rh-generate's `sample_recipe(rng_for(seed, "character", s))`, benchmark pool), so
 the numbers are those of the dataset's frames (with `--pool`, the benchmark pool's recipes by index instead,
@@ -30,9 +31,12 @@ Per subject:
             the posed top is the same bits both ways. `--no-lift`: posed without `cloth_pose.lift_over_skin`;
             `--max-passes N`: posed (and pushed, `push s`) with at most N passes instead of LAYER_CYCLES_MAX.
   through   with `--through`, the other way round, after the push: of each draped cloth under the top, how many
-            vertices lie over the top's surface (`layer_depth` < 0, within 3 cm, not beyond the top's open edges)
-            and the farthest (mm): the inner cloth come out through the top between the top's vertices, which
-            the push, moving only the top's vertices, cannot see.
+            vertices lie over the top's surface (`layer_depth` < 0, within 3 cm, not beyond the top's open edges),
+            the farthest (mm), and of those, how many a camera sees (8 horizontal views around the subject, the ray
+            from 2 mm off the vertex along its normal meeting no posed mesh; bench_cloth_pose.seen_around): the
+            inner cloth come out through the top between the top's vertices, which the push, moving only the top's
+            vertices, cannot see. Posing puts it back under (character._tuck_inner_layers); `--no-tuck` poses
+            without that.
 The load average is printed with the times: the machine is shared.
 """
 from __future__ import annotations
@@ -63,13 +67,18 @@ def under(points: np.ndarray, cloth_v: np.ndarray, cloth_f: np.ndarray) -> tuple
     return int((np.nan_to_num(d, nan=-1.0) > 0.001).sum()), 1e3 * worst
 
 
-def over_top(points: np.ndarray, cloth_v: np.ndarray, cloth_f: np.ndarray) -> tuple[int, float]:
-    """(points lying over the cloth's surface within reach, the farthest in mm; 0.0 when none)."""
+def over_top(inner, top, meshes) -> tuple[int, float, int]:
+    """Of the posed mesh `inner`'s vertices: (those lying over the posed mesh `top`'s surface within reach, the
+    farthest in mm (0.0 when none), and of those, how many a camera around the subject sees: 8 horizontal views, the
+    ray from 2 mm off the vertex along its normal meeting none of the posed `meshes`; bench_cloth_pose.seen_around)."""
+    from bench_cloth_pose import seen_around
     from rh_dataset.characters.cloth_pose import LAYER_REACH, layer_depth
 
-    d = layer_depth(np.asarray(points, np.float64), np.asarray(cloth_v, np.float64), cloth_f, LAYER_REACH)
+    points = np.asarray(inner.vertices, np.float64)
+    d = layer_depth(points, np.asarray(top.vertices, np.float64), top.faces, LAYER_REACH)
     out = np.nan_to_num(d, nan=1.0) < 0.0
-    return int(out.sum()), (-1e3 * float(d[out].min()) if out.any() else 0.0)
+    seen = int(seen_around(points[out], np.asarray(inner.normals, np.float64)[out], meshes).sum())
+    return int(out.sum()), (-1e3 * float(d[out].min()) if out.any() else 0.0), seen
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -89,6 +98,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="pose without cloth_pose.lift_over_skin (the dress's and wide trousers' lift over skin)")
     ap.add_argument("--through", action="store_true",
                     help="also count the inner cloths' vertices that lie over the posed top (come out through it)")
+    ap.add_argument("--no-tuck", action="store_true",
+                    help="pose without character._tuck_inner_layers (the cloth under the top put back under it "
+                         "where it came out through it)")
     ap.add_argument("--max-passes", type=int, default=None,
                     help="push_over_layers' max_cycles for the posed runs (default: LAYER_CYCLES_MAX)")
     ap.add_argument("--two-passes", action="store_true",
@@ -104,6 +116,9 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
+    tuck = character_module._tuck_inner_layers
+    if args.no_tuck:  # every pose below
+        character_module._tuck_inner_layers = tuck = lambda *a: None  # noqa: E731
     if args.max_passes is not None:  # every push below, pose_character's included
         def push_over_layers(v, layers, gap, _push=push_over_layers, _most=args.max_passes, **kw):
             return _push(v, layers, gap, **{"max_cycles": _most, **kw})
@@ -145,10 +160,12 @@ def main(argv: list[str] | None = None) -> int:
         for label, bones in poses:
             for mode in args.modes:
                 character_module.push_over_layers = lambda v, *a, **k: np.asarray(v, np.float64)  # noqa: E731
+                character_module._tuck_inner_layers = lambda *a: None  # noqa: E731
                 try:
                     raw = {m.name: m for m in pose_character(character, bones, None, mode)}
                 finally:
                     character_module.push_over_layers = push_over_layers
+                    character_module._tuck_inner_layers = tuck
                 t = time.perf_counter()
                 posed = {m.name: m for m in pose_character(character, bones, None, mode)}
                 t_all = time.perf_counter() - t
@@ -168,8 +185,8 @@ def main(argv: list[str] | None = None) -> int:
                     two = (f" | {unders(old[top].vertices, {k: (old[k].vertices, old[k].faces) for k in inners})}, "
                            f"{'same' if np.array_equal(old[top].vertices, posed[top].vertices) else 'differs'}")
                 if args.through:
-                    two += " | through: " + ", ".join("{} {:d} ({:.1f})".format(k, *over_top(
-                        posed[k].vertices, posed[top].vertices, posed[top].faces)) for k in inners)
+                    two += " | through (seen): " + ", ".join("{} {:d} ({:.1f} mm; {:d})".format(k, *over_top(
+                        posed[k], posed[top], list(posed.values()))) for k in inners)
                 print(f"  {label:22s} {mode:9s}  {before} | {after} | {t_push:5.2f}{two} "
                       f"(posing {t_all:.1f} s; load {load()})", flush=True)
     return 0

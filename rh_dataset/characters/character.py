@@ -501,23 +501,63 @@ def pose_character(
                 n = blended_normals(normals, part.blend_vertices, part.blend_weights)
             else:
                 n = _welded_normals(v, part.faces)
-        n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-        n = n / np.linalg.norm(n, axis=1, keepdims=True)  # second pass: unit length to float32 precision
         posed.append(
             PosedMesh(
                 name=part.name,
                 vertices=_ro(v, np.float32),
-                normals=_ro(n, np.float32),
+                normals=_ro(_unit(n), np.float32),
                 faces=part.faces,
                 uvs=part.uvs,
                 material=part.material,
             )
         )
+    _tuck_inner_layers(character, posed, cloth_under, verts, normals, topo.faces)
     _shell_under_panels(character, posed, cloth_under, verts, normals, topo.faces)
     for h in character.strands:
         pts = anchor_points(verts, normals, h.blend_vertices, h.blend_weights, h.offset).reshape(*h.radius.shape, 3)
         posed.append(PosedStrands(h.name, _ro(pts, np.float32), h.radius, h.fibre))
     return posed
+
+
+def _unit(n: np.ndarray) -> np.ndarray:
+    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)  # second pass: unit length to float32 precision
+
+
+def _tuck_inner_layers(character: Character, posed: list, cloth_under: dict, verts, normals, faces) -> None:
+    """In place: draped cloth under draped cloth put back under it where it came out through it. `push_over_layers`
+    moves only the outer layer's vertices, and the cloth under it can still pass out between them: the wide
+    trousers' folds over an open jacket's hem on a sitting lap, a skirt over the jacket where a thigh is raised. For
+    each outer layer, outermost first, each cloth it is draped over (`DRAPED_OVER`) goes under it where it lies over
+    it (`cloth_pose.push_under`: within reach, not beyond its open edges), LAYER_GAP_DRAPE per layer between them
+    (the innermost deepest), then out of the skin where that took it in (the skin wins). Then each outer layer over
+    cloth that moved is pushed over it again (`push_over_layers`, innermost first), so that it stays on top where
+    the skin won. Outermost first: a tucked cloth is then tucked under the cloth over it in turn. Subject 26 of
+    seed 0 (`random` pose) and pool recipe 4 (bending, sitting): cloth vertices under a layer seen over it from 8
+    views 39-46 -> 3-7 per frame (bench/bench_cloth_layers.py --through; ARCHITECTURE, "Cloth under the top out
+    through it"). `posed` meshes (vertices and normals) and `cloth_under` entries are replaced where they moved;
+    where nothing came through, nothing changes."""
+    outers = [p for p in character.parts if p.name in cloth_under and
+              any(k in cloth_under for k in DRAPED_OVER.get(p.name, ()))]
+    before = {k: v for k, (v, _) in cloth_under.items()}
+    for part in reversed(outers):
+        names = [k for k in DRAPED_OVER[part.name] if k in cloth_under]
+        for i, k in enumerate(names):
+            w, moved = push_under(cloth_under[k][0], cloth_under[part.name][0], part.faces,
+                                  LAYER_GAP_DRAPE * (len(names) - i))
+            if len(moved):
+                w[moved] = push_out(w[moved], verts, normals, faces, push_clearance(k))
+                cloth_under[k] = (w, cloth_under[k][1])
+    for part in outers:
+        names = [k for k in DRAPED_OVER[part.name] if k in cloth_under]
+        if any(cloth_under[k][0] is not before[k] for k in names):
+            cloth_under[part.name] = (push_over_layers(cloth_under[part.name][0], [cloth_under[k] for k in names],
+                                                       LAYER_GAP_DRAPE), part.faces)
+    for k, (v, f) in cloth_under.items():
+        if v is not before[k]:
+            at = next(j for j, m in enumerate(posed) if m.name == k)
+            posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32),
+                                            normals=_ro(_unit(_welded_normals(v, f)), np.float32))
 
 
 def _shell_under_panels(character: Character, posed: list, cloth_under: dict, verts, normals, faces) -> None:

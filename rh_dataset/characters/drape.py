@@ -1166,7 +1166,11 @@ def _closest(body_vertices, body_faces, points, body_normals=None, mesh=None, tr
     if mesh is None:
         mesh = trimesh.Trimesh(v, f, process=False)
     closest, dist, tri = trimesh.proximity.closest_point(mesh, p)
-    bary = trimesh.triangles.points_to_barycentric(v[f[tri]], closest)
+    # A triangle squashed to a line or a point (two cloth vertices pushed onto one surface point) has no
+    # barycentrics: its corners' normals, averaged.
+    with np.errstate(invalid="ignore", divide="ignore"):
+        bary = trimesh.triangles.points_to_barycentric(v[f[tri]], closest)
+    bary = np.where(np.isfinite(bary).all(1, keepdims=True), bary, 1.0 / 3.0)
     n = (vn[f[tri]] * bary[..., None]).sum(1)
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
     depth = np.where(((p - closest) * n).sum(1) < 0.0, dist, -dist)
