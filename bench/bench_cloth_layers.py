@@ -37,6 +37,8 @@ Per subject:
             inner cloth come out through the top between the top's vertices, which the push, moving only the top's
             vertices, cannot see. Posing puts it back under (character._tuck_inner_layers); `--no-tuck` poses
             without that.
+--figure PATH: the first subject in its test pose --figure-pose (default the first), skinned, rendered without the
+tuck (top row) and with it (bottom), front and right, the lap framed at 512 px (standard preset, 64 spp).
 The load average is printed with the times: the machine is shared.
 """
 from __future__ import annotations
@@ -101,6 +103,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-tuck", action="store_true",
                     help="pose without character._tuck_inner_layers (the cloth under the top put back under it "
                          "where it came out through it)")
+    ap.add_argument("--figure", type=Path, default=None,
+                    help="write the first subject in test pose --figure-pose, without and with the tuck, here (PNG)")
+    ap.add_argument("--figure-pose", type=int, default=0, help="the test pose of --figure")
     ap.add_argument("--max-passes", type=int, default=None,
                     help="push_over_layers' max_cycles for the posed runs (default: LAYER_CYCLES_MAX)")
     ap.add_argument("--two-passes", action="store_true",
@@ -124,6 +129,7 @@ def main(argv: list[str] | None = None) -> int:
             return _push(v, layers, gap, **{"max_cycles": _most, **kw})
         character_module.push_over_layers = push_over_layers
     os.environ["RH_DRAPE_CACHE"] = tempfile.mkdtemp(prefix="bench_cloth_layers_")  # cold: the drapes are timed
+    figured = False
     print(f"load average at start: {load()}; drape level {args.drape}")
     for s in (int(x) for x in args.subjects.split(",")):
         recipe = (recipe_from_seed(derive_seed("benchmark", s, args.seed), "benchmark", s) if args.pool else
@@ -189,7 +195,54 @@ def main(argv: list[str] | None = None) -> int:
                         posed[k], posed[top], list(posed.values()))) for k in inners)
                 print(f"  {label:22s} {mode:9s}  {before} | {after} | {t_push:5.2f}{two} "
                       f"(posing {t_all:.1f} s; load {load()})", flush=True)
+        if args.figure and not figured:
+            bones = dict(sample_pose(rng_for(args.seed, "pose", s, "test", args.figure_pose), load_anny()).bones)
+            figure(args.figure, character, bones, s, tuck)
+            figured = True
     return 0
+
+
+def figure(out: Path, character, bones: dict, s: int, tuck) -> None:
+    """`--figure`: `character` posed by `bones` (skinned), rendered with rh-generate's standard preset for the test
+    split at 64 spp under Blender's studio light, the body from the hips to the knees framed at 512 px, from the
+    front and from its right: without the tuck (`character._tuck_inner_layers`, top row) and with it (bottom)."""
+    import rh_dataset.characters.character as character_module
+    from rh_common.camera import frame_body
+    from rh_common.colourspace import quantize8, srgb_encode
+    from rh_common.imageio import write_png
+    from rh_dataset.characters import body_bounds, pose_character
+    from rh_dataset.cli import render_settings
+    from rh_dataset.render.passes import render_frame
+    from rh_dataset.spec import load_protocol
+    from rh_dataset.variant import load_mitsuba, select_variant
+    from subjects_gallery import studio_environment
+
+    select_variant(None)
+    env = studio_environment(load_mitsuba())
+    test = next(x for x in load_protocol("protocol_a").splits if x.name == "test")
+    settings = render_settings("standard", spp=64, aov_spp=4).for_split(test)
+    rows = []
+    for t in (lambda *a: None, tuck):
+        character_module._tuck_inner_layers = t
+        try:
+            posed = pose_character(character, bones, None, "skinned")
+        finally:
+            character_module._tuck_inner_layers = tuck
+        lo, hi = body_bounds(posed)
+        a, b = lo.copy(), hi.copy()  # the lap: from 30 % to 75 % of the posed height
+        a[2], b[2] = lo[2] + 0.3 * (hi[2] - lo[2]), lo[2] + 0.75 * (hi[2] - lo[2])
+        cam = frame_body(a, b, 512, 512, 30.0, fill=0.9)
+        centre, reach = np.array(cam.target), np.linalg.norm(np.array(cam.origin) - np.array(cam.target))
+        views = []
+        for deg in (0.0, 270.0):  # the front (-Y), then the subject's right
+            r = np.radians(deg)
+            origin = tuple(float(x) for x in centre + reach * np.array([-np.sin(r), -np.cos(r), 0.0]))
+            img = render_frame(posed, env, dataclasses.replace(cam, origin=origin), settings, ["image"],
+                               seed=s).layers["image"]
+            views.append(quantize8(srgb_encode(np.clip(img * 1.3, 0.0, None))))
+        rows.append(np.concatenate(views, 1))
+    write_png(out, np.concatenate(rows, 0))
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":
