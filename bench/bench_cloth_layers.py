@@ -204,8 +204,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def figure(out: Path, character, bones: dict, s: int, tuck) -> None:
     """`--figure`: `character` posed by `bones` (skinned), rendered with rh-generate's standard preset for the test
-    split at 64 spp under Blender's studio light, the body from the hips to the knees framed at 512 px, from the
-    front and from its right: without the tuck (`character._tuck_inner_layers`, top row) and with it (bottom)."""
+    split at 64 spp under Blender's studio light, the posed body between 30 % and 75 % of its height (the lap)
+    framed at 512 px, from the front and from its right: without the tuck (`character._tuck_inner_layers`, top row)
+    and with it (bottom)."""
     import rh_dataset.characters.character as character_module
     from rh_common.camera import frame_body
     from rh_common.colourspace import quantize8, srgb_encode
