@@ -19,7 +19,7 @@ from rh_dataset.characters.drape import (DRAPE_LEVELS, PUSH_CLEARANCES, SHELL_KI
                                          collider_faces, drape_garment, drape_settings, penetration, shell_hem)
 from test_drape_coat import HEAVY, PHENO, _heads, check_open_front_pattern, drape_measures, shell_under_panels
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))  # bench_cloth_pose's `seen_around`
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))  # bench_cloth_layers' `over_top`
 
 KIND = "draped_jacket"
 # The band the hem is cut for, metres: under the hip joints and above the crotch (`_crotch_height`: the lowest point
@@ -227,7 +227,7 @@ def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, 
     between its vertices is put back under it (`character._tuck_inner_layers`): of that cloth's vertices over the
     jacket, a camera around the subject sees at most 1 (measured: 1 and 0; without the tuck 3, and 6 of the skirt's
     in the `random` pose), and the jacket lies at most POSED_UNDER_M under it (POSED_UNDER_N vertices)."""
-    from bench_cloth_pose import seen_around
+    from bench_cloth_layers import over_top
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters import character as character_module
@@ -250,10 +250,7 @@ def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, 
                                          LAYER_REACH), nan=-1.0)
 
     def seen_over(posed, k):  # the cloth `k`'s vertices over the posed jacket that a camera around sees
-        v = posed[k].vertices.astype(np.float64)
-        over = np.nan_to_num(layer_depth(v, posed[KIND].vertices.astype(np.float64), posed[KIND].faces,
-                                         LAYER_REACH), nan=1.0) < 0.0
-        return int(seen_around(v[over], posed[k].normals[over].astype(np.float64), list(posed.values())).sum())
+        return over_top(posed[k], posed[KIND], list(posed.values()))[2]
 
     for k, cloth in draped.items():
         d_alone, d_over = depth(alone.vertices, cloth.vertices, cloth.faces), depth(over.vertices, cloth.vertices,

@@ -17,7 +17,7 @@ from rh_dataset.characters.drape import (DRAPE_LEVELS, PROFILES, bind_loose, dra
                                          garment_pattern, penetration, push_out, skin_points)
 from rh_dataset.characters.geometry import edge_counts
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))  # bench_cloth_pose's `seen_around`
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))  # bench_cloth_layers' `over_top`
 
 KIND = "draped_trousers"
 PHENO = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5, "proportions": 0.5}
@@ -177,7 +177,7 @@ def test_loose_top_and_open_jacket_stay_over_the_lifted_trousers(tmp_path, monke
     on the lap). In the first sitting pose, two passes of `push_over_layers` alone (no tuck) left a jacket vertex
     29.7 mm under the trousers; the extra passes (LAYER_CYCLES_MAX) take it to 2.1 mm. Pool recipe 17's loose
     t-shirt over the lifted trousers was measured too (3.4 mm at worst, 4 poses), not tested here."""
-    from bench_cloth_pose import seen_around
+    from bench_cloth_layers import over_top
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters import character as character_module
@@ -198,10 +198,7 @@ def test_loose_top_and_open_jacket_stay_over_the_lifted_trousers(tmp_path, monke
         return float(np.nanmax(np.nan_to_num(d, nan=-1.0)))
 
     def seen_over(posed):  # the trousers' vertices over the posed jacket that a camera around sees
-        v = posed[KIND].vertices.astype(np.float64)
-        over = np.nan_to_num(layer_depth(v, posed["draped_jacket"].vertices.astype(np.float64),
-                                         posed["draped_jacket"].faces, LAYER_REACH), nan=1.0) < 0.0
-        return int(seen_around(v[over], posed[KIND].normals[over].astype(np.float64), list(posed.values())).sum())
+        return over_top(posed[KIND], posed["draped_jacket"], list(posed.values()))[2]
 
     for j in range(4):
         pose = sample_pose(rng_for(0, "pose", 4, "test", j), load_anny())
