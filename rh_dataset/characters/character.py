@@ -535,8 +535,8 @@ def _tuck_inner_layers(character: Character, posed: list, cloth_under: dict, ver
     the skin won. Outermost first: a tucked cloth is then tucked under the cloth over it in turn. Pool recipe 4 of
     seed 0 bending and sitting: the trousers' vertices a camera sees over its open jacket 31-39 -> 0-2 a frame, for
     about 1 s more posing (1.6-1.9 -> 2.6-3.0 s at load ~1; bench/bench_cloth_layers.py --through, with and without
-    --no-tuck; ARCHITECTURE, "Cloth under the top out through it"). `posed` meshes (vertices and normals) and `cloth_under` entries are replaced where they moved;
-    where nothing came through, nothing changes."""
+    --no-tuck; ARCHITECTURE, "Cloth under the top out through it"). `posed` meshes (vertices and normals) and
+    `cloth_under` entries are replaced where they moved; where nothing came through, nothing changes."""
     outers = [p for p in character.parts if p.name in cloth_under and
               any(k in cloth_under for k in DRAPED_OVER.get(p.name, ()))]
     before = {k: v for k, (v, _) in cloth_under.items()}
