@@ -4,6 +4,7 @@ optionally a draft render.
 
     python bench/bench_cloth.py                                   # drape + 8 poses (~2-3 min on a busy 2-core box)
     python bench/bench_cloth.py --kind draped_trousers            # the wide trousers (~8 min: two full drapes)
+    python bench/bench_cloth.py --kind draped_shorts              # the loose shorts (~3 min)
     python bench/bench_cloth.py --kind draped_coat                # the open coat, and how deep it sinks into the
                                                                   # layers under it and its shell into it
     python bench/bench_cloth.py --kind draped_jacket              # the open jacket, the same measures
@@ -11,7 +12,7 @@ optionally a draft render.
 
 Figures: drape wall seconds (uncached, Warp kernels already compiled; the first run ever adds their compilation,
 printed separately as `first drape`), the cached load, the skinning per frame against the shell's posing (the
-skirt's, or the trousers' for draped trousers)
+skirt's, or the trousers' for draped trousers, the shorts' for draped shorts)
 (both after one anny run, which every frame pays anyway), and penetration = trimesh signed distance of the skinned
 cloth vertices into the posed body (metres, > 0 inside): the worst over all vertices, its 99th percentile, and the
 share of vertices inside, per pose label; and how many of the drape's edges pass through the cloth itself
@@ -176,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.recipe import Garment
 
-    shell_kind = {"draped_trousers": "trousers", "draped_coat": "jacket", "draped_jacket": "jacket",
+    shell_kind = {"draped_trousers": "trousers", "draped_shorts": "shorts", "draped_coat": "jacket", "draped_jacket": "jacket",
                   "draped_tshirt": "tshirt", "draped_longsleeve": "longsleeve"}.get(kind, "skirt")
     shell = build_garments((Garment(shell_kind, (0.5, 0.5, 0.5)),), body_features(ph))[0]
     from rh_dataset.characters.body import vertex_normals

@@ -1,6 +1,6 @@
 """Benchmark subjects in loose garments: the first draped-dress, draped-skirt, draped-trousers, draped-coat,
-draped-hoodie, draped-jacket, draped-tshirt and draped-longsleeve wearers among a dataset seed's subjects (or the subjects named), draped at a drape
-level, rendered rest front | rest side | a posed frame front | side (`--turns`: other views, e.g. from the back),
+draped-hoodie, draped-jacket, draped-tshirt, draped-longsleeve and draped-shorts wearers among a dataset seed's
+subjects (or the subjects named), draped at a drape level, rendered rest front | rest side | a posed frame front | side (`--turns`: other views, e.g. from the back),
 with the drape's seconds and how deep any cloth vertex sits in the body in each view.
 
     python bench/draped_garments.py --out docs/draped_garments.png           # 2 dresses + 2 skirts, full drape
@@ -13,6 +13,7 @@ with the drape's seconds and how deep any cloth vertex sits in the body in each 
     python bench/draped_garments.py --subjects 7,48 --tile 512 --out docs/draped_jacket.png  # two open jackets
     python bench/draped_garments.py --subjects 3,31 --tile 512 --out docs/draped_tshirt.png  # two loose t-shirts
     python bench/draped_garments.py --subjects 11,36 --tile 512 --out docs/draped_longsleeve.png  # loose long sleeves
+    python bench/draped_garments.py --subjects 1,8,23,44 --tile 512 --out docs/draped_shorts.png  # loose shorts
 
 In: the dataset seed (the generator's subject order: `sample_recipe(rng_for(seed, "character", s))`), how many
 subjects of each kind (or `--subjects`: these indices, whatever they wear), the drape level (`drape.DRAPE_LEVELS`).
@@ -38,18 +39,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200, trousers: int = 0,
                    swap_trousers: bool = False, coats: int = 0, hoodies: int = 0, jackets: int = 0,
-                   tshirts: int = 0, longsleeves: int = 0,
+                   tshirts: int = 0, longsleeves: int = 0, shorts: int = 0,
                    subjects: tuple[int, ...] = ()) -> list[tuple[int, object]]:
     """(subject index, recipe) of the first `dresses` draped-dress, `skirts` draped-skirt, `trousers`
     draped-trousers, `coats` draped-coat, `hoodies` draped-hoodie, `jackets` draped-jacket, `tshirts`
-    draped-tshirt and `longsleeves` draped-longsleeve wearers of `seed` (`swap_trousers`: shell-trousers wearers put in draped ones), or of the `subjects` given by index."""
+    draped-tshirt, `longsleeves` draped-longsleeve and `shorts` draped-shorts wearers of `seed` (`swap_trousers`:
+    shell-trousers wearers put in draped ones), or of the `subjects` given by index."""
     import dataclasses
 
     from rh_dataset.characters import sample_recipe
     from rh_dataset.generate.seeding import rng_for
 
     want = {"draped_dress": dresses, "draped_skirt": skirts, "draped_trousers": trousers, "draped_coat": coats,
-            "draped_hoodie": hoodies, "draped_jacket": jackets, "draped_tshirt": tshirts, "draped_longsleeve": longsleeves}
+            "draped_hoodie": hoodies, "draped_jacket": jackets, "draped_tshirt": tshirts, "draped_longsleeve": longsleeves,
+            "draped_shorts": shorts}
     if subjects:
         return [(s, sample_recipe(rng_for(seed, "character", s), pool="benchmark", index=s)) for s in subjects]
     out = []
@@ -78,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jackets", type=int, default=0, help="open-jacket (draped_jacket) wearers")
     ap.add_argument("--tshirts", type=int, default=0, help="loose t-shirt (draped_tshirt) wearers")
     ap.add_argument("--longsleeves", type=int, default=0, help="loose long sleeve (draped_longsleeve) wearers")
+    ap.add_argument("--shorts", type=int, default=0, help="loose shorts (draped_shorts) wearers")
     ap.add_argument("--subjects", default="", help="comma-separated subject indices to show instead of a search")
     ap.add_argument("--turns", default="0,90",
                     help="the two views, degrees about +Z (0: from the front, 90: its left, 180: from the back)")
@@ -111,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     for s, recipe in loose_subjects(args.seed, args.dresses, args.skirts, trousers=args.trousers,
                                     swap_trousers=args.swap_trousers, coats=args.coats, hoodies=args.hoodies,
                                     jackets=args.jackets, tshirts=args.tshirts,
-                                    longsleeves=args.longsleeves,
+                                    longsleeves=args.longsleeves, shorts=args.shorts,
                                     subjects=tuple(int(x) for x in args.subjects.split(",") if x)):
         t = time.perf_counter()
         character = build_character(recipe, 512, drape=args.drape)

@@ -1,7 +1,7 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
-trousers, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on the
+trousers or loose shorts, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on the
 back of the neckline, laid back and let fall down the upper back), a loose t-shirt's or long sleeve's body (a tube
 hanging from under the arms to the hips; its shoulders and sleeves are the shell "tee" or "longtop")); `PROFILES` cuts
 the others from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
@@ -49,10 +49,10 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
            "cloth_model", "cloth_solver", "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
            "HoodCut", "HOOD_CLEARANCE", "FRONT_OPENING", "JACKET_HEM", "TSHIRT_CLEARANCE",
-           "TSHIRT_HEM"]
+           "TSHIRT_HEM", "SHORTS_HEM"]
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
-                "draped_tshirt", "draped_longsleeve")
+                "draped_tshirt", "draped_longsleeve", "draped_shorts")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -161,7 +161,9 @@ class DrapeProfile:
     `legs` (trousers, `_trouser_pattern`): the tube from the waist hangs straight (kept outside the hips) down to
     just under the crotch, where it divides into two leg tubes along a crotch seam between the thighs; each leg
     is a cone of half-angle `DrapeSettings.flare` whose top radius is `legs` times half the hips' width at the
-    split, its hem `hem` metres above the floor (`hem` is not a fraction for trousers).
+    split, its hem `hem` metres above the floor (`hem` is not a fraction for trousers), or, where `leg_hem` > 0
+    (the shorts), `leg_hem` of the hip-joint-to-ankle drop under the hip joints (the shell shorts' cut is measured
+    along the leg the same way, garments.py).
 
     `opening` (the coat, the jacket): metres between the two front edges at the top ring; the tube is cut open there (no
     particles in the front sector that width subtends at the ring's front radius, all the way down), so the two
@@ -174,6 +176,7 @@ class DrapeProfile:
     legs: float = 0.0
     opening: float = 0.0
     ring_gap: float = 0.0
+    leg_hem: float = 0.0
 
 
 # The open jacket's cut (`draped_jacket`): the coat's, its flared part JACKET_HEM of the hip-to-knee drop, so the
@@ -195,9 +198,13 @@ TSHIRT_HEM = 0.45
 # the ring's height), and seen from above (a bending pose, bench_cloth_pose.py --figure) the slot between them showed
 # as a dark line across the chest.
 TSHIRT_RING_GAP = 0.010
+# The loose shorts' cut (`draped_shorts`): the wide trousers' pattern, its legs cut SHORTS_HEM of the hip-joint-to-
+# ankle drop under the hip joints (the shell shorts end at 0.42 of the leg's length from the hip joint).
+SHORTS_HEM = 0.38
 FRONT_OPENING = 0.05  # metres between the open coat's and jacket's front edges at the pinned ring (their one shell's V)
 PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7),
             "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),
+            "draped_shorts": DrapeProfile("waist", "top", legs=1.0, leg_hem=SHORTS_HEM),
             "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=FRONT_OPENING),
             "draped_jacket": DrapeProfile("chest", "hips", JACKET_HEM, opening=FRONT_OPENING),
             "draped_tshirt": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP)}
@@ -249,6 +256,11 @@ _SETTINGS = {
                                                tri_ka=1.0e5, contact_ke=5.0e4),
     ("draped_trousers", "coarse"): DrapeSettings(n_around=32, n_rings=16, steps=150, iterations=20, flare=0.06,
                                                  tri_ke=1.0e5, tri_ka=1.0e5, contact_ke=5.0e4),
+    # The loose shorts: the wide trousers' fabric and ring spacing (~2.7 cm, coarse ~6 cm) over their ~45 cm.
+    ("draped_shorts", "full"): DrapeSettings(n_around=64, n_rings=16, iterations=20, flare=0.06, tri_ke=1.0e5,
+                                             tri_ka=1.0e5, contact_ke=5.0e4),
+    ("draped_shorts", "coarse"): DrapeSettings(n_around=32, n_rings=8, steps=150, iterations=20, flare=0.06,
+                                               tri_ke=1.0e5, tri_ka=1.0e5, contact_ke=5.0e4),
     # The coat: the dress's cut from the chest, longer, kept further off the skin (the layers under it).
     ("draped_coat", "full"): DrapeSettings(n_rings=40, contact_ke=5.0e4, clearance=COAT_CLEARANCE),
     ("draped_coat", "coarse"): DrapeSettings(n_around=36, n_rings=20, steps=150, contact_ke=5.0e4,
@@ -363,9 +375,10 @@ SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dres
 # alone, the top's cloth would settle through the skirt. The open jacket's and the coat's panels hang over a loose
 # top (recipe.OVER_LOOSE_TOP), the jacket's over the skirt under it too (recipe.JACKET_OVER_LOOSE_TOP). Their pattern
 # is cut outside that cloth too (`garment_pattern`'s `over`), and `drape_garment` adds the cloth to the collider.
-DRAPED_OVER = {"draped_tshirt": ("draped_skirt", "draped_trousers"),
-               "draped_longsleeve": ("draped_skirt", "draped_trousers"),
-               "draped_jacket": ("draped_skirt", "draped_trousers", "draped_tshirt", "draped_longsleeve"),
+DRAPED_OVER = {"draped_tshirt": ("draped_skirt", "draped_trousers", "draped_shorts"),
+               "draped_longsleeve": ("draped_skirt", "draped_trousers", "draped_shorts"),
+               "draped_jacket": ("draped_skirt", "draped_trousers", "draped_shorts", "draped_tshirt",
+                                 "draped_longsleeve"),
                "draped_coat": ("draped_tshirt", "draped_longsleeve")}
 
 
@@ -588,14 +601,19 @@ def _trouser_pattern(phenotype: dict[str, float], st: DrapeSettings, prof: Drape
     heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
     na = int(st.n_around)
     if na % 2 or na < 8 or int(st.n_rings) < 6:
-        raise ValueError(f"drape: draped_trousers needs an even n_around >= 8 and n_rings >= 6 in DrapeSettings, "
+        raise ValueError(f"drape: draped trousers and shorts need an even n_around >= 8 and n_rings >= 6 in DrapeSettings, "
                          f"got {na} x {st.n_rings}")
     gap = st.clearance + 0.002
     centre = np.asarray(heads["root"], dtype=np.float64)
     z_top = 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01
     mesh = trimesh.Trimesh(body, collider_faces(phenotype), process=False)
     z_split = _crotch_height(mesh, centre, z_top) - gap
-    z_hem = float(body[:, 2].min()) + prof.hem
+    if prof.leg_hem > 0:  # the shorts: along the leg, as the shell shorts' cut
+        hip = 0.5 * (float(heads["upperleg01.L"][2]) + float(heads["upperleg01.R"][2]))
+        ankle = 0.5 * (float(heads["foot.L"][2]) + float(heads["foot.R"][2]))
+        z_hem = hip - prof.leg_hem * (hip - ankle)
+    else:
+        z_hem = float(body[:, 2].min()) + prof.hem
     h = (z_top - z_hem) / (int(st.n_rings) - 1)
     n_w = max(2, int(round((z_top - z_split) / h)) + 1)
     n_l = int(st.n_rings) - n_w + 1

@@ -14,8 +14,8 @@ import hashlib
 import numpy as np
 
 from .body import sample_phenotype
-from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, JACKET_OVER_LOOSE_TOP, OUTERWEAR, OVER_LOOSE_TOP,
-                     PATTERNS, POOLS, TOPS, UNDER_COAT, UNDER_LOOSE_TOP, CharacterRecipe, EyeSpec, Garment, HairSpec,
+from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, JACKET_OVER_LOOSE_TOP, LOOSE_TOPS, OUTERWEAR,
+                     OVER_LOOSE_TOP, PATTERNS, POOLS, TOPS, UNDER_COAT, UNDER_LOOSE_TOP, CharacterRecipe, EyeSpec, Garment, HairSpec,
                      Headwear, SkinTone)
 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
@@ -23,7 +23,7 @@ __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear"
            "iris_colour_name", "iris_weights", "EYES_STREAM", "DRESS_P", "DRESS_STREAM", "WIDE_TROUSERS_P",
            "WIDE_TROUSERS_STREAM", "COAT_P", "COAT_STREAM", "HOODIE_P", "HOODIE_STREAM", "HOODIE_HAIR", "JACKET_P",
            "JACKET_STREAM", "TSHIRT_P", "TSHIRT_STREAM",
-           "LONGSLEEVE_P", "LONGSLEEVE_STREAM"]
+           "LONGSLEEVE_P", "LONGSLEEVE_STREAM", "SHORTS_P", "SHORTS_STREAM"]
 
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 # Loose clothing (issue 17): the published dataset's subjects wear "long hair, loose clothing, jackets, hats, head
@@ -81,6 +81,14 @@ TSHIRT_P = 0.5
 # longsleeve's colours, pattern and fabric: no other draw of any seed changes.
 LONGSLEEVE_STREAM = 1723
 LONGSLEEVE_P = 0.5
+# Loose shorts (`draped_shorts`: the wide trousers' pattern cut above the knee) instead of the drawn (shell) shorts,
+# for this share of the shorts wearers, where nothing is worn over them that the shorts' cloth would have to be a
+# collider for: no coat, and the open jacket only with a loose top between (recipe.JACKET_OVER_LOOSE_TOP). Our
+# choice, not a census figure: a shell is a cycling short, and most shorts worn in the street hang loose; half stay
+# close-fitting. Drawn last, from a stream of their own (one draw for everyone), the shorts' colours, pattern and
+# fabric: no other draw of any seed changes, and no other garment of any subject.
+SHORTS_STREAM = 1724
+SHORTS_P = 0.5
 
 
 def derive_seed(pool: str, index: int, base: int) -> int:
@@ -206,6 +214,7 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     garments = _hoodie(np.random.default_rng([int(seed), HOODIE_STREAM]), garments, hair, headwear)
     garments = _loose_top(np.random.default_rng([int(seed), LONGSLEEVE_STREAM]), garments, "longsleeve",
                           LONGSLEEVE_P)
+    garments = _loose_shorts(np.random.default_rng([int(seed), SHORTS_STREAM]), garments)
     return CharacterRecipe(seed=int(seed), pool=pool, index=int(index), phenotype=phenotype, skin=skin, hair=hair,
                            garments=garments, headwear=headwear, eyes=eyes)
 
@@ -258,6 +267,18 @@ def _loose_top(rng: np.random.Generator, garments: tuple[Garment, ...], top: str
     return tuple(dataclasses.replace(g, kind=kind.get(g.kind, g.kind)) for g in garments)
 
 
+def _loose_shorts(rng: np.random.Generator, garments: tuple[Garment, ...]) -> tuple[Garment, ...]:
+    """The drawn shorts made loose draped ones with probability SHORTS_P where no outerwear but a shell jacket, or an
+    open jacket over a loose top, is worn (rng: the shorts' stream; one draw for everyone, so its use is fixed)."""
+    loose = rng.random() < SHORTS_P
+    kinds = {g.kind for g in garments}
+    outer = kinds & set(OUTERWEAR)
+    over = not outer or outer == {"jacket"} or (outer == {"draped_jacket"} and bool(kinds & set(LOOSE_TOPS)))
+    if not (loose and "shorts" in kinds and over):
+        return garments
+    return tuple(dataclasses.replace(g, kind="draped_shorts") if g.kind == "shorts" else g for g in garments)
+
+
 def _hoodie(rng: np.random.Generator, garments: tuple[Garment, ...], hair: HairSpec,
             headwear: tuple[Headwear, ...]) -> tuple[Garment, ...]:
     """The drawn longsleeve made a draped hoodie with probability HOODIE_P where nothing is worn over it, the hair is
@@ -289,6 +310,7 @@ _FABRIC_CHOICES = {
     "draped_longsleeve": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),  # the longsleeve's
     "trousers": (("plain", "velvet"), (0.92, 0.08)),  # denim / twill; velvet stands for corduroy and velour
     "draped_trousers": (("plain", "velvet"), (0.92, 0.08)),  # the trousers' (so a drawn fabric stays the same)
+    # (shorts and draped_shorts: plain; the loose shorts are drawn after the fabrics, so keep the shorts' anyway)
     "skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
     "draped_skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
     "draped_dress": (("plain", "jersey", "velvet"), (0.6, 0.3, 0.1)),

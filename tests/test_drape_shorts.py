@@ -1,0 +1,134 @@
+"""Loose shorts (drape.py, kind `draped_shorts`): the wide trousers' pattern cut above the knee (`SHORTS_HEM` of the
+hip-joint-to-ankle drop under the hip joints). The pattern is a pair of pants cut where it should be and outside the
+body; newton's coarse drape hangs above the knee, stays off the body at rest and when skinned into sampled poses,
+and reruns to the same bits; recipes draw the shorts from a stream of their own, last, where what is worn over them
+allows it."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+from rh_dataset.characters.drape import (DRAPE_LEVELS, PROFILES, SHORTS_HEM, bind_loose, drape_garment,
+                                         drape_settings, penetration, push_out, skin_points)
+from rh_dataset.characters.geometry import edge_counts
+
+KIND = "draped_shorts"
+PHENO = {"gender": 0.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5, "proportions": 0.5}
+HEAVY = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.95, "height": 0.5, "proportions": 0.5}
+# The drapes of these builds, measured by hand (4 December; coarse / full): the hem (mean height of the legs' last
+# rings) settled 0.9 / 2.4 cm (slim), 0.8 / 2.1 cm (heavy) under its cut and 9.4 / 7.9, 8.6 / 7.2 cm above the knee
+# joints; the worst vertex 1.6 mm off / 0.8 mm in the body (slim), 1.5 mm in / 1.5 mm off (heavy): as the wide
+# trousers' (tests/test_drape_trousers.py), the loaded waistband presses in a little; 3-5 self-crossing edges where
+# the legs' inner walls meet under the crotch.
+HEM_SAG_M = (0.0, 0.04)  # how far the hem settles under its cut
+KNEE_ABOVE_M = 0.05  # the hem at least this far above the knee joints
+REST_BOUND_M = 0.002  # no vertex deeper in the body at rest (the trousers' bound)
+
+
+def _joints(pheno):
+    run = run_anny(pheno)
+    heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
+    z = lambda a: 0.5 * (float(heads[f"{a}.L"][2]) + float(heads[f"{a}.R"][2]))  # noqa: E731
+    return run, z("upperleg01"), z("lowerleg01"), z("foot")
+
+
+@pytest.mark.parametrize("level", DRAPE_LEVELS)
+@pytest.mark.parametrize("pheno", [PHENO, HEAVY], ids=["slim", "heavy"])
+def test_shorts_pattern_is_a_pair_of_pants_cut_above_the_knee(pheno, level):
+    """The trousers' pants topology (three open rims: waistband and two hems; Euler characteristic -1), the hems cut
+    SHORTS_HEM of the hip-to-ankle drop under the hip joints (the shell shorts end at 0.42 of the leg's length),
+    between the crotch and the knee, and every pattern vertex outside the body."""
+    from rh_dataset.characters.drape import _trouser_pattern
+
+    st = drape_settings(KIND, level)
+    verts, faces, uvs, pinned, mpu, pieces = _trouser_pattern(pheno, st, PROFILES[KIND])
+    waist, left, right = pieces
+    _, counts = edge_counts(faces)
+    assert set(counts.tolist()) == {1, 2}
+    assert (counts == 1).sum() == waist.shape[1] + left.shape[1] + right.shape[1]
+    assert len(verts) - len(counts) + len(faces) == -1
+    assert waist.shape[0] + left.shape[0] - 1 == st.n_rings and left.shape[0] >= 4
+    run, hip, knee, ankle = _joints(pheno)
+    cut = hip - SHORTS_HEM * (hip - ankle)
+    for leg in (left, right):
+        assert np.allclose(verts[leg[-1], 2], cut)
+    assert knee < cut < float(verts[waist[-1], 2].mean()) < hip
+    assert pinned.sum() == st.n_around and np.all(pinned[waist[0]])
+    assert penetration(run["vertices"], body_topology().faces, verts).max() < 0.0
+    assert ((uvs >= 0) & (uvs <= 1)).all()
+
+
+def test_coarse_shorts_drape_hangs_above_the_knee_off_the_body_and_reruns_to_the_same_bits(tmp_path, monkeypatch):
+    """newton's coarse drape: the hems settle a little under their cut and above the knee, nothing lies deeper than
+    REST_BOUND_M in the body at rest, and skinned (`bind_loose`) into sampled poses and pushed out (`push_out`), nothing is under the skin.
+    Simulated again (and cached) it gives the same bits, and the cache gives them back."""
+    from rh_common.body_model import load_anny
+    from rh_dataset.poses import sample_poses
+
+    monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
+    st = drape_settings(KIND, "coarse")
+    g = drape_garment(KIND, PHENO, st, use_cache=False)
+    run, hip, knee, ankle = _joints(PHENO)
+    cut = hip - SHORTS_HEM * (hip - ankle)
+    hem = np.concatenate([g.vertices[p[-1], 2] for p in g.pieces[1:]]).mean()
+    assert HEM_SAG_M[0] <= cut - hem <= HEM_SAG_M[1], (cut, hem)
+    assert hem - knee >= KNEE_ABOVE_M, (hem, knee)
+    faces = body_topology().faces
+    assert penetration(run["vertices"], faces, g.vertices).max() < REST_BOUND_M
+    assert drape_garment(KIND, PHENO, st).vertices.tobytes() == g.vertices.tobytes()  # simulated, cached
+    assert len(list(tmp_path.glob(f"{KIND}-*.npz"))) == 1
+    assert drape_garment(KIND, PHENO, st).vertices.tobytes() == g.vertices.tobytes()  # read back
+    b = bind_loose(g, PHENO)
+    for pose in sample_poses(np.random.default_rng(7), load_anny(), 8)[:4]:
+        posed = run_anny(PHENO, dict(pose.bones))
+        pts = skin_points(b, posed["bone_poses"], posed["rest_bone_poses"])
+        pts = push_out(pts, posed["vertices"], vertex_normals(posed["vertices"], faces), faces)
+        assert penetration(posed["vertices"], faces, pts).max() <= 0.0, pose.label
+
+
+def _shell_shorts(r) -> tuple:
+    return tuple(dataclasses.replace(g, kind="shorts") if g.kind == KIND else g for g in r.garments)
+
+
+def test_benchmark_recipes_draw_loose_shorts_from_their_own_stream(monkeypatch):
+    """recipe_from_seed turns the drawn (shell) shorts into loose ones for SHORTS_P of the shorts wearers under no
+    coat, and under the open jacket only with a loose top between, deciding last, on a stream of its own
+    (SHORTS_STREAM): with the share set to zero every recipe of 1000 seeds is the same but for that kind (fabric
+    included); the wearers are exactly the eligible seeds whose stream's first draw is under the share. Seed 0's
+    benchmark: subjects 1, 8, 11, 23, 28 and 44 (11 under a loose long sleeve, 28 under a hoodie). A recipe
+    round-trips through JSON; loose shorts under a coat, or under the open jacket over a shell top, are refused."""
+    from rh_dataset.characters import recipe_draws
+    from rh_dataset.characters.recipe import LOOSE_TOPS, CharacterRecipe, Garment
+    from rh_dataset.characters.recipe_draws import SHORTS_P, SHORTS_STREAM, recipe_from_seed, sample_recipe
+    from rh_dataset.generate.seeding import rng_for
+
+    bench = [sample_recipe(rng_for(0, "character", s), pool="benchmark", index=s) for s in range(49)]
+    seeds = [2 * i for i in range(1000)]
+    rs = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
+    monkeypatch.setattr(recipe_draws, "SHORTS_P", 0.0)
+    plain = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
+    loose = np.array([r.garment(KIND) is not None for r in rs])
+    eligible = np.array([p.garment("shorts") is not None and p.garment("draped_coat") is None
+                         and (p.garment("draped_jacket") is None or any(p.garment(k) for k in LOOSE_TOPS))
+                         for p in plain])
+    assert not any(p.garment(KIND) for p in plain) and eligible.sum() > 100
+    first = np.array([np.random.default_rng([s, SHORTS_STREAM]).random() < SHORTS_P for s in seeds])
+    assert np.array_equal(loose, eligible & first) and SHORTS_P == 0.5
+    assert any(r.garment(KIND) and r.garment("draped_jacket") for r in rs)
+    for r, p in zip(rs, plain):
+        assert dataclasses.replace(r, garments=_shell_shorts(r)) == p
+    assert [r.index for r in bench if r.garment(KIND)] == [1, 8, 11, 23, 28, 44]
+    r = rs[int(np.flatnonzero(loose)[0])]
+    assert CharacterRecipe.from_json(r.to_json_text()) == r
+    shoes, shorts = Garment("shoes", (0, 0, 0)), Garment(KIND, (0, 0, 0))
+    for gs in ((shoes, shorts, Garment("tshirt", (1, 1, 1)), Garment("draped_coat", (0, 0, 1))),
+               (shoes, shorts, Garment("tshirt", (1, 1, 1)), Garment("draped_jacket", (0, 0, 1)))):
+        with pytest.raises(ValueError, match="draped_coat or draped_jacket"):
+            dataclasses.replace(r, garments=gs)
+    for top in ("tshirt", "draped_tshirt", "draped_hoodie"):
+        dataclasses.replace(r, garments=(shoes, shorts, Garment(top, (1, 1, 1))))
+    dataclasses.replace(r, garments=(shoes, shorts, Garment("draped_tshirt", (1, 1, 1)),
+                                     Garment("draped_jacket", (0, 0, 1))))
