@@ -74,8 +74,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "the frame JSON records it under render.cloth (docs/TRADEOFFS.md, 'Skinned or simulated "
                         "cloth')")
     p.add_argument("--drape", default=None,
-                   help="how finely loose garments (draped skirts, dresses, wide trousers, coats, open jackets, "
-                        "hoods) are simulated onto each subject's body (overrides the preset): 'full' (the "
+                   help="how finely loose garments (draped skirts, dresses, wide trousers, loose shorts, coats, "
+                        "open jackets, loose tops, hoods) are simulated onto each subject's body (overrides the preset): 'full' (the "
                         "benchmark's, 1-3 min a subject on 2 cores, cached) or 'coarse' (the draft preset's, ~1/8 of "
                         "that); recorded under render.drape")
     p.add_argument("--seed", type=int, default=0, help="dataset seed: characters, poses, lights and sampler seeds")
