@@ -177,8 +177,9 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.recipe import Garment
 
-    shell_kind = {"draped_trousers": "trousers", "draped_shorts": "shorts", "draped_coat": "jacket", "draped_jacket": "jacket",
-                  "draped_tshirt": "tshirt", "draped_longsleeve": "longsleeve"}.get(kind, "skirt")
+    shell_kind = {"draped_trousers": "trousers", "draped_shorts": "shorts", "draped_coat": "jacket",
+                  "draped_jacket": "jacket", "draped_tshirt": "tshirt",
+                  "draped_longsleeve": "longsleeve"}.get(kind, "skirt")
     shell = build_garments((Garment(shell_kind, (0.5, 0.5, 0.5)),), body_features(ph))[0]
     from rh_dataset.characters.body import vertex_normals
 

@@ -1,7 +1,8 @@
 """Benchmark subjects in loose garments: the first draped-dress, draped-skirt, draped-trousers, draped-coat,
 draped-hoodie, draped-jacket, draped-tshirt, draped-longsleeve and draped-shorts wearers among a dataset seed's
-subjects (or the subjects named), draped at a drape level, rendered rest front | rest side | a posed frame front | side (`--turns`: other views, e.g. from the back),
-with the drape's seconds and how deep any cloth vertex sits in the body in each view.
+subjects (or the subjects named), draped at a drape level, rendered rest front | rest side | a posed frame front |
+side (`--turns`: other views, e.g. from the back), with the drape's seconds and how deep any cloth vertex sits in the
+body in each view.
 
     python bench/draped_garments.py --out docs/draped_garments.png           # 2 dresses + 2 skirts, full drape
     python bench/draped_garments.py --dresses 1 --skirts 1 --drape coarse    # quicker look
@@ -51,8 +52,8 @@ def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200, trous
     from rh_dataset.generate.seeding import rng_for
 
     want = {"draped_dress": dresses, "draped_skirt": skirts, "draped_trousers": trousers, "draped_coat": coats,
-            "draped_hoodie": hoodies, "draped_jacket": jackets, "draped_tshirt": tshirts, "draped_longsleeve": longsleeves,
-            "draped_shorts": shorts}
+            "draped_hoodie": hoodies, "draped_jacket": jackets, "draped_tshirt": tshirts,
+            "draped_longsleeve": longsleeves, "draped_shorts": shorts}
     if subjects:
         return [(s, sample_recipe(rng_for(seed, "character", s), pool="benchmark", index=s)) for s in subjects]
     out = []

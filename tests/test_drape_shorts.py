@@ -1,8 +1,8 @@
 """Loose shorts (drape.py, kind `draped_shorts`): the wide trousers' pattern cut above the knee (`SHORTS_HEM` of the
-hip-joint-to-ankle drop under the hip joints). The pattern is a pair of pants cut where it should be and outside the
-body; newton's coarse drape hangs above the knee, stays off the body at rest and when skinned into sampled poses,
-and reruns to the same bits; recipes draw the shorts from a stream of their own, last, where what is worn over them
-allows it."""
+hip-joint-to-ankle drop under the hip joints). The pattern is tested with the trousers' (tests/test_drape_trousers.py:
+a pair of pants cut where its profile says, outside the body); newton's coarse drape hangs above the knee, stays
+off the body at rest and when skinned into sampled poses, and reruns to the same bits; recipes draw the shorts from a
+stream of their own, last, where what is worn over them allows it."""
 from __future__ import annotations
 
 import dataclasses
@@ -35,35 +35,10 @@ def _joints(pheno):
     return run, z("upperleg01"), z("lowerleg01"), z("foot")
 
 
-@pytest.mark.parametrize("level", DRAPE_LEVELS)
-@pytest.mark.parametrize("pheno", [PHENO, HEAVY], ids=["slim", "heavy"])
-def test_shorts_pattern_is_a_pair_of_pants_cut_above_the_knee(pheno, level):
-    """The trousers' pants topology (three open rims: waistband and two hems; Euler characteristic -1), the hems cut
-    SHORTS_HEM of the hip-to-ankle drop under the hip joints (the shell shorts end at 0.42 of the leg's length),
-    between the crotch and the knee, and every pattern vertex outside the body."""
-    from rh_dataset.characters.drape import _trouser_pattern
-
-    st = drape_settings(KIND, level)
-    verts, faces, uvs, pinned, mpu, pieces = _trouser_pattern(pheno, st, PROFILES[KIND])
-    waist, left, right = pieces
-    _, counts = edge_counts(faces)
-    assert set(counts.tolist()) == {1, 2}
-    assert (counts == 1).sum() == waist.shape[1] + left.shape[1] + right.shape[1]
-    assert len(verts) - len(counts) + len(faces) == -1
-    assert waist.shape[0] + left.shape[0] - 1 == st.n_rings and left.shape[0] >= 4
-    run, hip, knee, ankle = _joints(pheno)
-    cut = hip - SHORTS_HEM * (hip - ankle)
-    for leg in (left, right):
-        assert np.allclose(verts[leg[-1], 2], cut)
-    assert knee < cut < float(verts[waist[-1], 2].mean()) < hip
-    assert pinned.sum() == st.n_around and np.all(pinned[waist[0]])
-    assert penetration(run["vertices"], body_topology().faces, verts).max() < 0.0
-    assert ((uvs >= 0) & (uvs <= 1)).all()
-
-
 def test_coarse_shorts_drape_hangs_above_the_knee_off_the_body_and_reruns_to_the_same_bits(tmp_path, monkeypatch):
     """newton's coarse drape: the hems settle a little under their cut and above the knee, nothing lies deeper than
-    REST_BOUND_M in the body at rest, and skinned (`bind_loose`) into sampled poses and pushed out (`push_out`), nothing is under the skin.
+    REST_BOUND_M in the body at rest, and skinned (`bind_loose`) into sampled poses and pushed out (`push_out`),
+    nothing is under the skin.
     Simulated again (and cached) it gives the same bits, and the cache gives them back."""
     from rh_common.body_model import load_anny
     from rh_dataset.poses import sample_poses

@@ -35,11 +35,15 @@ REST_CROSSINGS = 10
 
 @pytest.mark.parametrize("level", DRAPE_LEVELS)
 @pytest.mark.parametrize("pheno", [PHENO, HEAVY], ids=["slim", "heavy"])
-def test_pattern_is_a_pair_of_trousers_outside_the_body(pheno, level):
+@pytest.mark.parametrize("kind", [KIND, "draped_shorts"])
+def test_pattern_is_a_pair_of_trousers_outside_the_body(pheno, level, kind):
+    """The wide trousers' pattern, and the loose shorts' (the same cut with the legs ending above the knee,
+    tests/test_drape_shorts.py): pants topology, faces outward, clear of the body, pinned at the waist, divided
+    under the crotch, the hem where the profile puts it."""
     from rh_dataset.characters.drape import _trouser_pattern
 
-    st = drape_settings(KIND, level)
-    verts, faces, uvs, pinned, mpu, pieces = _trouser_pattern(pheno, st, PROFILES[KIND])
+    st = drape_settings(kind, level)
+    verts, faces, uvs, pinned, mpu, pieces = _trouser_pattern(pheno, st, PROFILES[kind])
     waist, left, right = pieces
     # Pants topology: every edge shared by two faces but the three open rims' (waistband, two hems); Euler
     # characteristic 2 - 3 boundaries = -1; the legs' first rings share the split ring's halves and the seam.
@@ -73,7 +77,14 @@ def test_pattern_is_a_pair_of_trousers_outside_the_body(pheno, level):
     assert pinned.sum() == st.n_around and np.array_equal(np.flatnonzero(pinned), waist[0])
     assert heads["root"][2] < verts[0, 2] < heads["spine03"][2]  # the waistband
     assert verts[left[0], 2].max() < heads["upperleg02.L"][2]  # divided under the crotch
-    assert np.isclose(verts[left[-1], 2].mean(), body[:, 2].min() + PROFILES[KIND].hem)  # ankle length
+    prof = PROFILES[kind]
+    if prof.leg_hem:  # the shorts: a share of the hip-joint-to-ankle drop, between the crotch and the knee
+        hip, knee, ankle = (0.5 * (heads[f"{b}.L"][2] + heads[f"{b}.R"][2])
+                            for b in ("upperleg01", "lowerleg01", "foot"))
+        cut = hip - prof.leg_hem * (hip - ankle)
+        assert np.allclose(verts[np.r_[left[-1], right[-1]], 2], cut) and knee < cut < verts[left[0], 2].min()
+    else:
+        assert np.isclose(verts[left[-1], 2].mean(), body[:, 2].min() + prof.hem)  # ankle length
     assert uvs.min() >= 0.0 and uvs.max() <= 1.0 and mpu > 0.8
 
 

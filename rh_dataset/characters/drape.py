@@ -1,9 +1,10 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
-trousers or loose shorts, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a bag pinned on the
-back of the neckline, laid back and let fall down the upper back), a loose t-shirt's or long sleeve's body (a tube
-hanging from under the arms to the hips; its shoulders and sleeves are the shell "tee" or "longtop")); `PROFILES` cuts
+trousers or loose shorts, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a
+bag pinned on the back of the neckline, laid back and let fall down the upper back), a loose t-shirt's or long
+sleeve's body (a tube hanging from under the arms to the hips; its shoulders and sleeves are the shell "tee" or
+"longtop")); `PROFILES` cuts
 the others from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
 `_trouser_pattern`; the coat's and the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their
 shoulders and sleeves are one shell, garments.py's "coat", whose hem `shell_hem` places, as it places the dress's
@@ -601,8 +602,8 @@ def _trouser_pattern(phenotype: dict[str, float], st: DrapeSettings, prof: Drape
     heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
     na = int(st.n_around)
     if na % 2 or na < 8 or int(st.n_rings) < 6:
-        raise ValueError(f"drape: draped trousers and shorts need an even n_around >= 8 and n_rings >= 6 in DrapeSettings, "
-                         f"got {na} x {st.n_rings}")
+        raise ValueError(f"drape: draped trousers and shorts need an even n_around >= 8 and n_rings >= 6 in "
+                         f"DrapeSettings, got {na} x {st.n_rings}")
     gap = st.clearance + 0.002
     centre = np.asarray(heads["root"], dtype=np.float64)
     z_top = 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01

@@ -15,8 +15,8 @@ import numpy as np
 
 from .body import sample_phenotype
 from .recipe import (BOTTOMS, COVERINGS, GARMENT_LAYERS, HAIR_STYLES, JACKET_OVER_LOOSE_TOP, LOOSE_TOPS, OUTERWEAR,
-                     OVER_LOOSE_TOP, PATTERNS, POOLS, TOPS, UNDER_COAT, UNDER_LOOSE_TOP, CharacterRecipe, EyeSpec, Garment, HairSpec,
-                     Headwear, SkinTone)
+                     OVER_LOOSE_TOP, PATTERNS, POOLS, TOPS, UNDER_COAT, UNDER_LOOSE_TOP, CharacterRecipe, EyeSpec,
+                     Garment, HairSpec, Headwear, SkinTone)
 
 __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear", "HAIR_COLOUR_NAMES",
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
