@@ -63,8 +63,8 @@ LOOSE_TOPS = ("draped_tshirt", "draped_longsleeve")  # under OVER_LOOSE_TOP or n
 BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_shorts")
 DRESSES = ("draped_dress",)
 UNDER_COAT = ("trousers", "shorts")  # the bottoms a draped coat or jacket may be worn over
-# The bottoms a loose top may be worn over: the close-fitting shells, and the draped skirt and wide trousers, whose
-# cloth its drape collides with (drape.DRAPED_OVER); not the shell skirt, whose flare its drape would hang through.
+# The bottoms a loose top may be worn over: the close-fitting shells, and the draped skirt, wide trousers and loose
+# shorts, whose cloth its drape collides with (drape.DRAPED_OVER); not the shell skirt, whose flare its drape would hang through.
 UNDER_LOOSE_TOP = UNDER_COAT + ("draped_skirt", "draped_trousers", "draped_shorts")
 # The outerwear a loose top may be worn under: the draped open jacket and coat, whose drape collides with the top's
 # cloth (drape.DRAPED_OVER); not the shell jacket, a second skin the top's cloth would hang through.
