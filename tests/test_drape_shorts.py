@@ -35,6 +35,25 @@ def _joints(pheno):
     return run, z("upperleg01"), z("lowerleg01"), z("foot")
 
 
+@pytest.mark.parametrize("level", DRAPE_LEVELS)
+def test_extreme_builds_get_shorts_with_legs_or_a_clear_refusal(level):
+    """At anny's extremes the cut at SHORTS_HEM can come to the crotch (a heavy, short adult: 2.3 cm under it; an
+    infant: above it): the shorts' legs then reach SHORTS_MIN_LEG under the crotch, with at least LEG_RINGS_MIN rings
+    below the split. The wide trousers' hem, 16 cm over the floor, lies above an infant's crotch: refused with a
+    message that says so and what to wear instead."""
+    from rh_dataset.characters.drape import LEG_RINGS_MIN, SHORTS_MIN_LEG, _trouser_pattern
+
+    short_heavy = {"gender": 0.0, "age": 1.0, "muscle": 0.0, "weight": 1.0, "height": 0.0, "proportions": 0.0}
+    infant = {"gender": 1.0, "age": 0.0, "muscle": 1.0, "weight": 1.0, "height": 0.0, "proportions": 0.0}
+    for pheno in (short_heavy, infant):
+        st = drape_settings(KIND, level)
+        verts, faces, uvs, pinned, mpu, (waist, left, right) = _trouser_pattern(pheno, st, PROFILES[KIND])
+        split, hem = float(verts[waist[-1], 2].mean()), float(verts[left[-1], 2].mean())
+        assert split - hem >= SHORTS_MIN_LEG - 1e-9 and left.shape[0] >= LEG_RINGS_MIN + 1
+    with pytest.raises(ValueError, match="no room for draped trousers' legs.*shell trousers or shorts"):
+        _trouser_pattern(infant, drape_settings("draped_trousers", level), PROFILES["draped_trousers"])
+
+
 def test_coarse_shorts_drape_hangs_above_the_knee_off_the_body_and_reruns_to_the_same_bits(tmp_path, monkeypatch):
     """newton's coarse drape: the hems settle a little under their cut and above the knee, nothing lies deeper than
     REST_BOUND_M in the body at rest, and skinned (`bind_loose`) into sampled poses and pushed out (`push_out`),

@@ -50,7 +50,7 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
            "cloth_model", "cloth_solver", "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
            "HoodCut", "HOOD_CLEARANCE", "FRONT_OPENING", "JACKET_HEM", "TSHIRT_CLEARANCE",
-           "TSHIRT_HEM", "SHORTS_HEM"]
+           "TSHIRT_HEM", "SHORTS_HEM", "SHORTS_MIN_LEG"]
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
                 "draped_tshirt", "draped_longsleeve", "draped_shorts")
@@ -202,6 +202,12 @@ TSHIRT_RING_GAP = 0.010
 # The loose shorts' cut (`draped_shorts`): the wide trousers' pattern, its legs cut SHORTS_HEM of the hip-joint-to-
 # ankle drop under the hip joints (the shell shorts end at 0.42 of the leg's length from the hip joint).
 SHORTS_HEM = 0.38
+# Metres the shorts' legs reach under the crotch at least: on a heavy, short adult (anny height 0, weight 1) the cut at
+# SHORTS_HEM comes within 2.3 cm of the crotch; the benchmark's shorts wearers have 20 cm or more, which this leaves
+# as cut. LEG_RINGS_MIN: rings each leg tube has at least below the split ring (a pants pattern with fewer is no
+# pair of legs); bodies whose legs cannot take them (an infant's) are refused with a message.
+SHORTS_MIN_LEG = 0.08
+LEG_RINGS_MIN = 2
 FRONT_OPENING = 0.05  # metres between the open coat's and jacket's front edges at the pinned ring (their one shell's V)
 PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7),
             "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),
@@ -612,11 +618,16 @@ def _trouser_pattern(phenotype: dict[str, float], st: DrapeSettings, prof: Drape
     if prof.leg_hem > 0:  # the shorts: along the leg, as the shell shorts' cut
         hip = 0.5 * (float(heads["upperleg01.L"][2]) + float(heads["upperleg01.R"][2]))
         ankle = 0.5 * (float(heads["foot.L"][2]) + float(heads["foot.R"][2]))
-        z_hem = hip - prof.leg_hem * (hip - ankle)
+        z_hem = min(hip - prof.leg_hem * (hip - ankle), z_split - SHORTS_MIN_LEG)
     else:
         z_hem = float(body[:, 2].min()) + prof.hem
+    what = "shorts" if prof.leg_hem > 0 else "trousers"
+    if z_hem > z_split - 0.02 or z_hem < float(body[:, 2].min()) + 0.02:
+        raise ValueError(f"drape: this body has no room for draped {what}' legs (crotch {z_split:.3f} m, hem "
+                         f"{z_hem:.3f} m, floor {float(body[:, 2].min()):.3f} m over the root's origin; anny age "
+                         f"{phenotype.get('age')}): dress it in shell trousers or shorts instead")
     h = (z_top - z_hem) / (int(st.n_rings) - 1)
-    n_w = max(2, int(round((z_top - z_split) / h)) + 1)
+    n_w = min(max(2, int(round((z_top - z_split) / h)) + 1), int(st.n_rings) - LEG_RINGS_MIN)
     n_l = int(st.n_rings) - n_w + 1
     # The waist tube: straight down, each ring pushed out where the hips reach it and kept out below (as the skirt).
     ang = np.arange(na) * (2.0 * np.pi / na)
