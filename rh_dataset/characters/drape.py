@@ -263,11 +263,6 @@ _SETTINGS = {
                                                tri_ka=1.0e5, contact_ke=5.0e4),
     ("draped_trousers", "coarse"): DrapeSettings(n_around=32, n_rings=16, steps=150, iterations=20, flare=0.06,
                                                  tri_ke=1.0e5, tri_ka=1.0e5, contact_ke=5.0e4),
-    # The loose shorts: the wide trousers' fabric and ring spacing (~2.7 cm, coarse ~6 cm) over their ~45 cm.
-    ("draped_shorts", "full"): DrapeSettings(n_around=64, n_rings=16, iterations=20, flare=0.06, tri_ke=1.0e5,
-                                             tri_ka=1.0e5, contact_ke=5.0e4),
-    ("draped_shorts", "coarse"): DrapeSettings(n_around=32, n_rings=8, steps=150, iterations=20, flare=0.06,
-                                               tri_ke=1.0e5, tri_ka=1.0e5, contact_ke=5.0e4),
     # The coat: the dress's cut from the chest, longer, kept further off the skin (the layers under it).
     ("draped_coat", "full"): DrapeSettings(n_rings=40, contact_ke=5.0e4, clearance=COAT_CLEARANCE),
     ("draped_coat", "coarse"): DrapeSettings(n_around=36, n_rings=20, steps=150, contact_ke=5.0e4,
@@ -299,6 +294,10 @@ _SETTINGS = {
 PROFILES["draped_longsleeve"] = PROFILES["draped_tshirt"]
 PUSH_CLEARANCES["draped_longsleeve"] = PUSH_CLEARANCES["draped_tshirt"]
 _SETTINGS.update({("draped_longsleeve", level): _SETTINGS["draped_tshirt", level] for level in DRAPE_LEVELS})
+# The loose shorts: the wide trousers' settings with half their rings (the same ~2.7 cm spacing, coarse ~6 cm, over
+# their ~45 cm).
+_SETTINGS.update({("draped_shorts", level): dataclasses.replace(st, n_rings=st.n_rings // 2)
+                  for level in DRAPE_LEVELS for st in (_SETTINGS["draped_trousers", level],)})
 
 
 def drape_settings(kind: str, level: str = "full") -> DrapeSettings:
@@ -615,16 +614,17 @@ def _trouser_pattern(phenotype: dict[str, float], st: DrapeSettings, prof: Drape
     z_top = 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01
     mesh = trimesh.Trimesh(body, collider_faces(phenotype), process=False)
     z_split = _crotch_height(mesh, centre, z_top) - gap
+    floor = float(body[:, 2].min())
     if prof.leg_hem > 0:  # the shorts: along the leg, as the shell shorts' cut
         hip = 0.5 * (float(heads["upperleg01.L"][2]) + float(heads["upperleg01.R"][2]))
         ankle = 0.5 * (float(heads["foot.L"][2]) + float(heads["foot.R"][2]))
         z_hem = min(hip - prof.leg_hem * (hip - ankle), z_split - SHORTS_MIN_LEG)
     else:
-        z_hem = float(body[:, 2].min()) + prof.hem
-    what = "shorts" if prof.leg_hem > 0 else "trousers"
-    if z_hem > z_split - 0.02 or z_hem < float(body[:, 2].min()) + 0.02:
+        z_hem = floor + prof.hem
+    if z_hem > z_split - 0.02 or z_hem < floor + 0.02:
+        what = "shorts" if prof.leg_hem > 0 else "trousers"
         raise ValueError(f"drape: this body has no room for draped {what}' legs (crotch {z_split:.3f} m, hem "
-                         f"{z_hem:.3f} m, floor {float(body[:, 2].min()):.3f} m over the root's origin; anny age "
+                         f"{z_hem:.3f} m, floor {floor:.3f} m over the root's origin; anny age "
                          f"{phenotype.get('age')}): dress it in shell trousers or shorts instead")
     h = (z_top - z_hem) / (int(st.n_rings) - 1)
     n_w = min(max(2, int(round((z_top - z_split) / h)) + 1), int(st.n_rings) - LEG_RINGS_MIN)
