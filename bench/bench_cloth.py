@@ -5,6 +5,7 @@ optionally a draft render.
     python bench/bench_cloth.py                                   # drape + 8 poses (~2-3 min on a busy 2-core box)
     python bench/bench_cloth.py --kind draped_trousers            # the wide trousers (~8 min: two full drapes)
     python bench/bench_cloth.py --kind draped_shorts              # the loose shorts (~3 min)
+    python bench/bench_cloth.py --kind draped_straight_trousers   # the straight-leg trousers
     python bench/bench_cloth.py --kind draped_coat                # the open coat, and how deep it sinks into the
                                                                   # layers under it and its shell into it
     python bench/bench_cloth.py --kind draped_jacket              # the open jacket, the same measures
@@ -177,7 +178,8 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.recipe import Garment
 
-    shell_kind = {"draped_trousers": "trousers", "draped_shorts": "shorts", "draped_coat": "jacket",
+    shell_kind = {"draped_trousers": "trousers", "draped_straight_trousers": "trousers", "draped_shorts": "shorts",
+                  "draped_coat": "jacket",
                   "draped_jacket": "jacket", "draped_tshirt": "tshirt",
                   "draped_longsleeve": "longsleeve"}.get(kind, "skirt")
     shell = build_garments((Garment(shell_kind, (0.5, 0.5, 0.5)),), body_features(ph))[0]

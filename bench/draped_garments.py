@@ -1,5 +1,6 @@
 """Benchmark subjects in loose garments: the first draped-dress, draped-skirt, draped-trousers, draped-coat,
-draped-hoodie, draped-jacket, draped-tshirt, draped-longsleeve and draped-shorts wearers among a dataset seed's
+draped-hoodie, draped-jacket, draped-tshirt, draped-longsleeve, draped-shorts and draped-straight-trousers wearers
+among a dataset seed's
 subjects (or the subjects named), draped at a drape level, rendered rest front | rest side | a posed frame front |
 side (`--turns`: other views, e.g. from the back), with the drape's seconds and how deep any cloth vertex sits in the
 body in each view.
@@ -15,6 +16,8 @@ body in each view.
     python bench/draped_garments.py --subjects 3,31 --tile 512 --out docs/draped_tshirt.png  # two loose t-shirts
     python bench/draped_garments.py --subjects 11,36 --tile 512 --out docs/draped_longsleeve.png  # loose long sleeves
     python bench/draped_garments.py --subjects 1,8,23,44 --tile 512 --out docs/draped_shorts.png  # loose shorts
+    python bench/draped_garments.py --dresses 0 --skirts 0 --straight 4 --tile 512 \
+        --out docs/draped_straight_trousers.png                           # straight-leg trousers
 
 In: the dataset seed (the generator's subject order: `sample_recipe(rng_for(seed, "character", s))`), how many
 subjects of each kind (or `--subjects`: these indices, whatever they wear), the drape level (`drape.DRAPE_LEVELS`).
@@ -40,11 +43,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200, trousers: int = 0,
                    swap_trousers: bool = False, coats: int = 0, hoodies: int = 0, jackets: int = 0,
-                   tshirts: int = 0, longsleeves: int = 0, shorts: int = 0,
+                   tshirts: int = 0, longsleeves: int = 0, shorts: int = 0, straight: int = 0,
                    subjects: tuple[int, ...] = ()) -> list[tuple[int, object]]:
     """(subject index, recipe) of the first `dresses` draped-dress, `skirts` draped-skirt, `trousers`
     draped-trousers, `coats` draped-coat, `hoodies` draped-hoodie, `jackets` draped-jacket, `tshirts`
-    draped-tshirt, `longsleeves` draped-longsleeve and `shorts` draped-shorts wearers of `seed` (`swap_trousers`:
+    draped-tshirt, `longsleeves` draped-longsleeve, `shorts` draped-shorts and `straight` draped-straight-trousers
+    wearers of `seed` (`swap_trousers`:
     shell-trousers wearers put in draped ones), or of the `subjects` given by index."""
     import dataclasses
 
@@ -53,7 +57,7 @@ def loose_subjects(seed: int, dresses: int, skirts: int, limit: int = 200, trous
 
     want = {"draped_dress": dresses, "draped_skirt": skirts, "draped_trousers": trousers, "draped_coat": coats,
             "draped_hoodie": hoodies, "draped_jacket": jackets, "draped_tshirt": tshirts,
-            "draped_longsleeve": longsleeves, "draped_shorts": shorts}
+            "draped_longsleeve": longsleeves, "draped_shorts": shorts, "draped_straight_trousers": straight}
     if subjects:
         return [(s, sample_recipe(rng_for(seed, "character", s), pool="benchmark", index=s)) for s in subjects]
     out = []
@@ -83,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tshirts", type=int, default=0, help="loose t-shirt (draped_tshirt) wearers")
     ap.add_argument("--longsleeves", type=int, default=0, help="loose long sleeve (draped_longsleeve) wearers")
     ap.add_argument("--shorts", type=int, default=0, help="loose shorts (draped_shorts) wearers")
+    ap.add_argument("--straight", type=int, default=0,
+                    help="straight-leg trousers (draped_straight_trousers) wearers")
     ap.add_argument("--subjects", default="", help="comma-separated subject indices to show instead of a search")
     ap.add_argument("--turns", default="0,90",
                     help="the two views, degrees about +Z (0: from the front, 90: its left, 180: from the back)")
@@ -116,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     for s, recipe in loose_subjects(args.seed, args.dresses, args.skirts, trousers=args.trousers,
                                     swap_trousers=args.swap_trousers, coats=args.coats, hoodies=args.hoodies,
                                     jackets=args.jackets, tshirts=args.tshirts,
-                                    longsleeves=args.longsleeves, shorts=args.shorts,
+                                    longsleeves=args.longsleeves, shorts=args.shorts, straight=args.straight,
                                     subjects=tuple(int(x) for x in args.subjects.split(",") if x)):
         t = time.perf_counter()
         character = build_character(recipe, 512, drape=args.drape)

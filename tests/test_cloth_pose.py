@@ -252,15 +252,17 @@ def test_drape_level_is_a_render_setting_preset_field_and_cli_flag():
 def test_simulated_mode_simulates_every_kind_each_in_its_pose_fabric(monkeypatch):
     """SIMULATED_KINDS: every draped kind (a character with no draped part has nothing simulated). Each garment is
     simulated in its own fabric, `pose_fabric`: the one it was draped with (the hood its fleece, not the skirt's cloth
-    under it), but the wide-leg trousers and the loose shorts (their pattern) in `POSE_FABRIC`'s (a softer membrane,
-    a stiffer contact: with their drape's, a sitting thigh rose out through the trousers' leg tube); simulated_parts hands one per garment to the solver."""
+    under it), but the wide-leg trousers, the straight-leg ones and the loose shorts (their pattern) in
+    `POSE_FABRIC`'s (a softer membrane, a stiffer contact: with their drape's, a sitting thigh rose out through the
+    trousers' leg tube); simulated_parts hands one per garment to the solver."""
     import types
 
     from rh_dataset.characters import cloth_pose
     from rh_dataset.characters.cloth_pose import POSE_FABRIC, SIMULATED_KINDS, pose_fabric, simulated_parts
     from rh_dataset.characters.drape import DRAPED_KINDS, drape_settings
 
-    assert set(DRAPED_KINDS) == set(SIMULATED_KINDS) and set(POSE_FABRIC) == {"draped_trousers", "draped_shorts"}
+    assert set(DRAPED_KINDS) == set(SIMULATED_KINDS) and set(POSE_FABRIC) == {"draped_trousers", "draped_shorts",
+                                                                                   "draped_straight_trousers"}
     parts = [types.SimpleNamespace(name=n) for n in ("body", "shoes", "trousers", "tshirt")]
     assert simulated_parts(types.SimpleNamespace(parts=parts, phenotype=PHENO), {"upperleg01.L": np.eye(4)}) == {}
     drape = drape_settings("draped_trousers", "coarse")

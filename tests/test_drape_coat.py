@@ -141,9 +141,10 @@ def test_benchmark_recipes_draw_coats_from_their_own_stream(monkeypatch):
     from rh_dataset.characters.recipe_draws import COAT_P, recipe_from_seed
 
     # The coat's draw alone: the open jacket's draw after it takes the jackets it leaves (tests/test_drape_jacket.py),
-    # and the loose shorts' draw, last, the shorts under no coat (tests/test_drape_shorts.py).
+    # and the loose shorts' and straight trousers' draws, last, those under no coat (tests/test_drape_shorts.py).
     monkeypatch.setattr(recipe_draws, "JACKET_P", 0.0)
     monkeypatch.setattr(recipe_draws, "SHORTS_P", 0.0)
+    monkeypatch.setattr(recipe_draws, "STRAIGHT_TROUSERS_P", 0.0)
     rs = [recipe_from_seed(2 * i, "benchmark", i) for i in range(1000)]
     monkeypatch.setattr(recipe_draws, "COAT_P", 0.0)
     plain = [recipe_from_seed(2 * i, "benchmark", i) for i in range(1000)]

@@ -72,14 +72,16 @@ def stream_draws(monkeypatch, share: str) -> tuple[list[int], list, list, list]:
     """What a test of a garment drawn on its own stream compares (tests/test_drape_tshirt.py shares it): the seeds
     (1000, even), their benchmark recipes as drawn, seed 0's first 49 benchmark subjects as rh-generate draws them,
     and the same 1000 recipes drawn again with `recipe_draws.<share>` set to zero (left so: monkeypatched). The 1000
-    recipes are drawn without loose shorts both times (SHORTS_P zero, left so): they are drawn last, where what is worn
-    over them allows it, so any draw above can move them (tests/test_drape_shorts.py covers them)."""
+    recipes are drawn without loose shorts and straight trousers both times (SHORTS_P, STRAIGHT_TROUSERS_P zero, left
+    so): they are drawn last, where what is worn over them allows it, so any draw above can move them
+    (tests/test_drape_shorts.py covers them)."""
     from rh_dataset.characters import recipe_draws
     from rh_dataset.characters.recipe_draws import recipe_from_seed
 
     seeds = [2 * i for i in range(1000)]
     bench = _benchmark(49)
     monkeypatch.setattr(recipe_draws, "SHORTS_P", 0.0)
+    monkeypatch.setattr(recipe_draws, "STRAIGHT_TROUSERS_P", 0.0)
     rs = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
     monkeypatch.setattr(recipe_draws, share, 0.0)
     plain = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]

@@ -83,49 +83,59 @@ def test_coarse_shorts_drape_hangs_above_the_knee_off_the_body_and_reruns_to_the
         assert penetration(posed["vertices"], faces, pts).max() <= 0.0, pose.label
 
 
-def _shell_shorts(r) -> tuple:
-    return tuple(dataclasses.replace(g, kind="shorts") if g.kind == KIND else g for g in r.garments)
+def loose_bottom_draws(monkeypatch, kind: str, shell: str, share: str, stream: int) -> tuple[list, list, list]:
+    """What a test of a draped bottom drawn last on its own stream in place of a `shell` one compares (the loose shorts
+    here, the straight trousers in tests/test_drape_straight_trousers.py): 1000 recipes drawn, the same drawn with
+    `recipe_draws.<share>` set to zero (left so), and seed 0's first 49 benchmark subjects. It checks that with the
+    share at zero every recipe is the same but for that kind (fabric included); that the wearers are exactly the
+    seeds whose `shell` bottom is worn under no coat, and under the open jacket only with a loose top between, and
+    whose stream's first draw is under the share (0.5); that a recipe round-trips through JSON; and that the kind
+    under a coat, or under the open jacket over a shell top, is refused, under a shell or loose top not."""
+    from rh_dataset.characters import recipe_draws
+    from rh_dataset.characters.recipe import LOOSE_TOPS, CharacterRecipe, Garment
+    from rh_dataset.characters.recipe_draws import recipe_from_seed, sample_recipe
+    from rh_dataset.generate.seeding import rng_for
+
+    p_share = getattr(recipe_draws, share)
+    bench = [sample_recipe(rng_for(0, "character", s), pool="benchmark", index=s) for s in range(49)]
+    seeds = [2 * i for i in range(1000)]
+    rs = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
+    monkeypatch.setattr(recipe_draws, share, 0.0)
+    plain = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
+    drawn = np.array([r.garment(kind) is not None for r in rs])
+    eligible = np.array([p.garment(shell) is not None and p.garment("draped_coat") is None
+                         and (p.garment("draped_jacket") is None or any(p.garment(k) for k in LOOSE_TOPS))
+                         for p in plain])
+    assert not any(p.garment(kind) for p in plain) and eligible.sum() > 100
+    first = np.array([np.random.default_rng([s, stream]).random() < p_share for s in seeds])
+    assert np.array_equal(drawn, eligible & first) and p_share == 0.5
+    assert any(r.garment(kind) and r.garment("draped_jacket") for r in rs)
+    for r, p in zip(rs, plain):
+        back = tuple(dataclasses.replace(g, kind=shell) if g.kind == kind else g for g in r.garments)
+        assert dataclasses.replace(r, garments=back) == p
+    r = rs[int(np.flatnonzero(drawn)[0])]
+    assert CharacterRecipe.from_json(r.to_json_text()) == r
+    shoes, bottom = Garment("shoes", (0, 0, 0)), Garment(kind, (0, 0, 0))
+    for gs in ((shoes, bottom, Garment("tshirt", (1, 1, 1)), Garment("draped_coat", (0, 0, 1))),
+               (shoes, bottom, Garment("tshirt", (1, 1, 1)), Garment("draped_jacket", (0, 0, 1)))):
+        with pytest.raises(ValueError, match="draped_coat or draped_jacket"):
+            dataclasses.replace(r, garments=gs)
+    for top in ("tshirt", "draped_tshirt", "draped_hoodie"):
+        dataclasses.replace(r, garments=(shoes, bottom, Garment(top, (1, 1, 1))))
+    dataclasses.replace(r, garments=(shoes, bottom, Garment("draped_tshirt", (1, 1, 1)),
+                                     Garment("draped_jacket", (0, 0, 1))))
+    return rs, plain, bench
 
 
 def test_benchmark_recipes_draw_loose_shorts_from_their_own_stream(monkeypatch):
     """recipe_from_seed turns the drawn (shell) shorts into loose ones for SHORTS_P of the shorts wearers under no
     coat, and under the open jacket only with a loose top between, deciding last, on a stream of its own
-    (SHORTS_STREAM): with the share set to zero every recipe of 1000 seeds is the same but for that kind (fabric
-    included); the wearers are exactly the eligible seeds whose stream's first draw is under the share. Seed 0's
-    benchmark: subjects 1, 8, 11, 23, 28 and 44 (11 under a loose long sleeve, 28 under a hoodie). A recipe
-    round-trips through JSON; loose shorts under a coat, or under the open jacket over a shell top, are refused."""
-    from rh_dataset.characters import recipe_draws
-    from rh_dataset.characters.recipe import LOOSE_TOPS, CharacterRecipe, Garment
-    from rh_dataset.characters.recipe_draws import SHORTS_P, SHORTS_STREAM, recipe_from_seed, sample_recipe
-    from rh_dataset.generate.seeding import rng_for
+    (SHORTS_STREAM; `loose_bottom_draws` checks the draw). Seed 0's benchmark: subjects 1, 8, 11, 23, 28 and 44 (11
+    under a loose long sleeve, 28 under a hoodie)."""
+    from rh_dataset.characters.recipe_draws import SHORTS_STREAM
 
-    bench = [sample_recipe(rng_for(0, "character", s), pool="benchmark", index=s) for s in range(49)]
-    seeds = [2 * i for i in range(1000)]
-    rs = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
-    monkeypatch.setattr(recipe_draws, "SHORTS_P", 0.0)
-    plain = [recipe_from_seed(s, "benchmark", i) for i, s in enumerate(seeds)]
-    loose = np.array([r.garment(KIND) is not None for r in rs])
-    eligible = np.array([p.garment("shorts") is not None and p.garment("draped_coat") is None
-                         and (p.garment("draped_jacket") is None or any(p.garment(k) for k in LOOSE_TOPS))
-                         for p in plain])
-    assert not any(p.garment(KIND) for p in plain) and eligible.sum() > 100
-    first = np.array([np.random.default_rng([s, SHORTS_STREAM]).random() < SHORTS_P for s in seeds])
-    assert np.array_equal(loose, eligible & first) and SHORTS_P == 0.5
-    assert any(r.garment(KIND) and r.garment("draped_jacket") for r in rs)
-    for r, p in zip(rs, plain):
-        assert dataclasses.replace(r, garments=_shell_shorts(r)) == p
+    rs, plain, bench = loose_bottom_draws(monkeypatch, KIND, "shorts", "SHORTS_P", SHORTS_STREAM)
     assert [r.index for r in bench if r.garment(KIND)] == [1, 8, 11, 23, 28, 44]
-    r = rs[int(np.flatnonzero(loose)[0])]
-    assert CharacterRecipe.from_json(r.to_json_text()) == r
-    shoes, shorts = Garment("shoes", (0, 0, 0)), Garment(KIND, (0, 0, 0))
-    for gs in ((shoes, shorts, Garment("tshirt", (1, 1, 1)), Garment("draped_coat", (0, 0, 1))),
-               (shoes, shorts, Garment("tshirt", (1, 1, 1)), Garment("draped_jacket", (0, 0, 1)))):
-        with pytest.raises(ValueError, match="draped_coat or draped_jacket"):
-            dataclasses.replace(r, garments=gs)
-    for top in ("tshirt", "draped_tshirt", "draped_hoodie"):
-        dataclasses.replace(r, garments=(shoes, shorts, Garment(top, (1, 1, 1))))
-    dataclasses.replace(r, garments=(shoes, shorts, Garment("draped_tshirt", (1, 1, 1)),
-                                     Garment("draped_jacket", (0, 0, 1))))
 
 
 @pytest.mark.slow

@@ -35,10 +35,10 @@ REST_CROSSINGS = 10
 
 @pytest.mark.parametrize("level", DRAPE_LEVELS)
 @pytest.mark.parametrize("pheno", [PHENO, HEAVY], ids=["slim", "heavy"])
-@pytest.mark.parametrize("kind", [KIND, "draped_shorts"])
+@pytest.mark.parametrize("kind", [KIND, "draped_shorts", "draped_straight_trousers"])
 def test_pattern_is_a_pair_of_trousers_outside_the_body(pheno, level, kind):
-    """The wide trousers' pattern, and the loose shorts' (the same cut with the legs ending above the knee,
-    tests/test_drape_shorts.py): pants topology, faces outward, clear of the body, pinned at the waist, divided
+    """The wide trousers' pattern, the loose shorts' (the same cut with the legs ending above the knee,
+    tests/test_drape_shorts.py) and the straight trousers' (straight legs, tests/test_drape_straight_trousers.py): pants topology, faces outward, clear of the body, pinned at the waist, divided
     under the crotch, the hem where the profile puts it."""
     from rh_dataset.characters.drape import _trouser_pattern
 
@@ -154,6 +154,8 @@ def test_benchmark_recipes_draw_wide_trousers_from_their_own_stream(monkeypatch)
     from rh_dataset.characters.recipe import CharacterRecipe
     from rh_dataset.characters.recipe_draws import WIDE_TROUSERS_P, recipe_from_seed
 
+    # The straight trousers' draw, last, takes part of the shell trousers this draw leaves (tests/test_drape_shorts.py).
+    monkeypatch.setattr(recipe_draws, "STRAIGHT_TROUSERS_P", 0.0)
     rs = [recipe_from_seed(2 * i, "benchmark", i) for i in range(400)]
     monkeypatch.setattr(recipe_draws, "WIDE_TROUSERS_P", (0.0, 0.0))
     plain = [recipe_from_seed(2 * i, "benchmark", i) for i in range(400)]

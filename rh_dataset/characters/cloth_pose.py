@@ -66,9 +66,10 @@ CLOTH_MODES = ("skinned", "simulated")
 # its own (bench_cloth_pose.py --kind draped_longsleeve, 2 subjects, 6 posed frames): no cloth in the body either
 # way, 71 self-crossing edges skinned against 128 simulated (the seated laps), renders 33.6 dB apart against
 # standard's 42.3 dB noise: simulated at reference.
-# The loose shorts are the wide trousers cut above the knee: simulated, lifted and posed in their fabric likewise.
+# The loose shorts are the wide trousers cut above the knee, the straight-leg trousers their legs without the flare:
+# simulated, lifted and posed in their fabric likewise.
 SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
-                   "draped_tshirt", "draped_longsleeve", "draped_shorts")
+                   "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers")
 # What a kind's per-frame simulation changes in the `DrapeSettings` it was draped with. The wide-leg trousers: the
 # drape's membrane (1e5, stiff enough that the 80 cm legs, held at the waist only, do not stretch to the floor as they
 # settle) would not stretch over the seat a sitting thigh swings forward, and at the drape's contact stiffness (5e4)
@@ -82,7 +83,7 @@ SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_co
 # worst pose 76.8 % still covered (33.8 % in the drape's fabric, 76.0 % skinned); 15 mm in the body before push_out
 # at most (65.5 mm).
 POSE_FABRIC = {"draped_trousers": dict(tri_ke=3.0e4, tri_ka=3.0e4, contact_ke=5.0e5)}
-POSE_FABRIC["draped_shorts"] = POSE_FABRIC["draped_trousers"]
+POSE_FABRIC["draped_shorts"] = POSE_FABRIC["draped_straight_trousers"] = POSE_FABRIC["draped_trousers"]
 
 
 def pose_fabric(kind: str, drape: DrapeSettings | None) -> DrapeSettings:
@@ -562,7 +563,7 @@ def _under_a_layer(points: np.ndarray, layers: list[tuple[np.ndarray, np.ndarray
 # either (6 -> 0): a loose top and an open jacket can be worn over it, and where the lifted skirt crossed itself a
 # jacket vertex stayed 4.8 mm under it after push_over_layers (tests/test_drape_jacket.py, subject 26's `random`
 # pose; 4.3 mm after 5 cycles).
-LIFT_KINDS = ("draped_dress", "draped_trousers", "draped_shorts")
+LIFT_KINDS = ("draped_dress", "draped_trousers", "draped_shorts", "draped_straight_trousers")
 # Metres: how far under the cloth `lift_over_skin` leaves the skin it lifts the cloth over. Only skin out through
 # the cloth is lifted over: lifting also skin less than this under it moved 24 vertices of benchmark subject 0's dress
 # by up to 0.5 mm at rest, and changed its turntable frames' images.

@@ -1,7 +1,7 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
-trousers or loose shorts, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a
+or straight-leg trousers or loose shorts, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a
 bag pinned on the back of the neckline, laid back and let fall down the upper back), a loose t-shirt's or long
 sleeve's body (a tube hanging from under the arms to the hips; its shoulders and sleeves are the shell "tee" or
 "longtop")); `PROFILES` cuts
@@ -50,10 +50,10 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
            "cloth_model", "cloth_solver", "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
            "HoodCut", "HOOD_CLEARANCE", "FRONT_OPENING", "JACKET_HEM", "TSHIRT_CLEARANCE",
-           "TSHIRT_HEM", "SHORTS_HEM", "SHORTS_MIN_LEG"]
+           "TSHIRT_HEM", "SHORTS_HEM", "SHORTS_MIN_LEG", "STRAIGHT_LEGS"]
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
-                "draped_tshirt", "draped_longsleeve", "draped_shorts")
+                "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -208,10 +208,15 @@ SHORTS_HEM = 0.38
 # pair of legs); bodies whose legs cannot take them (an infant's) are refused with a message.
 SHORTS_MIN_LEG = 0.08
 LEG_RINGS_MIN = 2
+# The straight-leg trousers' cut (`draped_straight_trousers`): the wide trousers' pattern, hem and fabric, each leg a
+# cylinder (no flare) whose radius is STRAIGHT_LEGS of half the hips' width at the crotch (the wide trousers' 1.0 and
+# their 0.06 rad flare hang as palazzos): ordinary trousers, loose on the thigh, hanging straight past the knee.
+STRAIGHT_LEGS = 0.7
 FRONT_OPENING = 0.05  # metres between the open coat's and jacket's front edges at the pinned ring (their one shell's V)
 PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7),
             "draped_trousers": DrapeProfile("waist", "top", 0.16, legs=1.0),
             "draped_shorts": DrapeProfile("waist", "top", legs=1.0, leg_hem=SHORTS_HEM),
+            "draped_straight_trousers": DrapeProfile("waist", "top", 0.16, legs=STRAIGHT_LEGS),
             "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=FRONT_OPENING),
             "draped_jacket": DrapeProfile("chest", "hips", JACKET_HEM, opening=FRONT_OPENING),
             "draped_tshirt": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP)}
@@ -298,6 +303,9 @@ _SETTINGS.update({("draped_longsleeve", level): _SETTINGS["draped_tshirt", level
 # their ~45 cm).
 _SETTINGS.update({("draped_shorts", level): dataclasses.replace(st, n_rings=st.n_rings // 2)
                   for level in DRAPE_LEVELS for st in (_SETTINGS["draped_trousers", level],)})
+# The straight-leg trousers: the wide trousers' settings without the flare.
+_SETTINGS.update({("draped_straight_trousers", level): dataclasses.replace(_SETTINGS["draped_trousers", level],
+                                                                           flare=0.0) for level in DRAPE_LEVELS})
 
 
 def drape_settings(kind: str, level: str = "full") -> DrapeSettings:
@@ -381,10 +389,9 @@ SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dres
 # alone, the top's cloth would settle through the skirt. The open jacket's and the coat's panels hang over a loose
 # top (recipe.OVER_LOOSE_TOP), the jacket's over the skirt under it too (recipe.JACKET_OVER_LOOSE_TOP). Their pattern
 # is cut outside that cloth too (`garment_pattern`'s `over`), and `drape_garment` adds the cloth to the collider.
-DRAPED_OVER = {"draped_tshirt": ("draped_skirt", "draped_trousers", "draped_shorts"),
-               "draped_longsleeve": ("draped_skirt", "draped_trousers", "draped_shorts"),
-               "draped_jacket": ("draped_skirt", "draped_trousers", "draped_shorts", "draped_tshirt",
-                                 "draped_longsleeve"),
+_BOTTOMS = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
+DRAPED_OVER = {"draped_tshirt": _BOTTOMS, "draped_longsleeve": _BOTTOMS,
+               "draped_jacket": _BOTTOMS + ("draped_tshirt", "draped_longsleeve"),
                "draped_coat": ("draped_tshirt", "draped_longsleeve")}
 
 

@@ -43,7 +43,8 @@ __all__ = [
 
 RECIPE_FORMAT = "rh-character/1"  # headwear (optional key) kept the format: older recipes read back unchanged
 POOLS = ("benchmark", "pretrain")
-# draped_skirt, draped_dress, draped_trousers (wide-leg), draped_shorts (loose, the trousers' cut above the knee),
+# draped_skirt, draped_dress, draped_trousers (wide-leg), draped_straight_trousers (their cut with straight legs),
+# draped_shorts (loose, the wide trousers' cut above the knee),
 # draped_coat (open, long), draped_jacket (open, to the hips):
 # loose garments draped by newton's cloth solver (drape.py). A dress is worn instead of a top and a bottom; the coat
 # or the open jacket is the outermost layer, instead of a (shell) jacket, over close-fitting shell bottoms
@@ -57,22 +58,23 @@ POOLS = ("benchmark", "pretrain")
 # over that cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
                  "draped_trousers", "shoes", "draped_coat", "draped_hoodie", "draped_jacket", "draped_tshirt",
-                 "draped_longsleeve", "draped_shorts")
+                 "draped_longsleeve", "draped_shorts", "draped_straight_trousers")
 TOPS = ("tshirt", "longsleeve", "draped_hoodie", "draped_tshirt", "draped_longsleeve")
 LOOSE_TOPS = ("draped_tshirt", "draped_longsleeve")  # under OVER_LOOSE_TOP or nothing, over one of UNDER_LOOSE_TOP
-BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_shorts")
+BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
 DRESSES = ("draped_dress",)
 UNDER_COAT = ("trousers", "shorts")  # the bottoms a draped coat or jacket may be worn over
-# The bottoms a loose top may be worn over: the close-fitting shells, and the draped skirt, wide trousers and loose
-# shorts, whose cloth its drape collides with (drape.DRAPED_OVER); not the shell skirt, whose flare its drape would hang through.
-UNDER_LOOSE_TOP = UNDER_COAT + ("draped_skirt", "draped_trousers", "draped_shorts")
+# The bottoms a loose top may be worn over: the close-fitting shells, and the draped skirt, trousers and loose
+# shorts, whose cloth its drape collides with (drape.DRAPED_OVER); not the shell skirt, whose flare its drape would
+# hang through.
+UNDER_LOOSE_TOP = UNDER_COAT + ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
 # The outerwear a loose top may be worn under: the draped open jacket and coat, whose drape collides with the top's
 # cloth (drape.DRAPED_OVER); not the shell jacket, a second skin the top's cloth would hang through.
 OVER_LOOSE_TOP = ("draped_jacket", "draped_coat")
 # The draped bottoms the open jacket may be worn over when a loose top is under it (its drape collides with both
 # cloths, drape.DRAPED_OVER). Over a shell top the jacket stays a shell there: that top is lifted over the skirt's
 # waistband, out of the reach of the jacket's drape, and showed through its panels (docs/ARCHITECTURE.md).
-JACKET_OVER_LOOSE_TOP = ("draped_skirt", "draped_trousers", "draped_shorts")
+JACKET_OVER_LOOSE_TOP = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
 OUTERWEAR = ("jacket", "draped_jacket", "draped_coat")  # the outermost layers: at most one of them
 PATTERNS = ("solid", "stripes", "checks", "noise")
 # Fabric finish (how the renderer's sheen lobe and the knit texture treat a garment; character.FABRIC_SHEEN):
@@ -84,7 +86,7 @@ HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 HEADWEAR_KINDS = ("cap", "brimmed_hat", "headscarf", "glasses")
 # Innermost first: shoes under trouser hems, bottoms under tops (a shirt hangs over the waistband), jacket outside.
 GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_shorts",
-                  "draped_dress", "tshirt", "draped_tshirt", "longsleeve", "draped_longsleeve", "draped_hoodie",
+                  "draped_straight_trousers", "draped_dress", "tshirt", "draped_tshirt", "longsleeve", "draped_longsleeve", "draped_hoodie",
                   "jacket", "draped_jacket", "draped_coat")
 COVERINGS = ("cap", "brimmed_hat", "headscarf")
 

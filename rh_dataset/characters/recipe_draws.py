@@ -23,7 +23,8 @@ __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear"
            "iris_colour_name", "iris_weights", "EYES_STREAM", "DRESS_P", "DRESS_STREAM", "WIDE_TROUSERS_P",
            "WIDE_TROUSERS_STREAM", "COAT_P", "COAT_STREAM", "HOODIE_P", "HOODIE_STREAM", "HOODIE_HAIR", "JACKET_P",
            "JACKET_STREAM", "TSHIRT_P", "TSHIRT_STREAM",
-           "LONGSLEEVE_P", "LONGSLEEVE_STREAM", "SHORTS_P", "SHORTS_STREAM"]
+           "LONGSLEEVE_P", "LONGSLEEVE_STREAM", "SHORTS_P", "SHORTS_STREAM", "STRAIGHT_TROUSERS_P",
+           "STRAIGHT_TROUSERS_STREAM"]
 
 _SAMPLED_BOTTOMS = ("trousers", "shorts", "skirt")  # what recipe_from_seed draws from (its stream unchanged)
 # Loose clothing (issue 17): the published dataset's subjects wear "long hair, loose clothing, jackets, hats, head
@@ -89,6 +90,13 @@ LONGSLEEVE_P = 0.5
 # fabric: no other draw of any seed changes, and no other garment of any subject.
 SHORTS_STREAM = 1724
 SHORTS_P = 0.5
+# Straight-leg draped trousers (`draped_straight_trousers`: the wide trousers' pattern with straight, narrower legs)
+# instead of the (shell) trousers left after the wide-trousers draw, for this share of their wearers, under the same
+# rule as the loose shorts (no coat; the open jacket only over a loose top). Our choice: the shell is a legging or
+# skinny jeans, most trousers hang loose on the thigh and straight past the knee; half stay close-fitting. Drawn
+# after the shorts, from a stream of their own: no other draw of any seed changes, and no other garment.
+STRAIGHT_TROUSERS_STREAM = 1725
+STRAIGHT_TROUSERS_P = 0.5
 
 
 def derive_seed(pool: str, index: int, base: int) -> int:
@@ -214,7 +222,10 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     garments = _hoodie(np.random.default_rng([int(seed), HOODIE_STREAM]), garments, hair, headwear)
     garments = _loose_top(np.random.default_rng([int(seed), LONGSLEEVE_STREAM]), garments, "longsleeve",
                           LONGSLEEVE_P)
-    garments = _loose_shorts(np.random.default_rng([int(seed), SHORTS_STREAM]), garments)
+    garments = _loose_bottom(np.random.default_rng([int(seed), SHORTS_STREAM]), garments, "shorts",
+                             "draped_shorts", SHORTS_P)
+    garments = _loose_bottom(np.random.default_rng([int(seed), STRAIGHT_TROUSERS_STREAM]), garments, "trousers",
+                             "draped_straight_trousers", STRAIGHT_TROUSERS_P)
     return CharacterRecipe(seed=int(seed), pool=pool, index=int(index), phenotype=phenotype, skin=skin, hair=hair,
                            garments=garments, headwear=headwear, eyes=eyes)
 
@@ -267,16 +278,17 @@ def _loose_top(rng: np.random.Generator, garments: tuple[Garment, ...], top: str
     return tuple(dataclasses.replace(g, kind=kind.get(g.kind, g.kind)) for g in garments)
 
 
-def _loose_shorts(rng: np.random.Generator, garments: tuple[Garment, ...]) -> tuple[Garment, ...]:
-    """The drawn shorts made loose draped ones with probability SHORTS_P where no outerwear but a shell jacket, or an
-    open jacket over a loose top, is worn (rng: the shorts' stream; one draw for everyone, so its use is fixed)."""
-    loose = rng.random() < SHORTS_P
+def _loose_bottom(rng: np.random.Generator, garments: tuple[Garment, ...], shell: str, draped: str,
+                  p: float) -> tuple[Garment, ...]:
+    """The drawn `shell` bottom made the `draped` one with probability `p` where no outerwear but a shell jacket, or
+    an open jacket over a loose top, is worn (rng: that draw's stream; one draw for everyone, so its use is fixed)."""
+    loose = rng.random() < p
     kinds = {g.kind for g in garments}
     outer = kinds & set(OUTERWEAR)
     over = not outer or outer == {"jacket"} or (outer == {"draped_jacket"} and bool(kinds & set(LOOSE_TOPS)))
-    if not (loose and "shorts" in kinds and over):
+    if not (loose and shell in kinds and over):
         return garments
-    return tuple(dataclasses.replace(g, kind="draped_shorts") if g.kind == "shorts" else g for g in garments)
+    return tuple(dataclasses.replace(g, kind=draped) if g.kind == shell else g for g in garments)
 
 
 def _hoodie(rng: np.random.Generator, garments: tuple[Garment, ...], hair: HairSpec,
@@ -310,7 +322,8 @@ _FABRIC_CHOICES = {
     "draped_longsleeve": (("jersey", "knit", "plain", "velvet"), (0.45, 0.35, 0.15, 0.05)),  # the longsleeve's
     "trousers": (("plain", "velvet"), (0.92, 0.08)),  # denim / twill; velvet stands for corduroy and velour
     "draped_trousers": (("plain", "velvet"), (0.92, 0.08)),  # the trousers' (so a drawn fabric stays the same)
-    # (shorts and draped_shorts: plain; the loose shorts are drawn after the fabrics, so keep the shorts' anyway)
+    # (shorts and draped_shorts: plain; the loose shorts and straight trousers are drawn after the fabrics, so keep
+    # the shorts' and the trousers')
     "skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
     "draped_skirt": (("plain", "jersey", "velvet"), (0.6, 0.25, 0.15)),
     "draped_dress": (("plain", "jersey", "velvet"), (0.6, 0.3, 0.1)),

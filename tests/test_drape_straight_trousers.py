@@ -1,0 +1,107 @@
+"""Straight-leg draped trousers (drape.py, kind `draped_straight_trousers`): the wide trousers' pattern with legs
+that neither flare nor start as wide (`STRAIGHT_LEGS` of the wide legs' top radius). The pants topology and the cut
+are tested with the wide trousers' (tests/test_drape_trousers.py); here: the legs' analytic radius in the pattern,
+newton's coarse drape (to the ankle, off the body at rest and skinned into sampled poses, the same bits again), and
+the recipes' draw (last, on a stream of its own, where what is worn over the trousers allows it)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+from rh_dataset.characters.cloth_pose import self_crossings
+from rh_dataset.characters.drape import (DRAPE_LEVELS, PROFILES, STRAIGHT_LEGS, bind_loose, drape_garment,
+                                         drape_settings, penetration, push_out, skin_points)
+from test_drape_shorts import loose_bottom_draws
+
+KIND = "draped_straight_trousers"
+PHENO = {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5, "height": 0.5, "proportions": 0.5}
+HEAVY = {"gender": 0.0, "age": 0.6, "muscle": 0.5, "weight": 0.95, "height": 0.5, "proportions": 0.5}
+# The coarse drape of PHENO, measured 5 December: 711 particles in 12.9 s; the worst vertex 0.86 mm off the body; no
+# self-crossing edge; each leg's hem settled 2.5-2.6 cm under its cut, 13.4 cm over the floor (5.7 cm over the ankle
+# joints); skinned into the poses below, 0.5-37.9 mm in the body before `push_out`, 1.5 mm or more off it after.
+HEM_SAG_M = (0.01, 0.06)  # how far each leg's hem settles under its cut
+REST_BOUND_M = 0.002  # no vertex deeper in the body at rest (the wide trousers' bound)
+REST_CROSSINGS = 10  # the wide trousers' bound (their legs' inner walls meet under the crotch)
+
+
+@pytest.mark.parametrize("level", DRAPE_LEVELS)
+@pytest.mark.parametrize("pheno", [PHENO, HEAVY], ids=["slim", "heavy"])
+def test_legs_are_straight_cylinders_narrower_than_the_wide_legs(pheno, level):
+    """Below the first 10 cm and wherever the leg does not push it out, each leg ring is the circle `_trouser_pattern`
+    draws: radius STRAIGHT_LEGS times the wide legs' top radius, the same at every height (no flare); at the hem
+    (around the ankle, well inside that circle) the ring's perimeter is that circle's, to the chords' shortfall. The
+    wide trousers' hem ring is the wider flared circle. Both patterns share the waist tube and the split."""
+    from rh_dataset.characters.drape import _trouser_pattern
+
+    st, wide_st = drape_settings(KIND, level), drape_settings("draped_trousers", level)
+    assert st.flare == 0.0 and wide_st.flare > 0.0 and st.n_rings == wide_st.n_rings
+    verts, _, _, _, _, (waist, left, right) = _trouser_pattern(pheno, st, PROFILES[KIND])
+    wide, _, _, _, _, (w_waist, w_left, _) = _trouser_pattern(pheno, wide_st, PROFILES["draped_trousers"])
+    np.testing.assert_array_equal(verts[waist.ravel()], wide[w_waist.ravel()])
+    split = verts[waist[-1]]
+    r_wide = 0.5 * float(np.abs(split[:, 0] - split[:, 0].mean()).max())  # the wide legs' top radius
+    r = STRAIGHT_LEGS * r_wide
+
+    def perimeter(ring: np.ndarray) -> float:
+        return float(np.linalg.norm(ring - np.roll(ring, -1, axis=0), axis=1).sum())
+
+    n = left.shape[1]
+    chord = 2.0 * n * np.sin(np.pi / n)  # an n-gon inscribed in a unit circle
+    drop = float(split[0, 2] - wide[w_left[-1], 2].mean())
+    for grid in (left, right):
+        assert perimeter(verts[grid[-1]]) == pytest.approx(chord * r, rel=0.02)
+    assert perimeter(wide[w_left[-1]]) == pytest.approx(chord * (r_wide + drop * np.tan(wide_st.flare)), rel=0.02)
+    assert perimeter(verts[left[-1]]) < 0.75 * perimeter(wide[w_left[-1]])
+
+
+def test_coarse_drape_hangs_to_the_ankle_off_the_body_and_reruns_to_the_same_bits(tmp_path, monkeypatch):
+    """newton's coarse drape: each hem settles HEM_SAG_M under its cut, above the floor and around the ankle; nothing
+    lies deeper than REST_BOUND_M in the body at rest, at most REST_CROSSINGS edges cross the cloth; skinned
+    (`bind_loose`) into sampled poses and pushed out (`push_out`), nothing is under the skin. Simulated again (and
+    cached) it gives the same bits, and the cache gives them back."""
+    from rh_common.body_model import load_anny
+    from rh_dataset.poses import sample_poses
+
+    monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
+    st = drape_settings(KIND, "coarse")
+    g = drape_garment(KIND, PHENO, st, use_cache=False)
+    run = run_anny(PHENO)
+    heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
+    floor = float(run["vertices"][:, 2].min())
+    for leg in g.pieces[1:]:
+        cut, hung = float(g.pattern[leg[-1], 2].mean()), float(g.vertices[leg[-1], 2].mean())
+        assert HEM_SAG_M[0] <= cut - hung <= HEM_SAG_M[1], (cut, hung)
+        assert floor + 0.05 < hung < 0.5 * (heads["foot.L"][2] + heads["lowerleg02.L"][2])  # under mid-shin
+    faces = body_topology().faces
+    assert penetration(run["vertices"], faces, g.vertices).max() < REST_BOUND_M
+    assert self_crossings(g.vertices, g.faces) <= REST_CROSSINGS
+    np.testing.assert_allclose(g.vertices[g.pinned], g.pattern[g.pinned], atol=1e-6)
+    assert drape_garment(KIND, PHENO, st).vertices.tobytes() == g.vertices.tobytes()  # simulated, cached
+    assert len(list(tmp_path.glob(f"{KIND}-*.npz"))) == 1
+    assert drape_garment(KIND, PHENO, st).vertices.tobytes() == g.vertices.tobytes()  # read back
+    b = bind_loose(g, PHENO)
+    for pose in sample_poses(np.random.default_rng(7), load_anny(), 6):
+        posed = run_anny(PHENO, dict(pose.bones))
+        pts = skin_points(b, posed["bone_poses"], posed["rest_bone_poses"])
+        pts = push_out(pts, posed["vertices"], vertex_normals(posed["vertices"], faces), faces)
+        assert penetration(posed["vertices"], faces, pts).max() <= 0.0, pose.label
+
+
+def test_benchmark_recipes_draw_straight_trousers_from_their_own_stream(monkeypatch):
+    """recipe_from_seed turns the (shell) trousers the wide trousers' draw leaves into straight-leg draped ones for
+    STRAIGHT_TROUSERS_P of their wearers under no coat, and under the open jacket only with a loose top between,
+    deciding last, on a stream of its own (STRAIGHT_TROUSERS_STREAM; `loose_bottom_draws` checks the draw). Seed 0's
+    benchmark: subjects 9, 14, 18, 21, 36, 40, 42, 43 and 47 (14, 21, 40 under a loose t-shirt and the open jacket,
+    42 under a hoodie); 7 and 30 keep shell trousers under the open jacket over a shell long sleeve. Of the first 20
+    pretraining characters, 10, 16 and 18: none of the small leaderboard's (benchmark subjects 0 and 1, pretraining
+    characters 0-5), so its data stays the same (leaderboards/small/README.md)."""
+    from rh_dataset.characters.recipe_draws import STRAIGHT_TROUSERS_STREAM, sample_recipe
+    from rh_dataset.generate.seeding import rng_for
+
+    pre = [sample_recipe(rng_for(0, "character", s), pool="pretrain", index=s) for s in range(20)]
+    rs, plain, bench = loose_bottom_draws(monkeypatch, KIND, "trousers", "STRAIGHT_TROUSERS_P",
+                                          STRAIGHT_TROUSERS_STREAM)
+    assert [r.index for r in bench if r.garment(KIND)] == [9, 14, 18, 21, 36, 40, 42, 43, 47]
+    assert [r.index for r in bench if r.garment("trousers")] == [7, 15, 30, 38, 41]
+    assert [r.index for r in pre if r.garment(KIND)] == [10, 16, 18]
