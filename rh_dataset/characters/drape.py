@@ -385,13 +385,14 @@ SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dres
 
 
 # Draped kinds hung over draped cloth worn under them: {draped kind: the draped kinds under it its drape collides
-# with}. The loose tops' hems hang over a draped skirt's or wide trousers' waistband and hips: draped on the body
-# alone, the top's cloth would settle through the skirt. The open jacket's and the coat's panels hang over a loose
-# top (recipe.OVER_LOOSE_TOP), the jacket's over the skirt under it too (recipe.JACKET_OVER_LOOSE_TOP). Their pattern
-# is cut outside that cloth too (`garment_pattern`'s `over`), and `drape_garment` adds the cloth to the collider.
-_BOTTOMS = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
-DRAPED_OVER = {"draped_tshirt": _BOTTOMS, "draped_longsleeve": _BOTTOMS,
-               "draped_jacket": _BOTTOMS + ("draped_tshirt", "draped_longsleeve"),
+# with}. The loose tops' hems hang over a draped bottom's waistband and hips (_BOTTOMS_UNDER: the skirt, either
+# trousers, the shorts): draped on the body alone, the top's cloth would settle through the skirt. The open jacket's
+# and the coat's panels hang over a loose top (recipe.OVER_LOOSE_TOP), the jacket's over the bottom under it too
+# (recipe.JACKET_OVER_LOOSE_TOP). Their pattern is cut outside that cloth too (`garment_pattern`'s `over`), and
+# `drape_garment` adds the cloth to the collider.
+_BOTTOMS_UNDER = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
+DRAPED_OVER = {"draped_tshirt": _BOTTOMS_UNDER, "draped_longsleeve": _BOTTOMS_UNDER,
+               "draped_jacket": _BOTTOMS_UNDER + ("draped_tshirt", "draped_longsleeve"),
                "draped_coat": ("draped_tshirt", "draped_longsleeve")}
 
 
