@@ -8,15 +8,16 @@ subjects of each protocol wear them, and the arithmetic for the demo, the defaul
     python bench/bench_drape_cost.py --kinds draped_jacket
     python bench/bench_drape_cost.py --kinds draped_tshirt
     python bench/bench_drape_cost.py --kinds draped_longsleeve
+    python bench/bench_drape_cost.py --kinds draped_shorts draped_straight_trousers
     python bench/bench_drape_cost.py --posing-only --repeats 7  # the per-frame posing only (drapes from the cache)
 
 In: the dataset seed (default 0, the generator's and rh-demo's). Out, printed with the load average: (1) for the
-first dress, skirt, wide-trousers, coat, hoodie, open-jacket, loose-t-shirt and loose-long-sleeve wearer of the seed (`--kinds`), the drape's wall
+first dress, skirt, wide-trousers, coat, hoodie, open-jacket, loose-t-shirt, loose-long-sleeve, loose-shorts and
+straight-trousers wearer of the seed (`--kinds`), the drape's wall
 seconds at each level (`drape.DRAPE_LEVELS`; a cold cache in a temporary folder, Warp kernels compiled first by a
 one-step drape), and the skinned posing of a walk frame (`pose_character`, the draft and standard presets' cloth
-mode) against the first subject in shell clothes; (2) per protocol, its subjects wearing a dress, a skirt, wide
-trousers, a coat, a hoodie, an open jacket, a loose t-shirt or a loose long sleeve (a coat, an open jacket or a loose
-top is worn over shell bottoms only; a hoodie, a top, may be worn over a draped skirt or wide trousers, so a subject wears at most two draped kinds, each counted);
+mode) against the first subject in shell clothes; (2) per protocol, its subjects wearing each of those kinds (a
+subject may wear up to three: a draped bottom, a loose top, the open jacket; each counted);
 (3) the totals: drapes run once per (phenotype, kind, level) and are cached, so a protocol pays each loose subject's
 drape once, and protocols of one seed share subjects (and their cache).
 """
@@ -36,7 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 KINDS = ("draped_dress", "draped_skirt", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
-         "draped_tshirt", "draped_longsleeve")
+         "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -105,7 +106,8 @@ def main(argv: list[str] | None = None) -> int:
               f"({cpu['without']:.2f} CPU s)  (load {load()})")
         secs[kind, "pose"] = times["with"] - times["without"]
 
-    print("\nprotocol        subjects  dresses  skirts  trousers  coats  hoodies  jackets  tshirts  sleeves  frames/subject  "
+    print("\nprotocol        subjects  dresses  skirts  trousers  coats  hoodies  jackets  tshirts  sleeves  shorts  "
+          "straight  frames/subject  "
           "drape (full / coarse)   posing added"
           f"  (kinds timed: {', '.join(first)})")
     for p in args.protocols:
@@ -117,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         posing = sum(n[k] * secs.get((k, "pose"), 0.0) for k in KINDS) * frames
         print(f"{p:14s} {spec.subjects:9d} {n['draped_dress']:8d} {n['draped_skirt']:7d} {n['draped_trousers']:9d}"
               f" {n['draped_coat']:6d} {n['draped_hoodie']:8d} {n['draped_jacket']:8d} {n['draped_tshirt']:8d} {n['draped_longsleeve']:8d}"
-              f" {frames:15d}  " + (f"{full / 60:7.1f} / {coarse / 60:5.1f} min" if not args.posing_only else
+              f" {n['draped_shorts']:7d} {n['draped_straight_trousers']:9d} {frames:15d}  " + (f"{full / 60:7.1f} / {coarse / 60:5.1f} min" if not args.posing_only else
                                    f"{'(not timed)':>19s}") + f"  {posing / 3600:9.2f} h (if every frame "
               "posed as the walk)")
     print(f"(load at the end {load()})")
