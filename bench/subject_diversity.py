@@ -6,7 +6,8 @@ is built or rendered, so it runs in seconds. Out (stdout):
 * sex (anny's gender > 0.5 is female, as the recipe draws hair from it) and body (anny phenotype quartiles);
 * hair styles and colours (`recipe_draws.hair_colour_name`: the palette colour each was drawn from), iris colours
   (`recipe_draws.iris_colour_name`);
-* garments: how many subjects wear each kind, and the patterns and fabrics;
+* garments: how many subjects wear each kind, how many wear any draped kind (and who wears shells only), and the
+  patterns and fabrics;
 * every other top-level recipe field (headwear, ...), counted generically by its `kind`/`style`/`type` or value;
 * skin: the Individual Typology Angle of each subject's mean skin albedo (`rh_common.colourspace.ita_degrees` of
   `recipe.skin_albedo_linear`), its range and the count per ITA category; freckles, blush and veins.
@@ -69,6 +70,9 @@ def summarise(recipes: list) -> list[str]:
     lines.append(f"hair colours    {_counts(Counter(hair_colour_name(r.hair.colour) for r in recipes))}")
     lines.append(f"iris colours    {_counts(Counter(iris_colour_name(r.eyes.iris) for r in recipes))}")
     lines.append(f"garments        {_counts(Counter(g.kind for r in recipes for g in r.garments))}  (subjects wearing)")
+    draped = [r.index for r in recipes if any(g.kind.startswith("draped_") for g in r.garments)]
+    lines.append(f"  draped        {len(draped)} of {len(recipes)} subjects wear draped cloth; in shells only: "
+                 f"{', '.join(str(r.index) for r in recipes if r.index not in draped) or 'none'}")
     lines.append(f"  patterns      {_counts(Counter(g.pattern for r in recipes for g in r.garments if g.kind != 'shoes'))}")
     lines.append(f"  fabrics       {_counts(Counter(g.fabric for r in recipes for g in r.garments if g.kind != 'shoes'))}")
     for key in sorted({k for d in dicts for k in d} - _READ):
