@@ -31,7 +31,7 @@ from rh_common.body_model import ANNY_TOPOLOGY
 from .body import anchor_points, blended_normals, body_topology, run_anny, vertex_normals
 from .body_features import BodyFeatures
 from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP, DrapeSettings, SkinBinding,
-                    drape_garment, draped_over, draped_part, drape_settings, shell_hem)
+                    drape_garment, draped_over, draped_part, drape_settings, push_clearance, push_out, shell_hem)
 from .cloth_pose import LIFT_KINDS, skin_inside
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
@@ -680,10 +680,15 @@ def build_garments(
                 out.append(_shell("hoodie", feats, under, topology))
             part = draped_part(g.kind, phenotype, feats, under, st, over, draped[g.kind])
             if g.kind in LIFT_KINDS:
+                # The skin inside the cloth as posing leaves it at rest: pushed out (`push_out`, as pose_character
+                # pushes every frame). The drape itself dips up to ~2 mm into the body (the loaded waistband, the
+                # crotch); skin it dipped over lay outside it, so was never lifted, and came out through the
+                # posed cloth (bench_cloth_pose.py, the straight trousers' deep seated pose: 20 seen -> 1, skinned).
                 rest = run_anny(phenotype)["vertices"]
-                inside = skin_inside(draped[g.kind].vertices, draped[g.kind].faces, rest,
-                                     vertex_normals(rest, body_topology().faces))
-                part = dataclasses.replace(part, inside_skin=inside)
+                faces = body_topology().faces
+                normals = vertex_normals(rest, faces)
+                cloth = push_out(draped[g.kind].vertices, rest, normals, faces, push_clearance(g.kind))
+                part = dataclasses.replace(part, inside_skin=skin_inside(cloth, draped[g.kind].faces, rest, normals))
             out.append(part)
         else:
             out.append(_shell(g.kind, feats, under, topology))
