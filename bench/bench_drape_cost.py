@@ -119,8 +119,9 @@ def main(argv: list[str] | None = None) -> int:
         posing = sum(n[k] * secs.get((k, "pose"), 0.0) for k in KINDS) * frames
         print(f"{p:14s} {spec.subjects:9d} {n['draped_dress']:8d} {n['draped_skirt']:7d} {n['draped_trousers']:9d}"
               f" {n['draped_coat']:6d} {n['draped_hoodie']:8d} {n['draped_jacket']:8d} {n['draped_tshirt']:8d} {n['draped_longsleeve']:8d}"
-              f" {n['draped_shorts']:7d} {n['draped_straight_trousers']:9d} {frames:15d}  " + (f"{full / 60:7.1f} / {coarse / 60:5.1f} min" if not args.posing_only else
-                                   f"{'(not timed)':>19s}") + f"  {posing / 3600:9.2f} h (if every frame "
+              f" {n['draped_shorts']:7d} {n['draped_straight_trousers']:9d} {frames:15d}  "
+              + (f"{full / 60:7.1f} / {coarse / 60:5.1f} min" if not args.posing_only else f"{'(not timed)':>19s}")
+              + f"  {posing / 3600:9.2f} h (if every frame "
               "posed as the walk)")
     print(f"(load at the end {load()})")
     return 0

@@ -16,8 +16,9 @@ body in each view.
     python bench/draped_garments.py --subjects 3,31 --tile 512 --out docs/draped_tshirt.png  # two loose t-shirts
     python bench/draped_garments.py --subjects 11,36 --tile 512 --out docs/draped_longsleeve.png  # loose long sleeves
     python bench/draped_garments.py --subjects 1,8,23,44 --tile 512 --out docs/draped_shorts.png  # loose shorts
-    python bench/draped_garments.py --dresses 0 --skirts 0 --straight 4 --tile 512 \
+    python bench/draped_garments.py --subjects 9,18,42,47 --tile 512 \
         --out docs/draped_straight_trousers.png                           # straight-leg trousers
+    python bench/draped_garments.py --dresses 0 --skirts 0 --straight 2   # the first two straight-trousers wearers
 
 In: the dataset seed (the generator's subject order: `sample_recipe(rng_for(seed, "character", s))`), how many
 subjects of each kind (or `--subjects`: these indices, whatever they wear), the drape level (`drape.DRAPE_LEVELS`).

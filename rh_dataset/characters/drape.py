@@ -1,10 +1,10 @@
 """Loose garments draped by a real cloth solver (newton's VBD) onto the anny body in its rest pose.
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
-or straight-leg trousers or loose shorts, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`, `_hood_pattern`: a
-bag pinned on the back of the neckline, laid back and let fall down the upper back), a loose t-shirt's or long
-sleeve's body (a tube hanging from under the arms to the hips; its shoulders and sleeves are the shell "tee" or
-"longtop")); `PROFILES` cuts
+or straight-leg trousers or loose shorts, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`,
+`_hood_pattern`: a bag pinned on the back of the neckline, laid back and let fall down the upper back), a loose
+t-shirt's or long sleeve's body (a tube hanging from under the arms to the hips; its shoulders and sleeves are the
+shell "tee" or "longtop")); `PROFILES` cuts
 the others from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
 `_trouser_pattern`; the coat's and the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their
 shoulders and sleeves are one shell, garments.py's "coat", whose hem `shell_hem` places, as it places the dress's
@@ -209,8 +209,9 @@ SHORTS_HEM = 0.38
 SHORTS_MIN_LEG = 0.08
 LEG_RINGS_MIN = 2
 # The straight-leg trousers' cut (`draped_straight_trousers`): the wide trousers' pattern, hem and fabric, each leg a
-# cylinder (no flare) whose radius is STRAIGHT_LEGS of half the hips' width at the crotch (the wide trousers' 1.0 and
-# their 0.06 rad flare hang as palazzos): ordinary trousers, loose on the thigh, hanging straight past the knee.
+# cylinder (no flare) whose radius is STRAIGHT_LEGS of the wide legs' top radius (`DrapeProfile.legs`; a quarter of
+# the split ring's width: the wide trousers' 1.0 and 0.06 rad flare hang as palazzos): ordinary trousers, loose on
+# the thigh, hanging straight past the knee.
 STRAIGHT_LEGS = 0.7
 FRONT_OPENING = 0.05  # metres between the open coat's and jacket's front edges at the pinned ring (their one shell's V)
 PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeProfile("chest", "hips", 0.7),

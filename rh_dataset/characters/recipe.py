@@ -61,7 +61,8 @@ GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt"
                  "draped_longsleeve", "draped_shorts", "draped_straight_trousers")
 TOPS = ("tshirt", "longsleeve", "draped_hoodie", "draped_tshirt", "draped_longsleeve")
 LOOSE_TOPS = ("draped_tshirt", "draped_longsleeve")  # under OVER_LOOSE_TOP or nothing, over one of UNDER_LOOSE_TOP
-BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
+BOTTOMS = ("trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_shorts",
+           "draped_straight_trousers")
 DRESSES = ("draped_dress",)
 UNDER_COAT = ("trousers", "shorts")  # the bottoms a draped coat or jacket may be worn over
 # The bottoms a loose top may be worn over: the close-fitting shells, and the draped skirt, trousers and loose
@@ -86,8 +87,8 @@ HAIR_STYLES = ("buzz", "short", "bob", "long", "long_wavy", "bun", "ponytail")
 HEADWEAR_KINDS = ("cap", "brimmed_hat", "headscarf", "glasses")
 # Innermost first: shoes under trouser hems, bottoms under tops (a shirt hangs over the waistband), jacket outside.
 GARMENT_LAYERS = ("shoes", "trousers", "shorts", "skirt", "draped_skirt", "draped_trousers", "draped_shorts",
-                  "draped_straight_trousers", "draped_dress", "tshirt", "draped_tshirt", "longsleeve", "draped_longsleeve", "draped_hoodie",
-                  "jacket", "draped_jacket", "draped_coat")
+                  "draped_straight_trousers", "draped_dress", "tshirt", "draped_tshirt", "longsleeve",
+                  "draped_longsleeve", "draped_hoodie", "jacket", "draped_jacket", "draped_coat")
 COVERINGS = ("cap", "brimmed_hat", "headscarf")
 
 
