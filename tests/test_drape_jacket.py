@@ -211,14 +211,20 @@ def test_jacket_drape_is_bit_identical_and_stays_outside_the_body_and_the_layers
 POSED_UNDER_M = 0.008
 POSED_UNDER_N = 2
 # (benchmark subject of seed 0, its garments, the draped cloth the jacket is draped over), coarse drapes
-UNDER_JACKET = [(14, ["shoes", "trousers", "draped_tshirt", KIND], ["draped_tshirt"]),
+UNDER_JACKET = [(41, ["shoes", "trousers", "draped_longsleeve", KIND], ["draped_longsleeve"]),
                 (26, ["shoes", "draped_skirt", "draped_tshirt", KIND], ["draped_skirt", "draped_tshirt"])]
 
 
-@pytest.mark.parametrize("subject,kinds,inner", UNDER_JACKET, ids=["over-tee", "over-tee-and-skirt"])
+@pytest.mark.parametrize("subject,kinds,inner", UNDER_JACKET, ids=["over-top", "over-tee-and-skirt"])
 def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, inner, tmp_path, monkeypatch):
-    """An open jacket over a loose t-shirt (recipe.OVER_LOOSE_TOP; coarse drapes): subject 14 over trousers, subject
-    26 over a draped skirt too (recipe.JACKET_OVER_LOOSE_TOP). Draped on the body alone its panels settle through the
+    """An open jacket over a loose top (recipe.OVER_LOOSE_TOP; coarse drapes): subject 41 over a loose long sleeve
+    over shell trousers, subject 26 over a loose t-shirt over a draped skirt (recipe.JACKET_OVER_LOOSE_TOP). Until 5
+    December the first was subject 14 (a loose t-shirt over shell trousers); its trousers are straight draped ones
+    since, under both layers (tests/test_drape_straight_trousers.py, slow). Subject 41's figures, measured 5 December:
+    117 vertices more than 1 mm under the top draped alone, 20.9 mm at worst; draped over it, 5.5 mm over it at the
+    least; the shell's overlap 117 vertices, at least 2.3 mm under the panels; walking, nothing under the top, none
+    of its vertices over the jacket (0 untucked). The rest are subject 14's and 26's, of 4 December. Draped on the body
+    alone its panels settle through the
     top's cloth (measured: 112 and 168 vertices more than 1 mm under it, 17.3 and 26.0 mm at worst; subject 26's
     also 5 vertices through the skirt, 9.2 mm); draped with that cloth in its collider and its pattern cut outside it
     (drape.DRAPED_OVER), none is, and every vertex stays clear of it (measured: 5.2 and 5.3 mm at the least over the
