@@ -33,7 +33,7 @@ from .body_features import body_features, group_mask
 from .cloth_pose import (CLOTH_MODES, ClothPoseSettings, lift_over_skin, push_over_layers, push_under,
                          simulated_parts)
 from .drape import (DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, DrapeSettings, SkinBinding, penetration,
-                    push_clearance, push_out, skin_points)
+                    SLEEVE_GROUPS, push_clearance, push_out, shells_under, skin_points)
 from .eyes import eye_geometry
 from .geometry import split_faces
 from .hair import build_hair
@@ -565,23 +565,32 @@ def _shell_under_panels(character: Character, posed: list, cloth_under: dict, ve
     where its trunk came out through them (`cloth_pose.push_under`), then out of the skin where that took it in (an
     arm pressing the panel against the trunk leaves no room: the skin wins, the panel hides the rest). Only the
     trunk's vertices (bone group "torso", by each vertex's nearer body vertex): a sleeve beside a panel is outside it
-    by right. At rest the trunk lies under the panels already (`garments._under_cover`)."""
-    panels = next((cloth_under[k] for k in ("draped_coat", "draped_jacket") if k in cloth_under), None)
-    at = next((i for i, m in enumerate(posed) if m.name == "coat"), None)
-    if panels is None or at is None:
+    by right. At rest the trunk lies under the panels already (`garments._under_cover`). Likewise a shell top under
+    the open jacket over a draped bottom (`drape.SHELLS_UNDER`; all of it but its sleeves, `drape.SLEEVE_GROUPS`), 2
+    LAYER_GAP under them, so that where it reaches up under the coat's shell it stays under that too; it is capped
+    under them at rest the same way."""
+    kind = next((k for k in ("draped_coat", "draped_jacket") if k in cloth_under), None)
+    if kind is None:
         return
-    part = character.part("coat")
-    nearer = (part.body_vertex if part.blend_vertices is None else
-              part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)])
-    trunk = np.flatnonzero(group_mask(ANNY_TOPOLOGY, "torso")[nearer])
-    v = posed[at].vertices.astype(np.float64)
-    w, moved = push_under(v[trunk], *panels, LAYER_GAP)
-    if not len(moved):
-        return
-    moved = trunk[moved]
-    v[trunk] = w
-    v[moved] = push_out(v[moved], verts, normals, faces)
-    posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32))
+    panels = cloth_under[kind]
+    names = [p.name for p in character.parts]
+    for name in ("coat",) + shells_under(kind, names):
+        at = next((i for i, m in enumerate(posed) if m.name == name), None)
+        if at is None:
+            continue
+        part = character.part(name)
+        nearer = (part.body_vertex if part.blend_vertices is None else
+                  part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)])
+        held = (group_mask(ANNY_TOPOLOGY, "torso") if name == "coat" else ~group_mask(ANNY_TOPOLOGY, *SLEEVE_GROUPS))
+        trunk = np.flatnonzero(held[nearer])
+        v = posed[at].vertices.astype(np.float64)
+        w, moved = push_under(v[trunk], *panels, LAYER_GAP * (1 if name == "coat" else 2))
+        if not len(moved):
+            continue
+        moved = trunk[moved]
+        v[trunk] = w
+        v[moved] = push_out(v[moved], verts, normals, faces)
+        posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32))
 
 
 def body_bounds(posed_meshes: list[PosedMesh | PosedStrands]) -> tuple[np.ndarray, np.ndarray]:

@@ -44,7 +44,7 @@ from .body_features import body_features
 from .geometry import edge_counts, hull_anchors
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
-           "DRAPED_OVER", "draped_over",
+           "DRAPED_OVER", "draped_over", "SHELLS_UNDER", "SLEEVE_GROUPS", "shells_under",
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
@@ -395,6 +395,30 @@ _BOTTOMS_UNDER = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_st
 DRAPED_OVER = {"draped_tshirt": _BOTTOMS_UNDER, "draped_longsleeve": _BOTTOMS_UNDER,
                "draped_jacket": _BOTTOMS_UNDER + ("draped_tshirt", "draped_longsleeve"),
                "draped_coat": ("draped_tshirt", "draped_longsleeve")}
+
+
+# Shells held under draped cloth: {draped kind: the shell parts}. Only where a draped bottom is worn
+# (`_BOTTOMS_UNDER`, `shells_under`): a shell top over it is lifted over the bottom's waistband (`draped_part`'s
+# `under`, then garments.py's layers) and showed through the open jacket's panels at the hips, which are draped over
+# the body and the bottom (docs/ARCHITECTURE.md, "A shell top under the open jacket"). So its offset is capped under
+# the panels at rest (garments.build_garments, `_under_cover`, as the coat's shell is) and, posed, it is put back under
+# them where it came out (character._shell_under_panels). Over shell bottoms the top lies on the body, under the
+# panels' clearance, and nothing changes. Making the top's trunk a collider of the panels' drape instead (tried
+# 5 December) kept it under them too, but the panels' hem caught on the top's and folded through itself (130
+# crossing edges at rest for subject 30, 21 for subject 19, against none draped without it: bench/draped_garments.py).
+SHELLS_UNDER = {"draped_jacket": ("tshirt", "longsleeve")}
+# The bone groups (body_features.GROUPS) of a held shell's sleeves, by each vertex's nearer body vertex: held under
+# nothing (they lie under the jacket's own shell). Not only "torso": the top's lowest band, over the hips, is on
+# "upperleg" vertices, and left out it came through the panels' hem in the pictures.
+SLEEVE_GROUPS = ("upperarm", "lowerarm", "hand")
+
+
+def shells_under(kind: str, worn: Sequence[str]) -> tuple[str, ...]:
+    """The shell parts of `worn` (a character's part or garment kinds) held under a draped `kind`'s cloth
+    (`SHELLS_UNDER`, only over a draped bottom), in `worn`'s order."""
+    if kind not in SHELLS_UNDER or not any(k in _BOTTOMS_UNDER for k in worn):
+        return ()
+    return tuple(k for k in worn if k in SHELLS_UNDER[kind])
 
 
 def shell_hem(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:

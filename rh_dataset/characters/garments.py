@@ -30,8 +30,9 @@ from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body import anchor_points, blended_normals, body_topology, run_anny, vertex_normals
 from .body_features import BodyFeatures
-from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP, DrapeSettings, SkinBinding,
-                    drape_garment, draped_over, draped_part, drape_settings, push_clearance, push_out, shell_hem)
+from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP, SHELLS_UNDER, SLEEVE_GROUPS,
+                    DrapeSettings, SkinBinding, drape_garment, draped_over, draped_part, drape_settings, push_clearance,
+                    push_out, shell_hem, shells_under)
 from .cloth_pose import LIFT_KINDS, skin_inside
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
 from .recipe import Garment
@@ -243,8 +244,9 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     """A shell cut from the body along `garment_level`'s zero level (`hem`: the coat's). Every vertex is a blend of
     the two ends of a body edge (weight 1 on one end except on the cut), offset along the blended normal: the taper
     runs over the surface distance from the cut, and layering compares with the layers below interpolated the same
-    way. `cover` (the coat's shell): (the body's vertices in anny's rest A-pose, and the vertices and faces of the
-    draped cloth hanging from the shell's hem in that pose): the shell stays under that cloth (`_under_cover`)."""
+    way. `cover` (the coat's shell, and a shell top's trunk under the open jacket: drape.SHELLS_UNDER): (the body's
+    vertices in anny's rest A-pose, and the vertices and faces of the draped cloth over the shell in that pose): the
+    shell stays under that cloth (`_under_cover`)."""
     level = _clean_level(garment_level(kind, feats, hem), topology)
     topo = body_topology(topology)
     face_ids = np.flatnonzero((level[topo.faces] < 0).any(axis=1))
@@ -278,7 +280,9 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
         need = need * _smoothstep((z - hem) / UNDER_FADE)
     off = np.maximum(off, need)
     if cover is not None:
-        off = np.minimum(off, _under_cover(split, off, *cover, topology))
+        capped = np.minimum(off, _under_cover(split, off, *cover, topology))
+        # The coat's whole shell; a shell top but its sleeves (drape.SHELLS_UNDER: they lie under the coat's).
+        off = capped if kind == "coat" else np.where(feats.in_groups(*SLEEVE_GROUPS)[nearest], off, capped)
     whole = t == 0
     np.maximum.at(under, split.body_vertex[whole], off[whole])
     bv = np.stack([split.body_vertex, split.cut_vertex], 1)
@@ -691,5 +695,15 @@ def build_garments(
                 part = dataclasses.replace(part, inside_skin=skin_inside(cloth, draped[g.kind].faces, rest, normals))
             out.append(part)
         else:
-            out.append(_shell(g.kind, feats, under, topology))
+            kinds = [q.kind for q in garments]
+            jacket = next((k for k in SHELLS_UNDER if k in kinds and g.kind in shells_under(k, kinds)), None)
+            cover = None
+            if jacket is not None:
+                # A shell top under the open jacket over a draped bottom, lifted over the bottom's waistband: its
+                # trunk held LAYER_GAP under the panels at rest (drape.SHELLS_UNDER). The panels are draped here as
+                # they are below (the same call: the same cache entry), over the body and the bottom.
+                panels = drape_garment(jacket, phenotype, drape_settings(jacket, drape),
+                                       over=draped_over(jacket, draped))
+                cover = (run_anny(phenotype)["vertices"], panels.vertices, panels.faces)
+            out.append(_shell(g.kind, feats, under, topology, cover=cover))
     return out

@@ -48,10 +48,10 @@ POOLS = ("benchmark", "pretrain")
 # draped_coat (open, long), draped_jacket (open, to the hips):
 # loose garments draped by newton's cloth solver (drape.py). A dress is worn instead of a top and a bottom; the coat
 # or the open jacket is the outermost layer, instead of a (shell) jacket, over close-fitting shell bottoms
-# (UNDER_COAT), the open jacket also over a draped skirt or wide trousers with a loose top under it
-# (JACKET_OVER_LOOSE_TOP); their drape collides with the body and with the loose top's cloth and the skirt under
-# them. draped_hoodie: a top, the longsleeve's shell with a hood draped on the upper back, worn without any of
-# OUTERWEAR (its hood collides with the body, not with a jacket). draped_tshirt: a top, the t-shirt's shoulders and
+# (UNDER_COAT), the open jacket also over a draped bottom (JACKET_OVER_LOOSE_TOP); their drape collides with the
+# body and with the loose top's cloth and the skirt under them (a shell top is held under them). draped_hoodie: a
+# top, the longsleeve's shell with a hood draped on the upper back, worn without any of OUTERWEAR (its hood collides
+# with the body, not with a jacket). draped_tshirt: a top, the t-shirt's shoulders and
 # sleeves over a body of cloth hanging loose from under the arms to the hips, worn under nothing or one of
 # OVER_LOOSE_TOP (whose drape collides with it), over one of UNDER_LOOSE_TOP (its drape collides with the body and
 # with a draped skirt or wide trousers under it); draped_longsleeve likewise, the longsleeve's shoulders and sleeves
@@ -72,9 +72,11 @@ UNDER_LOOSE_TOP = UNDER_COAT + ("draped_skirt", "draped_trousers", "draped_short
 # The outerwear a loose top may be worn under: the draped open jacket and coat, whose drape collides with the top's
 # cloth (drape.DRAPED_OVER); not the shell jacket, a second skin the top's cloth would hang through.
 OVER_LOOSE_TOP = ("draped_jacket", "draped_coat")
-# The draped bottoms the open jacket may be worn over when a loose top is under it (its drape collides with both
-# cloths, drape.DRAPED_OVER). Over a shell top the jacket stays a shell there: that top is lifted over the skirt's
-# waistband, out of the reach of the jacket's drape, and showed through its panels (docs/ARCHITECTURE.md).
+# The draped bottoms the open jacket may be worn over (its drape collides with their cloth and a loose top's,
+# drape.DRAPED_OVER; a shell top, lifted over the bottom's waistband, showed through the panels until 5 December, and
+# is now held under them: drape.SHELLS_UNDER, docs/ARCHITECTURE.md). The draws put it there over a loose top
+# (`recipe_draws._loose_top`), and over a shell top where the bottom became draped after the jacket
+# (`recipe_draws._loose_bottom`); a shell jacket over a skirt or wide trousers with a shell top stays a shell.
 JACKET_OVER_LOOSE_TOP = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
 OUTERWEAR = ("jacket", "draped_jacket", "draped_coat")  # the outermost layers: at most one of them
 PATTERNS = ("solid", "stripes", "checks", "noise")
@@ -321,13 +323,11 @@ class CharacterRecipe:
         if not dresses and sum(k in BOTTOMS for k in kinds) != 1:
             raise ValueError(f"garments: exactly one of {BOTTOMS} (or a dress, {DRESSES}) is required, got {kinds}")
         outer = [k for k in kinds if k in OUTERWEAR]
-        over_loose = outer == ["draped_jacket"] and any(k in LOOSE_TOPS for k in kinds) and any(
-            k in JACKET_OVER_LOOSE_TOP for k in kinds)
+        over_draped = outer == ["draped_jacket"] and any(k in JACKET_OVER_LOOSE_TOP for k in kinds)
         if len(outer) > 1 or (outer and outer != ["jacket"] and not any(k in UNDER_COAT for k in kinds)
-                              and not over_loose):
+                              and not over_draped):
             raise ValueError(f"garments: at most one of {OUTERWEAR}, a draped_coat or draped_jacket only over one of "
-                             f"{UNDER_COAT} (a draped_jacket also over one of {JACKET_OVER_LOOSE_TOP} with a loose "
-                             f"top {LOOSE_TOPS} under it), got {kinds}")
+                             f"{UNDER_COAT} (a draped_jacket also over one of {JACKET_OVER_LOOSE_TOP}), got {kinds}")
         if "draped_hoodie" in kinds and outer:
             raise ValueError(f"garments: a draped_hoodie is worn without any of {OUTERWEAR}, got {kinds}")
         if any(k in LOOSE_TOPS for k in kinds) and (set(outer) - set(OVER_LOOSE_TOP)
