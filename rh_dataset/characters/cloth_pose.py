@@ -563,7 +563,8 @@ def _under_a_layer(points: np.ndarray, layers: list[tuple[np.ndarray, np.ndarray
 # either (6 -> 0): a loose top and an open jacket can be worn over it, and where the lifted skirt crossed itself a
 # jacket vertex stayed 4.8 mm under it after push_over_layers (tests/test_drape_jacket.py, subject 26's `random`
 # pose; 4.3 mm after 5 cycles). (Those counts predate taking the lifted skin from the pushed-out rest cloth,
-# garments.build_garments, 5 December; the straight trousers' 29 seen went to 1 with it; the others not remeasured.)
+# garments.build_garments, 5 December; the straight trousers' 29 seen went to 1 with it; remeasured, the dress's
+# stayed 3, the wide trousers' 13 -> 14 and the shorts' 2 -> 1: docs/TRADEOFFS.md.)
 LIFT_KINDS = ("draped_dress", "draped_trousers", "draped_shorts", "draped_straight_trousers")
 # Metres: how far under the cloth `lift_over_skin` leaves the skin it lifts the cloth over. Only skin out through
 # the cloth is lifted over: lifting also skin less than this under it moved 24 vertices of benchmark subject 0's dress
