@@ -661,6 +661,8 @@ def build_garments(
         under = np.zeros(len(feats.rest_vertices))
     out = []
     draped = {}  # kind -> DrapedGarment of the draped garments built so far (a loose top's drape collides with them)
+    early = {}  # kind -> DrapedGarment draped before its turn (the open jacket over a held shell top, below)
+    kinds = [g.kind for g in garments]
     for g in garments:
         if g.kind == "skirt":
             out.append(_skirt(feats, under))
@@ -671,7 +673,7 @@ def build_garments(
                 raise ValueError(f"build_garments: {g.kind} needs the phenotype (it is draped on the body)")
             st = drape_settings(g.kind, drape)
             over = draped_over(g.kind, draped)
-            draped[g.kind] = drape_garment(g.kind, phenotype, st, over=over)
+            draped[g.kind] = early.pop(g.kind, None) or drape_garment(g.kind, phenotype, st, over=over)
             if g.kind in SHELL_KINDS_OVER:
                 # Only the coat's shell can be lifted past its own cloth: over a loose top `under` raises it by the
                 # top's cloth, which hangs at the height of the panels' ring. The other shells sit at their TUCK
@@ -695,15 +697,14 @@ def build_garments(
                 part = dataclasses.replace(part, inside_skin=skin_inside(cloth, draped[g.kind].faces, rest, normals))
             out.append(part)
         else:
-            kinds = [q.kind for q in garments]
             jacket = next((k for k in SHELLS_UNDER if k in kinds and g.kind in shells_under(k, kinds)), None)
             cover = None
             if jacket is not None:
                 # A shell top under the open jacket over a draped bottom, lifted over the bottom's waistband: its
-                # trunk held LAYER_GAP under the panels at rest (drape.SHELLS_UNDER). The panels are draped here as
-                # they are below (the same call: the same cache entry), over the body and the bottom.
-                panels = drape_garment(jacket, phenotype, drape_settings(jacket, drape),
-                                       over=draped_over(jacket, draped))
-                cover = (run_anny(phenotype)["vertices"], panels.vertices, panels.faces)
+                # trunk held LAYER_GAP under the panels at rest (drape.SHELLS_UNDER). The panels are draped now, as
+                # at their own turn (over the body and the bottom: nothing draped comes between), and kept for it.
+                early[jacket] = drape_garment(jacket, phenotype, drape_settings(jacket, drape),
+                                              over=draped_over(jacket, draped))
+                cover = (run_anny(phenotype)["vertices"], early[jacket].vertices, early[jacket].faces)
             out.append(_shell(g.kind, feats, under, topology, cover=cover))
     return out
