@@ -59,7 +59,7 @@ def measure(ch, bones: dict, mode: str) -> tuple[str, float]:
     from rh_common.body_model import ANNY_TOPOLOGY
     from rh_dataset.characters import pose_character
     from rh_dataset.characters.body_features import group_mask
-    from rh_dataset.characters.cloth_pose import LAYER_REACH, layer_depth, self_crossings
+    from rh_dataset.characters.cloth_pose import LAYER_REACH, edges_through, layer_depth, self_crossings
     from rh_dataset.characters.drape import SLEEVE_GROUPS
 
     t0 = time.perf_counter()
@@ -90,29 +90,9 @@ def measure(ch, bones: dict, mode: str) -> tuple[str, float]:
     # through a triangle of the other. Between their vertices a panel's ~2 cm triangles can dip through the top.
     tf = np.asarray(d[top].faces)[trunk[np.asarray(d[top].faces)].all(1)]
     pv = panels.vertices.astype(np.float64)
-    meet = _edges_through(p, tf, pv, panels.faces) + _edges_through(pv, panels.faces, p, tf)
+    meet = edges_through(p, tf, pv, panels.faces) + edges_through(pv, panels.faces, p, tf)
     return (f"over {int(out.sum()):4d} ({worst:5.1f} mm) seen {seen:3d} | ray {int(inward.sum()):4d} seen {seen_in:3d} "
             f"| meet {meet:4d} | in bottom {int(inb.sum()):4d} | cross {cross:4d} | posing {secs:5.2f} s"), secs
-
-
-def _edges_through(v: np.ndarray, f: np.ndarray, ov: np.ndarray, of: np.ndarray) -> int:
-    """How many edges of the mesh (v, f) pass through a triangle of the mesh (ov, of)."""
-    import trimesh
-
-    from rh_dataset.characters.geometry import edge_counts
-
-    e = edge_counts(np.asarray(f))[0]
-    if not len(e) or not len(of):
-        return 0
-    o = v[e[:, 0]]
-    dv = v[e[:, 1]] - o
-    length = np.linalg.norm(dv, axis=1)
-    keep = length > 0
-    e, o, dv, length = e[keep], o[keep], dv[keep], length[keep]
-    dv = dv / length[:, None]
-    loc, ray, _ = trimesh.Trimesh(ov, of, process=False).ray.intersects_location(o, dv, multiple_hits=True)
-    t = ((loc - o[ray]) * dv[ray]).sum(1)
-    return int(len(np.unique(ray[(t > 1e-9) & (t < length[ray] - 1e-9)])))
 
 
 def _crosses(points: np.ndarray, directions: np.ndarray, vertices: np.ndarray, faces: np.ndarray, reach: float
@@ -151,26 +131,22 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
-    def build(recipe, collide: bool, res: int = 64):
-        """The character as rh-generate builds it (`collide`), or with drape.SHELLS_UNDER emptied."""
+    def posed_with(held: bool, fn):
+        """fn() as rh-generate runs it (`held`), or with drape.SHELLS_UNDER emptied (no cap, no push)."""
         saved = drape_module.SHELLS_UNDER
-        drape_module.SHELLS_UNDER = saved if collide else {}
-        character_module._build_cached.cache_clear()  # the build cache keys on the recipe alone
-        try:
-            t0 = time.perf_counter()
-            ch = build_character(recipe, res, drape=args.drape)
-            return ch, time.perf_counter() - t0
-        finally:
-            drape_module.SHELLS_UNDER = saved
-            character_module._build_cached.cache_clear()
-
-    def posed_with(collide: bool, fn):
-        saved = drape_module.SHELLS_UNDER
-        drape_module.SHELLS_UNDER = saved if collide else {}
+        drape_module.SHELLS_UNDER = saved if held else {}
         try:
             return fn()
         finally:
             drape_module.SHELLS_UNDER = saved
+
+    def build(recipe, held: bool, res: int = 64):
+        """The character built as `posed_with` says, and its seconds (the build cache keys on the recipe alone)."""
+        character_module._build_cached.cache_clear()
+        t0 = time.perf_counter()
+        ch = posed_with(held, lambda: build_character(recipe, res, drape=args.drape))
+        character_module._build_cached.cache_clear()
+        return ch, time.perf_counter() - t0
 
     print(f"load average at start: {load()}; drape {args.drape}")
     subjects = [int(x) for x in args.subjects.split(",")]

@@ -42,7 +42,7 @@ from .geometry import edge_counts
 
 __all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "POSE_FABRIC", "pose_fabric", "ClothPoseSettings", "BodyMotion",
            "body_motion", "simulate_into_pose", "skin_into_pose", "simulated_parts", "self_crossings", "hem_split",
-           "layer_depth", "push_over", "covers", "LIFT_KINDS", "skin_inside", "lift_over_skin"]
+           "layer_depth", "push_over", "covers", "LIFT_KINDS", "skin_inside", "lift_over_skin", "edges_through"]
 
 CLOTH_MODES = ("skinned", "simulated")
 # The draped kinds the "simulated" mode simulates (the others would be skinned in every mode): today all of them.
@@ -370,25 +370,38 @@ def self_crossings(vertices: np.ndarray, faces: np.ndarray) -> int:
     """How many edges of a cloth mesh pass through one of its own triangles (one not sharing a corner with the
     edge): trimesh rays along each edge, hits strictly inside the edge. 0 for cloth that does not pass through
     itself; a fold pushed through another fold crosses it along a line of edges."""
+    return edges_through(vertices, faces)
+
+
+def edges_through(vertices: np.ndarray, faces: np.ndarray, other_vertices: np.ndarray | None = None,
+                  other_faces: np.ndarray | None = None) -> int:
+    """How many edges of the mesh (`vertices`, `faces`) pass through a triangle of the other mesh (trimesh rays along
+    each edge, hits strictly inside the edge); without another mesh, through one of its own triangles that shares
+    no corner with the edge (`self_crossings`). Two surfaces that do not pass through each other: 0 both ways."""
     import trimesh
 
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces)
+    own = other_vertices is None
+    ov, of = (v, f) if own else (np.asarray(other_vertices, np.float64), np.asarray(other_faces))
     e = edge_counts(f)[0]
+    if not len(e) or not len(of):
+        return 0
     d = v[e[:, 1]] - v[e[:, 0]]
     e = e[np.linalg.norm(d, axis=1) > 0.0]  # an edge pushed to nothing (both ends onto one skin point) has no ray
     origin = v[e[:, 0]]
     d = v[e[:, 1]] - origin
     length = np.linalg.norm(d, axis=1)
     d = d / length[:, None]
-    tri, ray, loc = trimesh.Trimesh(v, f, process=False).ray.intersects_id(origin, d, multiple_hits=True,
-                                                                           return_locations=True)
+    tri, ray, loc = trimesh.Trimesh(ov, of, process=False).ray.intersects_id(origin, d, multiple_hits=True,
+                                                                             return_locations=True)
     if len(ray) == 0:
         return 0
     t = ((np.asarray(loc) - origin[ray]) * d[ray]).sum(1)
-    corners = f[tri]
-    shares = (corners == e[ray, :1]).any(1) | (corners == e[ray, 1:]).any(1)
-    inside = ~shares & (t > 1e-9) & (t < length[ray] - 1e-9)
+    inside = (t > 1e-9) & (t < length[ray] - 1e-9)
+    if own:
+        corners = of[tri]
+        inside &= ~((corners == e[ray, :1]).any(1) | (corners == e[ray, 1:]).any(1))
     return int(len(np.unique(ray[inside])))
 
 
