@@ -1,10 +1,10 @@
-"""A shell top (t-shirt, long sleeve) under the open jacket over a draped bottom: does it show through the jacket's
-panels? drape.SHELLS_UNDER caps the top's trunk under the panels at rest (garments._under_cover), and pose_character
-puts what still comes out back under them (character._shell_under_panels); this bench measures both against builds
-without them, and the panels' self-crossing edges (`cloth_pose.self_crossings`: making the top a collider of the
+"""A shell top (t-shirt, long sleeve) under the open jacket or the coat over a draped bottom: does it show through
+their panels? drape.SHELLS_UNDER caps the top's trunk under the panels at rest (garments._under_cover), and
+pose_character puts what still comes out back under them (character._shell_under_panels); this bench measures both
+against builds without them, and the panels' self-crossing edges (`cloth_pose.self_crossings`: making the top a collider of the
 panels' drape instead, tried first, let the panels' hem catch on the top's and fold through itself).
 
-    python bench/bench_shell_top_under_jacket.py                       # seed 0's subjects 7, 19 and 30, 3 test poses
+    python bench/bench_shell_top_under_jacket.py                # seed 0's subjects 7, 19, 30 (jacket), 25 (coat)
     python bench/bench_shell_top_under_jacket.py --subjects 7 --poses 1 --drape coarse
     python bench/bench_shell_top_under_jacket.py --figure docs/shell_top_under_jacket.png
 
@@ -29,7 +29,8 @@ cloth mode of `pose_character`:
   cross     the panels' self-crossing edges;
   posing s  `pose_character`'s seconds.
 --figure PATH: the first subject in its first test pose, skinned, without | with, rendered full body at 512 px
-(rh-generate's standard preset for the test split, 64 spp, Blender's studio light), the jacket's box cut out at 2x.
+(rh-generate's standard preset for the test split, 64 spp, Blender's studio light), the jacket's (or coat's) box cut
+out at 2x.
 The load average is printed with the times: the machine is shared.
 """
 from __future__ import annotations
@@ -45,6 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 SHELL_TOPS = ("tshirt", "longsleeve")
+OUTERS = ("draped_jacket", "draped_coat")  # drape.SHELLS_UNDER's draped kinds
 BOTTOMS = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
 
 
@@ -72,7 +74,7 @@ def measure(ch, bones: dict, mode: str) -> tuple[str, float]:
     nearer = part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)]
     trunk = ~group_mask(ANNY_TOPOLOGY, *SLEEVE_GROUPS)[nearer]
     p = d[top].vertices.astype(np.float64)
-    panels, cloth = d["draped_jacket"], d[bottom]
+    panels, cloth = d[next(k for k in OUTERS if k in d)], d[bottom]
     dep = layer_depth(p, panels.vertices.astype(np.float64), panels.faces, LAYER_REACH)
     out = trunk & (np.nan_to_num(dep, nan=1.0) < 0.0)
     n = d[top].normals.astype(np.float64)
@@ -112,10 +114,14 @@ def _crosses(points: np.ndarray, directions: np.ndarray, vertices: np.ndarray, f
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--subjects", default="7,19,30",
+    ap.add_argument("--subjects", default="7,19,30,25",
                     help="comma-separated benchmark subjects (rh-generate's, at --seed) wearing a shell top under the "
-                         "open jacket over a draped bottom")
+                         "open jacket or the coat over a draped bottom")
     ap.add_argument("--seed", type=int, default=0, help="dataset seed the recipes and poses come from")
+    ap.add_argument("--pool", action="store_true",
+                    help="--subjects are benchmark pool recipe indices (bench_cloth.draped_recipe's, as "
+                         "bench_cloth_layers.py --pool), not rh-generate's: combinations seed 0's 49 do not draw, "
+                         "such as the coat over straight trousers (pool recipe 79)")
     ap.add_argument("--poses", type=int, default=3, help="test poses per subject (besides the rest pose)")
     ap.add_argument("--drape", default="full", choices=("full", "coarse"), help="drape level (RenderSettings.drape)")
     ap.add_argument("--modes", nargs="+", default=["skinned", "simulated"], choices=("skinned", "simulated"),
@@ -128,6 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     import rh_dataset.characters.drape as drape_module
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, sample_recipe
+    from rh_dataset.characters.recipe_draws import derive_seed, recipe_from_seed
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
@@ -151,14 +158,18 @@ def main(argv: list[str] | None = None) -> int:
     print(f"load average at start: {load()}; drape {args.drape}")
     subjects = [int(x) for x in args.subjects.split(",")]
     for s in subjects:
-        recipe = sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s)
+        recipe = (recipe_from_seed(derive_seed("benchmark", s, args.seed), "benchmark", s) if args.pool else
+                  sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s))
         kinds = [g.kind for g in recipe.garments]
-        if not ("draped_jacket" in kinds and any(k in kinds for k in SHELL_TOPS) and any(k in kinds for k in BOTTOMS)):
-            ap.error(f"benchmark subject {s} wears no shell top under the open jacket over a draped bottom: {kinds}")
+        name = f"{'pool recipe' if args.pool else 'subject'} {s}"
+        if not (any(k in kinds for k in OUTERS) and any(k in kinds for k in SHELL_TOPS)
+                and any(k in kinds for k in BOTTOMS)):
+            ap.error(f"benchmark {name} wears no shell top under the open jacket or the coat over a draped "
+                     f"bottom: {kinds}")
         chars = {}
         for way in ("without", "with"):
             chars[way], secs = build(recipe, way == "with")
-            print(f"subject {s:2d} {', '.join(kinds)}: built {way} the cap in {secs:.0f} s (load {load()})",
+            print(f"{name} {', '.join(kinds)}: built {way} the cap in {secs:.0f} s (load {load()})",
                   flush=True)
         poses = [("rest", {})] + [(f"test {j} ({p.label})", dict(p.bones)) for j, p in enumerate(
             sample_pose(rng_for(args.seed, "pose", s, "test", j), load_anny()) for j in range(args.poses))]
@@ -176,8 +187,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def figure(out: Path, s: int, seed: int, chars: dict, recipe, posed_with) -> None:
-    """`--figure`: each build of `chars` in rh-generate's first test pose of subject `s`, its jacket cut out at 2x,
-    side by side."""
+    """`--figure`: each build of `chars` in rh-generate's first test pose of subject `s`, its jacket (or coat) cut out
+    at 2x, side by side."""
     from rh_common.body_model import load_anny
     from rh_common.camera import frame_body
     from rh_common.colourspace import quantize8, srgb_encode
@@ -202,7 +213,7 @@ def figure(out: Path, s: int, seed: int, chars: dict, recipe, posed_with) -> Non
         lo, hi = body_bounds(posed)
         cam = frame_body(lo, hi, 512, 512, 30.0, fill=0.94)
         img = render_frame(posed, env, cam, settings, ["image"], seed=s).layers["image"]
-        box = cam.project(next(m for m in posed if m.name == "draped_jacket").vertices.astype(np.float64))
+        box = cam.project(next(m for m in posed if m.name in OUTERS).vertices.astype(np.float64))
         (x0, y0), (x1, y1) = box.min(0), box.max(0)
         cx, cy, half = 0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.6 * max(x1 - x0, y1 - y0)
         crop = img[max(0, int(cy - half)):int(cy + half), max(0, int(cx - half)):int(cx + half)]

@@ -134,14 +134,15 @@ def test_benchmark_recipes_draw_coats_from_their_own_stream(monkeypatch):
     """recipe_from_seed turns the drawn jacket into a draped coat for COAT_P of the jacket wearers in shell trousers
     or shorts, from a stream of its own: with the share set to zero every recipe is the same but for that kind (and a
     loose top under the coat, recipe.OVER_LOOSE_TOP, which is a shell top under the shell jacket), so no other field
-    of any seed changed. A coat recipe round-trips through JSON; a coat with a jacket, or over a
-    draped bottom, is refused."""
+    of any seed changed. A coat recipe round-trips through JSON; a coat with a jacket, or over a draped skirt (not
+    one of recipe.COAT_OVER_DRAPED), is refused."""
     from rh_dataset.characters import recipe_draws
     from rh_dataset.characters.recipe import UNDER_COAT, CharacterRecipe, Garment
     from rh_dataset.characters.recipe_draws import COAT_P, recipe_from_seed
 
     # The coat's draw alone: the open jacket's draw after it takes the jackets it leaves (tests/test_drape_jacket.py),
-    # and the loose shorts' and straight trousers' draws, last, those under no coat (tests/test_drape_shorts.py).
+    # and the loose shorts' and straight trousers' draws, last, make some bottoms draped, under the coat too since
+    # 5 December (tests/test_drape_shorts.py).
     monkeypatch.setattr(recipe_draws, "JACKET_P", 0.0)
     monkeypatch.setattr(recipe_draws, "SHORTS_P", 0.0)
     monkeypatch.setattr(recipe_draws, "STRAIGHT_TROUSERS_P", 0.0)

@@ -93,7 +93,7 @@ def test_coarse_drape_hangs_to_the_ankle_off_the_body_and_reruns_to_the_same_bit
 
 def test_benchmark_recipes_draw_straight_trousers_from_their_own_stream(monkeypatch):
     """recipe_from_seed turns the (shell) trousers the wide trousers' draw leaves into straight-leg draped ones for
-    STRAIGHT_TROUSERS_P of their wearers under no coat, deciding last, on a stream of its own
+    STRAIGHT_TROUSERS_P of their wearers (under a coat too, since 5 December), deciding last, on a stream of its own
     (STRAIGHT_TROUSERS_STREAM; `loose_bottom_draws` checks the draw). Seed 0's benchmark: subjects 7, 9, 14, 18, 21,
     30, 36, 40, 42, 43 and 47 (14, 21, 40 under a loose t-shirt and the open jacket, 42 under a hoodie; 7 and 30 under
     a shell long sleeve and the open jacket, since 5 December: drape.SHELLS_UNDER). Of the first 20
@@ -108,6 +108,7 @@ def test_benchmark_recipes_draw_straight_trousers_from_their_own_stream(monkeypa
     assert [r.index for r in bench if r.garment(KIND)] == [7, 9, 14, 18, 21, 30, 36, 40, 42, 43, 47]
     assert [r.index for r in bench if r.garment("trousers")] == [15, 38, 41]
     assert [r.index for r in pre if r.garment(KIND)] == [10, 16, 18]
+    assert any(r.garment(KIND) and r.garment("draped_coat") for r in rs)
 
 
 @pytest.mark.slow

@@ -1,26 +1,42 @@
-"""A shell top under the open jacket over a draped bottom (drape.SHELLS_UNDER): its trunk is capped under the
-jacket's panels at rest (garments._under_cover), and pose_character keeps it under them (character._shell_under_panels).
+"""A shell top under the open jacket or the coat over a draped bottom (drape.SHELLS_UNDER): its trunk is capped under
+the panels at rest (garments._under_cover), and pose_character keeps it under them (character._shell_under_panels).
 
 Benchmark subject 7 of seed 0 wears a shell long sleeve under the open jacket over straight-leg draped trousers
 (since 5 December). Built at the coarse drape level (bench/bench_shell_top_under_jacket.py --subjects 7 --poses 2
 --drape coarse --modes skinned, 5 December 05:56 UTC, load ~1.6): without the cap and push 44 of the top's vertices
 (all but the sleeves') lay over the panels at rest (11.7 mm at worst), all seen by a camera around the subject, and
 44-46 in its two test poses; with them, none in any of the three, and the panels' own bits are the same.
+
+Subject 25 wears a shell long sleeve under the coat over loose shorts (since the afternoon of 5 December). The same
+command with --subjects 25 (07:08 UTC, load ~0.5): 39 over the panels at rest without (15.4 mm), none with; in its
+first test pose (`random`, a leg raised under the long coat) 105 without, 15 with (6.5 mm at worst), none of those
+seen (the thigh presses the panel on the top's hip band: the skin wins, the panel hides it).
 """
 from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
-@pytest.fixture(scope="module")
-def subject7():
+# subject: (its garments, the draped outer kind, the draped bottom, the most trunk vertices over the panels in its
+# first test pose, coarse drape, skinned: measured above)
+SUBJECTS = {7: (["shoes", "draped_straight_trousers", "longsleeve", "draped_jacket"], 0),
+            25: (["shoes", "draped_shorts", "longsleeve", "draped_coat"], 20)}
+
+
+@pytest.fixture(scope="module", params=sorted(SUBJECTS))
+def subject(request):
     from rh_dataset.characters import build_character, sample_recipe
     from rh_dataset.generate.seeding import rng_for
 
-    recipe = sample_recipe(rng_for(0, "character", 7), pool="benchmark", index=7)
-    assert [g.kind for g in recipe.garments] == ["shoes", "draped_straight_trousers", "longsleeve", "draped_jacket"]
-    return recipe, build_character(recipe, 32, drape="coarse")
+    s = request.param
+    recipe = sample_recipe(rng_for(0, "character", s), pool="benchmark", index=s)
+    assert [g.kind for g in recipe.garments] == SUBJECTS[s][0]
+    return s, recipe, build_character(recipe, 32, drape="coarse")
 
 
 def test_shells_under_names_a_shell_top_only_over_a_draped_bottom():
@@ -30,30 +46,30 @@ def test_shells_under_names_a_shell_top_only_over_a_draped_bottom():
         "longsleeve",)
     assert shells_under("draped_jacket", ["draped_skirt", "tshirt", "coat"]) == ("tshirt",)
     assert shells_under("draped_jacket", ["shoes", "trousers", "longsleeve", "coat"]) == ()  # a shell bottom
-    assert shells_under("draped_coat", ["draped_shorts", "longsleeve", "coat"]) == ()
+    assert shells_under("draped_coat", ["draped_shorts", "longsleeve", "coat"]) == ("longsleeve",)
+    assert shells_under("draped_coat", ["shorts", "longsleeve", "coat"]) == ()
     assert shells_under("draped_jacket", ["draped_shorts", "draped_longsleeve", "longtop"]) == ()  # a loose top
 
 
-def test_the_panels_are_draped_as_without_the_top_and_the_top_capped_under_them(subject7):
-    """The cap moves the top, not the panels: the jacket's part at rest is its drape over the body and the trousers
-    alone (to float32), as the generator drapes it without a shell top. The top's trunk, lifted over the trousers'
-    waistband, is capped under the panels where they cover it (some of its offsets lowered below the lift), its
-    sleeves not (their offsets reach the long sleeve's own 6 mm)."""
+def test_the_panels_are_draped_as_without_the_top_and_the_top_capped_under_them(subject):
+    """The cap moves the top, not the panels: the jacket's (coat's) part at rest is its drape over the body and the
+    bottom alone (to float32), as the generator drapes it without a shell top. The top's trunk, lifted over the
+    bottom's waistband, is capped under the panels where they cover it (some of its offsets lowered below the lift),
+    its sleeves not (their offsets reach the long sleeve's own 6 mm)."""
     from rh_common.body_model import ANNY_TOPOLOGY
     from rh_dataset.characters import pose_character
     from rh_dataset.characters.body_features import group_mask
     from rh_dataset.characters.drape import SLEEVE_GROUPS
     from rh_dataset.characters.drape import drape_garment, drape_settings
 
-    recipe, ch = subject7
-    trousers = drape_garment("draped_straight_trousers", recipe.phenotype,
-                             drape_settings("draped_straight_trousers", "coarse"))
-    panels = drape_garment("draped_jacket", recipe.phenotype, drape_settings("draped_jacket", "coarse"),
-                           over=(trousers,))
+    s, recipe, ch = subject
+    _, bottom, _, outer = SUBJECTS[s][0]
+    cloth = drape_garment(bottom, recipe.phenotype, drape_settings(bottom, "coarse"))
+    panels = drape_garment(outer, recipe.phenotype, drape_settings(outer, "coarse"), over=(cloth,))
     from scipy.spatial import cKDTree
 
     rest = {m.name: m for m in pose_character(ch, {})}
-    assert cKDTree(panels.vertices).query(rest["draped_jacket"].vertices.astype(np.float64))[0].max() < 1e-6
+    assert cKDTree(panels.vertices).query(rest[outer].vertices.astype(np.float64))[0].max() < 1e-6
     part = ch.part("longsleeve")
     nearer = part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)]
     trunk = ~group_mask(ANNY_TOPOLOGY, *SLEEVE_GROUPS)[nearer]
@@ -61,10 +77,11 @@ def test_the_panels_are_draped_as_without_the_top_and_the_top_capped_under_them(
     assert part.offset[trunk].max() > 0.01  # lifted over the trousers' waistband where the panels do not cover it
 
 
-def test_the_shell_top_stays_under_the_open_jacket(subject7):
-    """At rest and in the subject's first test pose (skinned, as draft and standard pose it), none of the long
-    sleeve's trunk vertices lies over the jacket's panels (layer_depth < 0 within LAYER_REACH, beyond none of their
-    open edges)."""
+def test_the_shell_top_stays_under_the_panels(subject):
+    """At rest none of the long sleeve's trunk vertices lies over the panels (layer_depth < 0 within LAYER_REACH,
+    beyond none of their open edges). In the subject's first test pose (skinned, as draft and standard pose it) at
+    most the measured few (none under the jacket), and a camera around the subject sees none of them."""
+    from bench_cloth_pose import seen_around
     from rh_common.body_model import ANNY_TOPOLOGY, load_anny
     from rh_dataset.characters import pose_character
     from rh_dataset.characters.body_features import group_mask
@@ -73,23 +90,28 @@ def test_the_shell_top_stays_under_the_open_jacket(subject7):
     from rh_dataset.generate.seeding import rng_for
     from rh_dataset.poses import sample_pose
 
-    _, ch = subject7
+    s, _, ch = subject
+    outer, bound = SUBJECTS[s][0][-1], SUBJECTS[s][1]
     part = ch.part("longsleeve")
     nearer = part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)]
     trunk = ~group_mask(ANNY_TOPOLOGY, *SLEEVE_GROUPS)[nearer]
-    for bones in ({}, dict(sample_pose(rng_for(0, "pose", 7, "test", 0), load_anny()).bones)):
-        posed = {m.name: m for m in pose_character(ch, bones)}
-        panels = posed["draped_jacket"]
-        d = layer_depth(posed["longsleeve"].vertices.astype(np.float64), panels.vertices.astype(np.float64),
-                        panels.faces, LAYER_REACH)
-        assert not (trunk & (np.nan_to_num(d, nan=1.0) < 0.0)).any()
+    for at_most, bones in ((0, {}), (bound, dict(sample_pose(rng_for(0, "pose", s, "test", 0), load_anny()).bones))):
+        meshes = pose_character(ch, bones)
+        posed = {m.name: m for m in meshes}
+        panels, top = posed[outer], posed["longsleeve"]
+        d = layer_depth(top.vertices.astype(np.float64), panels.vertices.astype(np.float64), panels.faces,
+                        LAYER_REACH)
+        over = trunk & (np.nan_to_num(d, nan=1.0) < 0.0)
+        assert over.sum() <= at_most, (s, over.sum())
+        assert not seen_around(top.vertices[over], top.normals[over], meshes).any()
 
 
-def test_over_shell_bottoms_nothing_is_capped(subject7):
-    """Over shell trousers the rule names no shell (the top lies on the body under the panels' clearance there, and
-    those subjects' geometry is what it was)."""
+def test_over_shell_bottoms_nothing_is_capped(subject):
+    """Over shell trousers or shorts the rule names no shell (the top lies on the body under the panels' clearance
+    there, and those subjects' geometry is what it was)."""
     from rh_dataset.characters.drape import shells_under
 
-    recipe, _ = subject7
-    shell = [("trousers" if g.kind == "draped_straight_trousers" else g.kind) for g in recipe.garments]
-    assert shells_under("draped_jacket", shell) == ()
+    s, recipe, _ = subject
+    shell = [{"draped_straight_trousers": "trousers", "draped_shorts": "shorts"}.get(g.kind, g.kind)
+             for g in recipe.garments]
+    assert shells_under(SUBJECTS[s][0][-1], shell) == ()

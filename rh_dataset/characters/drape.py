@@ -388,13 +388,13 @@ SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dres
 # Draped kinds hung over draped cloth worn under them: {draped kind: the draped kinds under it its drape collides
 # with}. The loose tops' hems hang over a draped bottom's waistband and hips (_BOTTOMS_UNDER: the skirt, either
 # trousers, the shorts): draped on the body alone, the top's cloth would settle through the skirt. The open jacket's
-# and the coat's panels hang over a loose top (recipe.OVER_LOOSE_TOP), the jacket's over the bottom under it too
-# (recipe.JACKET_OVER_LOOSE_TOP). Their pattern is cut outside that cloth too (`garment_pattern`'s `over`), and
-# `drape_garment` adds the cloth to the collider.
+# and the coat's panels hang over a loose top (recipe.OVER_LOOSE_TOP) and over the bottom under it
+# (recipe.JACKET_OVER_LOOSE_TOP, recipe.COAT_OVER_DRAPED). Their pattern is cut outside that cloth too
+# (`garment_pattern`'s `over`), and `drape_garment` adds the cloth to the collider.
 _BOTTOMS_UNDER = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
 DRAPED_OVER = {"draped_tshirt": _BOTTOMS_UNDER, "draped_longsleeve": _BOTTOMS_UNDER,
                "draped_jacket": _BOTTOMS_UNDER + ("draped_tshirt", "draped_longsleeve"),
-               "draped_coat": ("draped_tshirt", "draped_longsleeve")}
+               "draped_coat": _BOTTOMS_UNDER + ("draped_tshirt", "draped_longsleeve")}
 
 
 # Shells held under draped cloth: {draped kind: the shell parts}. Only where a draped bottom is worn
@@ -406,7 +406,9 @@ DRAPED_OVER = {"draped_tshirt": _BOTTOMS_UNDER, "draped_longsleeve": _BOTTOMS_UN
 # panels' clearance, and nothing changes. Making the top's trunk a collider of the panels' drape instead (tried
 # 5 December) kept it under them too, but the panels' hem caught on the top's and folded through itself (130
 # crossing edges at rest for subject 30, 21 for subject 19, against none draped without it: bench/draped_garments.py).
-SHELLS_UNDER = {"draped_jacket": ("tshirt", "longsleeve")}
+# The coat likewise since 5 December (afternoon): its panels hang over the loose shorts or straight trousers the
+# same way (recipe.COAT_OVER_DRAPED), and a shell top would show through them at the hips.
+SHELLS_UNDER = {"draped_jacket": ("tshirt", "longsleeve"), "draped_coat": ("tshirt", "longsleeve")}
 # The bone groups (body_features.GROUPS) of a held shell's sleeves, by each vertex's nearer body vertex: held under
 # nothing (they lie under the jacket's own shell). Not only "torso": the top's lowest band, over the hips, is on
 # "upperleg" vertices, and left out it came through the panels' hem in the pictures.

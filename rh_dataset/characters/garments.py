@@ -244,7 +244,7 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     """A shell cut from the body along `garment_level`'s zero level (`hem`: the coat's). Every vertex is a blend of
     the two ends of a body edge (weight 1 on one end except on the cut), offset along the blended normal: the taper
     runs over the surface distance from the cut, and layering compares with the layers below interpolated the same
-    way. `cover` (the coat's shell, and a shell top's trunk under the open jacket: drape.SHELLS_UNDER): (the body's
+    way. `cover` (the coat's shell, and a shell top's trunk under the open jacket or coat: drape.SHELLS_UNDER): (the body's
     vertices in anny's rest A-pose, and the vertices and faces of the draped cloth over the shell in that pose): the
     shell stays under that cloth (`_under_cover`)."""
     level = _clean_level(garment_level(kind, feats, hem), topology)
@@ -661,7 +661,7 @@ def build_garments(
         under = np.zeros(len(feats.rest_vertices))
     out = []
     draped = {}  # kind -> DrapedGarment of the draped garments built so far (a loose top's drape collides with them)
-    early = {}  # kind -> DrapedGarment draped before its turn (the open jacket over a held shell top, below)
+    early = {}  # kind -> DrapedGarment draped before its turn (the open jacket or coat over a held shell top, below)
     kinds = [g.kind for g in garments]
     for g in garments:
         if g.kind == "skirt":
@@ -697,14 +697,14 @@ def build_garments(
                 part = dataclasses.replace(part, inside_skin=skin_inside(cloth, draped[g.kind].faces, rest, normals))
             out.append(part)
         else:
-            jacket = next((k for k in SHELLS_UNDER if k in kinds and g.kind in shells_under(k, kinds)), None)
+            outer = next((k for k in SHELLS_UNDER if k in kinds and g.kind in shells_under(k, kinds)), None)
             cover = None
-            if jacket is not None:
-                # A shell top under the open jacket over a draped bottom, lifted over the bottom's waistband: its
-                # trunk held LAYER_GAP under the panels at rest (drape.SHELLS_UNDER). The panels are draped now, as
-                # at their own turn (over the body and the bottom: nothing draped comes between), and kept for it.
-                early[jacket] = drape_garment(jacket, phenotype, drape_settings(jacket, drape),
-                                              over=draped_over(jacket, draped))
-                cover = (run_anny(phenotype)["vertices"], early[jacket].vertices, early[jacket].faces)
+            if outer is not None:
+                # A shell top under the open jacket or coat over a draped bottom, lifted over the bottom's waistband:
+                # its trunk held LAYER_GAP under the panels at rest (drape.SHELLS_UNDER). The panels are draped now,
+                # as at their own turn (over the body and the bottom: nothing draped comes between), and kept for it.
+                early[outer] = drape_garment(outer, phenotype, drape_settings(outer, drape),
+                                             over=draped_over(outer, draped))
+                cover = (run_anny(phenotype)["vertices"], early[outer].vertices, early[outer].faces)
             out.append(_shell(g.kind, feats, under, topology, cover=cover))
     return out

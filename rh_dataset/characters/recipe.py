@@ -25,6 +25,7 @@ __all__ = [
     "UNDER_LOOSE_TOP",
     "OVER_LOOSE_TOP",
     "JACKET_OVER_LOOSE_TOP",
+    "COAT_OVER_DRAPED",
     "OUTERWEAR",
     "LOOSE_TOPS",
     "PATTERNS",
@@ -48,7 +49,8 @@ POOLS = ("benchmark", "pretrain")
 # draped_coat (open, long), draped_jacket (open, to the hips):
 # loose garments draped by newton's cloth solver (drape.py). A dress is worn instead of a top and a bottom; the coat
 # or the open jacket is the outermost layer, instead of a (shell) jacket, over close-fitting shell bottoms
-# (UNDER_COAT), the open jacket also over a draped bottom (JACKET_OVER_LOOSE_TOP); their drape collides with the
+# (UNDER_COAT), the open jacket also over a draped bottom (JACKET_OVER_LOOSE_TOP), the coat over the loose shorts
+# or straight trousers (COAT_OVER_DRAPED); their drape collides with the
 # body and with the loose top's cloth and the skirt under them (a shell top is held under them). draped_hoodie: a
 # top, the longsleeve's shell with a hood draped on the upper back, worn without any of OUTERWEAR (its hood collides
 # with the body, not with a jacket). draped_tshirt: a top, the t-shirt's shoulders and
@@ -78,6 +80,11 @@ OVER_LOOSE_TOP = ("draped_jacket", "draped_coat")
 # (`recipe_draws._loose_top`), and over a shell top where the bottom became draped after the jacket
 # (`recipe_draws._loose_bottom`); a shell jacket over a skirt or wide trousers with a shell top stays a shell.
 JACKET_OVER_LOOSE_TOP = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
+# The draped bottoms the coat may be worn over: the loose shorts and straight trousers the draws make of shell ones
+# under it (`recipe_draws._loose_bottom`, since 5 December; its drape collides with their cloth, drape.DRAPED_OVER,
+# and a shell top is held under its panels, drape.SHELLS_UNDER). Not the skirt or the wide trousers: no draw puts
+# the coat over them, and a long coat's hem over their flare is not measured.
+COAT_OVER_DRAPED = ("draped_shorts", "draped_straight_trousers")
 OUTERWEAR = ("jacket", "draped_jacket", "draped_coat")  # the outermost layers: at most one of them
 PATTERNS = ("solid", "stripes", "checks", "noise")
 # Fabric finish (how the renderer's sheen lobe and the knit texture treat a garment; character.FABRIC_SHEEN):
@@ -323,11 +330,13 @@ class CharacterRecipe:
         if not dresses and sum(k in BOTTOMS for k in kinds) != 1:
             raise ValueError(f"garments: exactly one of {BOTTOMS} (or a dress, {DRESSES}) is required, got {kinds}")
         outer = [k for k in kinds if k in OUTERWEAR]
-        over_draped = outer == ["draped_jacket"] and any(k in JACKET_OVER_LOOSE_TOP for k in kinds)
+        over_draped = ((outer == ["draped_jacket"] and any(k in JACKET_OVER_LOOSE_TOP for k in kinds))
+                       or (outer == ["draped_coat"] and any(k in COAT_OVER_DRAPED for k in kinds)))
         if len(outer) > 1 or (outer and outer != ["jacket"] and not any(k in UNDER_COAT for k in kinds)
                               and not over_draped):
             raise ValueError(f"garments: at most one of {OUTERWEAR}, a draped_coat or draped_jacket only over one of "
-                             f"{UNDER_COAT} (a draped_jacket also over one of {JACKET_OVER_LOOSE_TOP}), got {kinds}")
+                             f"{UNDER_COAT} (a draped_jacket also over one of {JACKET_OVER_LOOSE_TOP}, a draped_coat "
+                             f"over one of {COAT_OVER_DRAPED}), got {kinds}")
         if "draped_hoodie" in kinds and outer:
             raise ValueError(f"garments: a draped_hoodie is worn without any of {OUTERWEAR}, got {kinds}")
         if any(k in LOOSE_TOPS for k in kinds) and (set(outer) - set(OVER_LOOSE_TOP)

@@ -83,17 +83,17 @@ TSHIRT_P = 0.5
 LONGSLEEVE_STREAM = 1723
 LONGSLEEVE_P = 0.5
 # Loose shorts (`draped_shorts`: the wide trousers' pattern cut above the knee) instead of the drawn (shell) shorts,
-# for this share of the shorts wearers, where nothing is worn over them that the shorts' cloth would have to be a
-# collider for but the open jacket (recipe.JACKET_OVER_LOOSE_TOP; over a shell top since 5 December, which is then
-# held under the jacket's panels, drape.SHELLS_UNDER): not the coat. Our choice, not a census figure: a shell is a
-# cycling short, and most shorts worn in the street hang loose; half stay close-fitting. Drawn last, from a stream
-# of their own (one draw for everyone), the shorts' colours, pattern and fabric: no other draw of any seed changes,
-# and no other garment of any subject.
+# for this share of the shorts wearers, whatever is worn over them: the open jacket's and the coat's drapes collide
+# with their cloth (recipe.JACKET_OVER_LOOSE_TOP, recipe.COAT_OVER_DRAPED; over a shell top since 5 December, which
+# is then held under the panels, drape.SHELLS_UNDER; under the coat since that afternoon). Our choice, not a census
+# figure: a shell is a cycling short, and most shorts worn in the street hang loose; half stay close-fitting. Drawn
+# last, from a stream of their own (one draw for everyone), the shorts' colours, pattern and fabric: no other draw
+# of any seed changes, and no other garment of any subject.
 SHORTS_STREAM = 1724
 SHORTS_P = 0.5
 # Straight-leg draped trousers (`draped_straight_trousers`: the wide trousers' pattern with straight, narrower legs)
 # instead of the (shell) trousers left after the wide-trousers draw, for this share of their wearers, under the same
-# rule as the loose shorts (no coat). Our choice: the shell is a legging or skinny jeans, most trousers hang loose
+# rule as the loose shorts. Our choice: the shell is a legging or skinny jeans, most trousers hang loose
 # on the thigh and straight past the knee; half stay close-fitting. Drawn
 # after the shorts, from a stream of their own: no other draw of any seed changes, and no other garment.
 STRAIGHT_TROUSERS_STREAM = 1725
@@ -281,15 +281,13 @@ def _loose_top(rng: np.random.Generator, garments: tuple[Garment, ...], top: str
 
 def _loose_bottom(rng: np.random.Generator, garments: tuple[Garment, ...], shell: str, draped: str,
                   p: float) -> tuple[Garment, ...]:
-    """The drawn `shell` bottom made the `draped` one with probability `p` where no outerwear but a shell jacket or
-    an open jacket is worn (rng: that draw's stream; one draw for everyone, so its use is fixed). Until 5 December
-    the open jacket only over a loose top: a shell top lifted over the draped bottom's waistband showed through its
-    panels, until the shell top was held under them (drape.SHELLS_UNDER)."""
+    """The drawn `shell` bottom made the `draped` one with probability `p` under any outerwear (a shell jacket, an
+    open jacket or a coat) or none (rng: that draw's stream; one draw for everyone, so its use is fixed). Until
+    5 December the open jacket only over a loose top: a shell top lifted over the draped bottom's waistband showed
+    through its panels, until the shell top was held under them (drape.SHELLS_UNDER); the coat, whose drape did not
+    collide with a draped bottom, not at all until the afternoon of 5 December (recipe.COAT_OVER_DRAPED)."""
     loose = rng.random() < p
-    kinds = {g.kind for g in garments}
-    outer = kinds & set(OUTERWEAR)
-    over = not outer or outer in ({"jacket"}, {"draped_jacket"})
-    if not (loose and shell in kinds and over):
+    if not (loose and any(g.kind == shell for g in garments)):
         return garments
     return tuple(dataclasses.replace(g, kind=draped) if g.kind == shell else g for g in garments)
 
