@@ -93,8 +93,8 @@ def test_tshirt_shell_is_the_tshirts_cut_ending_under_the_ring():
 
 def _outer_allows_loose(p) -> bool:
     """Whether a recipe's outerwear lets a loose top be drawn under it: none, the open jacket or the coat
-    (OVER_LOOSE_TOP), or a shell jacket over a draped skirt or wide trousers (JACKET_OVER_LOOSE_TOP: drawn with the
-    loose top, it is draped too)."""
+    (OVER_LOOSE_TOP), or a shell jacket over a draped skirt (JACKET_OVER_LOOSE_TOP: drawn with the loose top, it is
+    draped too; the open jacket's draw drapes every other jacket, recipe_draws.JACKET_BOTTOMS)."""
     from rh_dataset.characters.recipe import JACKET_OVER_LOOSE_TOP, OUTERWEAR, OVER_LOOSE_TOP
 
     if p.garment("jacket") is not None:
@@ -104,10 +104,13 @@ def _outer_allows_loose(p) -> bool:
 
 def _shell_top(r, loose: str, shell: str) -> tuple:
     """A recipe's garments with its loose top `loose` made the shell `shell` again, and an open jacket over a draped
-    skirt or wide trousers a shell jacket (it is draped only over a loose top: JACKET_OVER_LOOSE_TOP)."""
+    skirt a shell jacket (it is draped there only over a loose top: recipe_draws.JACKET_BOTTOMS; since 5 December
+    afternoon, over wide trousers whatever the top)."""
     from rh_dataset.characters.recipe import JACKET_OVER_LOOSE_TOP
+    from rh_dataset.characters.recipe_draws import JACKET_BOTTOMS
 
-    skirt = any(r.garment(k) for k in JACKET_OVER_LOOSE_TOP) and r.garment(loose) is not None
+    skirt = (any(r.garment(k) for k in JACKET_OVER_LOOSE_TOP if k not in JACKET_BOTTOMS)
+             and r.garment(loose) is not None)
     kind = {loose: shell, "draped_jacket": "jacket" if skirt else "draped_jacket"}
     return tuple(dataclasses.replace(g, kind=kind.get(g.kind, g.kind)) for g in r.garments)
 
@@ -118,8 +121,8 @@ def test_benchmark_recipes_draw_loose_tshirts_from_their_own_stream(monkeypatch)
     skirt or wide trousers (UNDER_LOOSE_TOP), deciding on a stream of its own
     (TSHIRT_STREAM): with the share set to zero every recipe of 1000 seeds is the same but for that kind (fabric
     included), so no other draw of any seed changed; the wearers are exactly the eligible seeds whose stream's first
-    draw is under the share; a shell jacket over a draped skirt or wide trousers is draped with the loose top under it
-    (JACKET_OVER_LOOSE_TOP). Seed 0's benchmark: subjects 3, 5, 9, 12, 14, 20, 21, 24, 26, 27, 31, 34 and 40 (5, 20,
+    draw is under the share; a shell jacket over a draped skirt is draped with the loose top under it
+    (JACKET_OVER_LOOSE_TOP; over wide trousers the open jacket's draw drapes it, recipe_draws.JACKET_BOTTOMS). Seed 0's benchmark: subjects 3, 5, 9, 12, 14, 20, 21, 24, 26, 27, 31, 34 and 40 (5, 20,
     24, 26, 27 and 34 over a draped skirt; 14, 21, 26 and 40 under an open jacket). A recipe round-trips through JSON;
     a loose t-shirt with another top, under the shell jacket, or over the shell skirt is refused; under the open jacket
     or the coat it is a recipe."""

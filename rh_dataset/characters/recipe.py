@@ -76,9 +76,10 @@ UNDER_LOOSE_TOP = UNDER_COAT + ("draped_skirt", "draped_trousers", "draped_short
 OVER_LOOSE_TOP = ("draped_jacket", "draped_coat")
 # The draped bottoms the open jacket may be worn over (its drape collides with their cloth and a loose top's,
 # drape.DRAPED_OVER; a shell top, lifted over the bottom's waistband, showed through the panels until 5 December, and
-# is now held under them: drape.SHELLS_UNDER, docs/ARCHITECTURE.md). The draws put it there over a loose top
-# (`recipe_draws._loose_top`), and over a shell top where the bottom became draped after the jacket
-# (`recipe_draws._loose_bottom`); a shell jacket over a skirt or wide trousers with a shell top stays a shell.
+# is now held under them: drape.SHELLS_UNDER, docs/ARCHITECTURE.md). The open jacket's draw puts it over the wide
+# trousers whatever the top (since 5 December afternoon: recipe_draws.JACKET_BOTTOMS), the loose top's over a skirt
+# with a loose top under it (`recipe_draws._loose_top`), and the loose bottoms' draws put the shorts and straight
+# trousers under it; a shell jacket over a skirt with a shell top stays a shell.
 JACKET_OVER_LOOSE_TOP = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
 # The draped bottoms the coat may be worn over: the loose shorts and straight trousers the draws make of shell ones
 # under it (`recipe_draws._loose_bottom`, since 5 December; its drape collides with their cloth, drape.DRAPED_OVER,

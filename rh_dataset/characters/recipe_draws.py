@@ -22,7 +22,7 @@ __all__ = ["derive_seed", "sample_recipe", "recipe_from_seed", "sample_headwear"
            "hair_colour_name", "HEADWEAR_P", "GLASSES_P", "HEADWEAR_STREAM", "sample_eyes", "IRIS_COLOUR_NAMES",
            "iris_colour_name", "iris_weights", "EYES_STREAM", "DRESS_P", "DRESS_STREAM", "WIDE_TROUSERS_P",
            "WIDE_TROUSERS_STREAM", "COAT_P", "COAT_STREAM", "HOODIE_P", "HOODIE_STREAM", "HOODIE_HAIR", "JACKET_P",
-           "JACKET_STREAM", "TSHIRT_P", "TSHIRT_STREAM",
+           "JACKET_STREAM", "JACKET_BOTTOMS", "TSHIRT_P", "TSHIRT_STREAM",
            "LONGSLEEVE_P", "LONGSLEEVE_STREAM", "SHORTS_P", "SHORTS_STREAM", "STRAIGHT_TROUSERS_P",
            "STRAIGHT_TROUSERS_STREAM"]
 
@@ -57,13 +57,20 @@ HOODIE_STREAM = 1720
 HOODIE_P = 0.5
 HOODIE_HAIR = ("buzz", "short", "bob", "bun")
 # An open jacket (`draped_jacket`: the coat's shoulders and sleeves over panels draped from the chest to the hips)
-# instead of every drawn jacket the coat draw left a jacket, where the bottom is one of UNDER_COAT. Our choice, not a
-# census figure: the shell jacket is a second skin from the collar to the hips, with no hem standing off the body and
-# no folds, which no jacket looks like, so wherever the draped one can be worn it is; jackets over skirts and wide
-# trousers stay shells here, and are draped by the loose top's draw where a loose top is drawn under them
-# (`_loose_top`, recipe.JACKET_OVER_LOOSE_TOP: over a shell top, the top showed through the jacket's panels). Its own
-# stream (one draw for everyone, after the coat's), the jacket's colours, pattern and fabric: no other draw of any
-# seed changes, and a share below 1 can be chosen later without moving any other draw.
+# instead of every drawn jacket the coat draw left a jacket, where the bottom is one of JACKET_BOTTOMS. Our choice,
+# not a census figure: the shell jacket is a second skin from the collar to the hips, with no hem standing off the
+# body and no folds, which no jacket looks like, so wherever the draped one can be worn it is. Its own stream (one
+# draw for everyone, after the coat's), the jacket's colours, pattern and fabric: no other draw of any seed changes,
+# and a share below 1 can be chosen later without moving any other draw.
+# The bottoms the open jacket's draw drapes a jacket over, whatever the top: the coat's (recipe.UNDER_COAT) and, since
+# 5 December afternoon, the wide trousers, a shell top under it held under the panels (drape.SHELLS_UNDER; before,
+# a jacket over them was draped only where the loose top's draw put a loose top under it). Not the draped skirt: over
+# a shell top, seated, the skirt's lap came out through the panels' hem (benchmark pool recipe 29's `sit`, skinned:
+# 93 skirt vertices over the jacket, 15 seen, against 49 and 3 for the wide trousers of pool recipe 173, sitting;
+# docs/ARCHITECTURE.md, "Every jacket over wide trousers draped"), so a jacket over a skirt is still draped only with
+# a loose top under it (`_loose_top`). Seed 0's 49 benchmark subjects and first 40 pretraining characters wear no
+# shell jacket over wide trousers either way.
+JACKET_BOTTOMS = UNDER_COAT + ("draped_trousers",)
 JACKET_STREAM = 1721
 JACKET_P = 1.0
 # A loose t-shirt (`draped_tshirt`: the t-shirt's shoulders and sleeves over cloth hanging from under the arms to the
@@ -214,8 +221,10 @@ def recipe_from_seed(seed: int, pool: str, index: int) -> CharacterRecipe:
     garments = tuple(_sample_garment(rng, k) for k in sorted(kinds, key=GARMENT_LAYERS.index))
     garments = _dress(np.random.default_rng([int(seed), DRESS_STREAM]), female, garments)
     garments = _wide_trousers(np.random.default_rng([int(seed), WIDE_TROUSERS_STREAM]), female, garments)
-    garments = _open_jacket(np.random.default_rng([int(seed), COAT_STREAM]), garments, "draped_coat", COAT_P)
-    garments = _open_jacket(np.random.default_rng([int(seed), JACKET_STREAM]), garments, "draped_jacket", JACKET_P)
+    garments = _open_jacket(np.random.default_rng([int(seed), COAT_STREAM]), garments, "draped_coat", COAT_P,
+                            UNDER_COAT)
+    garments = _open_jacket(np.random.default_rng([int(seed), JACKET_STREAM]), garments, "draped_jacket", JACKET_P,
+                            JACKET_BOTTOMS)
     garments = _loose_top(np.random.default_rng([int(seed), TSHIRT_STREAM]), garments, "tshirt", TSHIRT_P)
     skin, garments = _surface_detail(seed, skin, hair, garments)
     headwear = sample_headwear(np.random.default_rng([int(seed), HEADWEAR_STREAM]), female, phenotype["age"])
@@ -252,13 +261,13 @@ def _wide_trousers(rng: np.random.Generator, female: bool, garments: tuple[Garme
     return tuple(dataclasses.replace(g, kind="draped_trousers") if g.kind == "trousers" else g for g in garments)
 
 
-def _open_jacket(rng: np.random.Generator, garments: tuple[Garment, ...], kind: str, p: float
-                 ) -> tuple[Garment, ...]:
+def _open_jacket(rng: np.random.Generator, garments: tuple[Garment, ...], kind: str, p: float,
+                 bottoms: tuple[str, ...]) -> tuple[Garment, ...]:
     """The drawn (shell) jacket made the draped `kind` (the coat, the open jacket) with probability `p` where the
-    bottom is one of UNDER_COAT (rng: the kind's stream; one draw for everyone, so the stream's use is fixed)."""
+    bottom is one of `bottoms` (rng: the kind's stream; one draw for everyone, so the stream's use is fixed)."""
     wears = rng.random() < p
     kinds = {g.kind for g in garments}
-    if not (wears and "jacket" in kinds and kinds & set(UNDER_COAT)):
+    if not (wears and "jacket" in kinds and kinds & set(bottoms)):
         return garments
     return tuple(dataclasses.replace(g, kind=kind) if g.kind == "jacket" else g for g in garments)
 
@@ -269,9 +278,10 @@ def _loose_top(rng: np.random.Generator, garments: tuple[Garment, ...], top: str
     everyone, so the stream's use is fixed)."""
     loose = rng.random() < p
     kinds = {g.kind for g in garments}
-    # A shell jacket is left only over a draped skirt or wide trousers (the open jacket's draw took the others); over
+    # A shell jacket is left only over a draped skirt (the open jacket's draw took the others, JACKET_BOTTOMS); over
     # a loose top it is draped too (recipe.JACKET_OVER_LOOSE_TOP), as every jacket that can be is (JACKET_P = 1).
-    jacket = "jacket" in kinds and bool(kinds & set(JACKET_OVER_LOOSE_TOP)) and JACKET_P == 1.0
+    jacket = ("jacket" in kinds and bool(kinds & (set(JACKET_OVER_LOOSE_TOP) - set(JACKET_BOTTOMS)))
+              and JACKET_P == 1.0)
     if not (loose and top in kinds and (jacket or not kinds & (set(OUTERWEAR) - set(OVER_LOOSE_TOP)))
             and kinds & set(UNDER_LOOSE_TOP)):
         return garments
