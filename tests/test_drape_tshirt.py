@@ -122,8 +122,9 @@ def test_benchmark_recipes_draw_loose_tshirts_from_their_own_stream(monkeypatch)
     (TSHIRT_STREAM): with the share set to zero every recipe of 1000 seeds is the same but for that kind (fabric
     included), so no other draw of any seed changed; the wearers are exactly the eligible seeds whose stream's first
     draw is under the share; a shell jacket over a draped skirt is draped with the loose top under it
-    (JACKET_OVER_LOOSE_TOP; over wide trousers the open jacket's draw drapes it, recipe_draws.JACKET_BOTTOMS). Seed 0's benchmark: subjects 3, 5, 9, 12, 14, 20, 21, 24, 26, 27, 31, 34 and 40 (5, 20,
-    24, 26, 27 and 34 over a draped skirt; 14, 21, 26 and 40 under an open jacket). A recipe round-trips through JSON;
+    (JACKET_OVER_LOOSE_TOP; over wide trousers the open jacket's draw drapes it, recipe_draws.JACKET_BOTTOMS). Seed
+    0's benchmark: subjects 3, 5, 9, 12, 14, 20, 21, 24, 26, 27, 31, 34 and 40 (5, 20, 24, 26, 27 and 34 over a
+    draped skirt; 14, 21, 26 and 40 under an open jacket). A recipe round-trips through JSON;
     a loose t-shirt with another top, under the shell jacket, or over the shell skirt is refused; under the open jacket
     or the coat it is a recipe."""
     from rh_dataset.characters.recipe import OVER_LOOSE_TOP, UNDER_LOOSE_TOP, CharacterRecipe, Garment
