@@ -1,8 +1,8 @@
 """A shell top (t-shirt, long sleeve) under the open jacket or the coat over a draped bottom: does it show through
 their panels? drape.SHELLS_UNDER caps the top's trunk under the panels at rest (garments._under_cover), and
 pose_character puts what still comes out back under them (character._shell_under_panels); this bench measures both
-against builds without them, and the panels' self-crossing edges (`cloth_pose.self_crossings`: making the top a collider of the
-panels' drape instead, tried first, let the panels' hem catch on the top's and fold through itself).
+against builds without them, and the panels' self-crossing edges (`cloth_pose.self_crossings`: making the top a
+collider of the panels' drape instead, tried first, let the panels' hem catch on the top's and fold through itself).
 
     python bench/bench_shell_top_under_jacket.py                # seed 0's subjects 7, 19, 30 (jacket), 25 (coat)
     python bench/bench_shell_top_under_jacket.py --subjects 7 --poses 1 --drape coarse

@@ -566,9 +566,9 @@ def _shell_under_panels(character: Character, posed: list, cloth_under: dict, ve
     arm pressing the panel against the trunk leaves no room: the skin wins, the panel hides the rest). Only the
     trunk's vertices (bone group "torso", by each vertex's nearer body vertex): a sleeve beside a panel is outside it
     by right. At rest the trunk lies under the panels already (`garments._under_cover`). Likewise a shell top under
-    the open jacket or coat over a draped bottom (`drape.SHELLS_UNDER`; all of it but its sleeves, `drape.SLEEVE_GROUPS`), 2
-    LAYER_GAP under them, so that where it reaches up under the coat's shell it stays under that too; it is capped
-    under them at rest the same way."""
+    the open jacket or coat over a draped bottom (`drape.SHELLS_UNDER`; all of it but its sleeves,
+    `drape.SLEEVE_GROUPS`), 2 LAYER_GAP under them, so that where it reaches up under the coat's shell it stays under
+    that too; it is capped under them at rest the same way."""
     kind = next((k for k in ("draped_coat", "draped_jacket") if k in cloth_under), None)
     if kind is None:
         return

@@ -244,9 +244,9 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     """A shell cut from the body along `garment_level`'s zero level (`hem`: the coat's). Every vertex is a blend of
     the two ends of a body edge (weight 1 on one end except on the cut), offset along the blended normal: the taper
     runs over the surface distance from the cut, and layering compares with the layers below interpolated the same
-    way. `cover` (the coat's shell, and a shell top's trunk under the open jacket or coat: drape.SHELLS_UNDER): (the body's
-    vertices in anny's rest A-pose, and the vertices and faces of the draped cloth over the shell in that pose): the
-    shell stays under that cloth (`_under_cover`)."""
+    way. `cover` (the coat's shell, and a shell top's trunk under the open jacket or coat: drape.SHELLS_UNDER): (the
+    body's vertices in anny's rest A-pose, and the vertices and faces of the draped cloth over the shell in that
+    pose): the shell stays under that cloth (`_under_cover`)."""
     level = _clean_level(garment_level(kind, feats, hem), topology)
     topo = body_topology(topology)
     face_ids = np.flatnonzero((level[topo.faces] < 0).any(axis=1))
