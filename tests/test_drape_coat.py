@@ -359,3 +359,43 @@ def test_coat_shell_lies_inside_the_panels_and_the_panels_off_the_body_for_many_
         # NaN: farther than 2 cm from the panels (they hang away from the shell under a bust) or nearest their edge.
         assert n_low > 50 and np.isfinite(d).mean() > 0.5 and np.nanmin(d) > 0.0, (i, np.nanmin(d))
         assert depth < -REST_OFF_M, i
+
+
+@pytest.mark.slow
+def test_coat_stays_over_the_loose_shorts_and_the_shell_top_under_it(tmp_path, monkeypatch):
+    """Benchmark subject 25 of seed 0 wears the coat over a shell long sleeve and loose shorts (since 5 December
+    afternoon: the coat draped over the shorts' cloth, `drape.DRAPED_OVER`; the top held under its panels,
+    `drape.SHELLS_UNDER`). In its first three test poses (full drapes, skinned, as `python bench/bench_cloth_layers.py
+    --subjects 25 --poses 3 --through` and `python bench/bench_shell_top_under_jacket.py --subjects 25` pose them) the
+    coat lies at most 5 mm under the shorts (measured 3.3 mm, 6 vertices, and 2.0 mm, 3, in the two `random` poses;
+    none reaching), a camera around the subject sees at most 6 of the shorts' vertices over the coat (measured 4 in
+    each `random` pose: a raised thigh under the long coat) and none of the long sleeve's over the panels (measured
+    0 in each pose, 08:46 UTC)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))  # bench_cloth_layers' `over_top`
+    from bench_cloth_layers import over_top
+    from rh_common.body_model import load_anny
+    from rh_dataset.characters import build_character, pose_character
+    from rh_dataset.characters.cloth_pose import LAYER_REACH, layer_depth
+    from rh_dataset.characters.recipe_draws import sample_recipe
+    from rh_dataset.generate import rng_for
+    from rh_dataset.poses import sample_pose
+
+    monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
+    recipe = sample_recipe(rng_for(0, "character", 25), pool="benchmark", index=25)
+    assert [g.kind for g in recipe.garments] == ["shoes", "draped_shorts", "longsleeve", KIND]
+    character = build_character(recipe, 64)
+    for j in range(3):
+        pose = sample_pose(rng_for(0, "pose", 25, "test", j), load_anny())
+        meshes = pose_character(character, dict(pose.bones))
+        posed = {m.name: m for m in meshes}
+        d = layer_depth(posed[KIND].vertices.astype(np.float64), posed["draped_shorts"].vertices.astype(np.float64),
+                        posed["draped_shorts"].faces, LAYER_REACH)
+        worst = float(np.nanmax(np.nan_to_num(d, nan=-1.0)))
+        shorts_seen = over_top(posed["draped_shorts"], posed[KIND], meshes)[2]
+        top_seen = over_top(posed["longsleeve"], posed[KIND], meshes)[2]
+        print(f"{pose.label}: the coat under the shorts {1e3 * worst:.1f} mm; seen over the coat: the shorts "
+              f"{shorts_seen}, the long sleeve {top_seen}")
+        assert worst < 0.005 and shorts_seen <= 6 and top_seen == 0, pose.label
