@@ -41,6 +41,18 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
+def benchmark_recipe(index: int, seed: int = 0, pool: bool = False):
+    """Benchmark subject `index` as rh-generate draws it at dataset seed `seed` (`sample_recipe(rng_for(seed,
+    "character", index))`), or with `pool` the benchmark pool's recipe `index` (`recipe_from_seed(derive_seed(
+    "benchmark", index, seed))`, as `draped_recipe` walks them: combinations a seed's 49 subjects do not draw)."""
+    from rh_dataset.characters.recipe_draws import derive_seed, recipe_from_seed, sample_recipe
+    from rh_dataset.generate.seeding import rng_for
+
+    if pool:
+        return recipe_from_seed(derive_seed("benchmark", index, seed), "benchmark", index)
+    return sample_recipe(rng_for(seed, "character", index), pool="benchmark", index=index)
+
+
 def draped_recipe(index: int, seed: int = 0, kind: str = "draped_skirt"):
     """The first benchmark recipe from `index` on (dataset seed `seed`) that draws `kind` (the draped skirt: every
     skirt recipe_from_seed draws is)."""

@@ -114,9 +114,9 @@ def main(argv: list[str] | None = None) -> int:
 
     import rh_dataset.characters.character as character_module
     from rh_common.body_model import load_anny
-    from rh_dataset.characters import build_character, pose_character, sample_recipe
+    from bench_cloth import benchmark_recipe
+    from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.cloth_pose import push_over_layers
-    from rh_dataset.characters.recipe_draws import derive_seed, recipe_from_seed
     from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_layers, drape_settings, draped_over
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
@@ -132,8 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     figured = False
     print(f"load average at start: {load()}; drape level {args.drape}")
     for s in (int(x) for x in args.subjects.split(",")):
-        recipe = (recipe_from_seed(derive_seed("benchmark", s, args.seed), "benchmark", s) if args.pool else
-                  sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s))
+        recipe = benchmark_recipe(s, args.seed, args.pool)
         kinds = [g.kind for g in recipe.garments]
         top = next((k for k in reversed(kinds) if k in DRAPED_OVER and set(DRAPED_OVER[k]) & set(kinds)), None)
         if top is None:

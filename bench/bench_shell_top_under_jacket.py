@@ -133,8 +133,8 @@ def main(argv: list[str] | None = None) -> int:
     import rh_dataset.characters.character as character_module
     import rh_dataset.characters.drape as drape_module
     from rh_common.body_model import load_anny
-    from rh_dataset.characters import build_character, sample_recipe
-    from rh_dataset.characters.recipe_draws import derive_seed, recipe_from_seed
+    from bench_cloth import benchmark_recipe
+    from rh_dataset.characters import build_character
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
@@ -158,8 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"load average at start: {load()}; drape {args.drape}")
     subjects = [int(x) for x in args.subjects.split(",")]
     for s in subjects:
-        recipe = (recipe_from_seed(derive_seed("benchmark", s, args.seed), "benchmark", s) if args.pool else
-                  sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s))
+        recipe = benchmark_recipe(s, args.seed, args.pool)
         kinds = [g.kind for g in recipe.garments]
         name = f"{'pool recipe' if args.pool else 'subject'} {s}"
         if not (any(k in kinds for k in OUTERS) and any(k in kinds for k in SHELL_TOPS)
