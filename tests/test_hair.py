@@ -193,3 +193,76 @@ def test_strands_stay_outside_the_body_over_protocol_poses(style):
         d = _depth_inside(body, pts)
         worst, frac = max(worst, float(d.max())), max(frac, float(np.mean(d > 0)))
     assert worst < PENETRATION_BOUND_M[style] and frac < INSIDE_FRACTION_BOUND[style], (style, worst, frac)
+
+
+# Brows: how far two brow control points' distance may change with the head turned 35 degrees (the skin they are
+# bound to follows the head bone, eyes.py), and how deep a rendered spline sample may lie in the posed skin over two
+# prior poses. Measured (seed 40's body, 5 December): 1.4e-5 mm; none inside in four prior poses (the farthest off
+# the skin 0.80 mm, BROW_LIFT's tip).
+BROW_RIGID_M = 1e-5
+BROW_INSIDE_M = 1e-4
+
+
+def test_brows_grow_in_the_band_over_each_eye_along_the_skin():
+    """Brow hairs (face_hair.build_brows) root in `textures.brow_band` above each eye, BROW_HAIRS a brow, and every
+    control point lies outside the bind-pose skin within BROW_LIFT of it (closest points, trimesh); the binding
+    gives them back in the rest pose."""
+    import trimesh
+
+    from rh_dataset.characters.body import anchor_points, body_topology
+    from rh_dataset.characters.body_features import body_features
+    from rh_dataset.characters.face_hair import BROW_HAIRS, BROW_LIFT, build_brows
+    from rh_dataset.characters.textures import BROW_SPAN, brow_band
+
+    feats = body_features(_recipe("short").phenotype)
+    g = build_brows(feats, np.random.default_rng(3))
+    assert g.rest.shape[0] == 2 * BROW_HAIRS
+    for side, (sign, hairs) in zip("LR", ((1.0, g.rest[:BROW_HAIRS]), (-1.0, g.rest[BROW_HAIRS:]))):
+        e = feats.bone_heads[f"eye.{side}"]
+        dx, dz = (hairs[:, 0, 0] - e[0]) * sign, hairs[:, 0, 2] - e[2]
+        arch, half = brow_band(dx)
+        # The roots lie on the skin where the rays from the band met it, then BROW_LIFT[0] off it: 0.3 mm slack.
+        near = (dx > BROW_SPAN[0] - 0.0003) & (dx < BROW_SPAN[1] + 0.0003) & (np.abs(dz - arch) <= half + 0.0003)
+        assert np.all(near), side
+        assert np.all(hairs[:, 0, 1] < e[1] + 0.015)  # on the front of the face (the paint's bound, textures.py)
+    body = trimesh.Trimesh(feats.rest_vertices, body_topology().faces, process=False)
+    pts = g.rest.reshape(-1, 3)
+    assert _depth_inside(body, pts).max() == 0.0
+    assert trimesh.proximity.closest_point(body, pts)[1].max() < BROW_LIFT[1] + 0.0003
+    back = anchor_points(feats.rest_vertices, feats.rest_normals, g.blend_vertices, g.blend_weights, g.offset)
+    assert np.abs(back - pts).max() < 1e-5
+
+
+def test_brows_share_the_hair_fibres_and_follow_the_head_in_every_pose():
+    """The character's brows are strands of its scalp hair's fibres, deterministic, rigid with a turned head (within
+    BROW_RIGID_M) and outside the posed skin in prior poses (within BROW_INSIDE_M). Under a headscarf, which hides
+    the scalp hair, the brows stay: test_headwear.py."""
+    import trimesh
+
+    from rh_common.body_model import load_anny
+    from rh_dataset.characters import character as character_module
+    from rh_dataset.characters.body import body_topology, run_anny
+    from rh_dataset.poses import sample_pose
+
+    a = build_character(_recipe("short"), 32)
+    brows = [s for s in a.strands if s.name.startswith("brows")]
+    assert brows and {s.fibre for s in brows} <= set(fibres_for_colour(a.recipe.hair.colour))
+    character_module._build_cached.cache_clear()
+    b = build_character(_recipe("short"), 32)
+    for sa, sb in zip(a.strands, b.strands, strict=True):
+        assert sa.name == sb.name and np.array_equal(sa.offset, sb.offset)
+    rot = np.eye(4)
+    c, s = np.cos(np.radians(35)), np.sin(np.radians(35))
+    rot[:2, :2] = [[c, -s], [s, c]]
+    rest = next(m for m in pose_character(a) if m.name == "brows").vertices.astype(np.float64)
+    turned = next(m for m in pose_character(a, {"head": rot}) if m.name == "brows").vertices.astype(np.float64)
+    assert np.linalg.norm(rest - turned, axis=1).min() > 0.02
+    da = np.linalg.norm(rest[:, None] - rest[None], axis=-1)
+    db = np.linalg.norm(turned[:, None] - turned[None], axis=-1)
+    assert np.abs(da - db).max() < BROW_RIGID_M
+    faces = body_topology().faces
+    for k in range(2):
+        bones = dict(sample_pose(np.random.default_rng([7, k]), load_anny()).bones)
+        body = trimesh.Trimesh(run_anny(a.phenotype, bones)["vertices"], faces, process=False)
+        pts = np.concatenate([_spline_samples(m.points) for m in pose_character(a, bones) if m.name == "brows"])
+        assert _depth_inside(body, pts).max() < BROW_INSIDE_M

@@ -36,6 +36,7 @@ from .drape import (DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, Dr
                     SLEEVE_GROUPS, push_clearance, push_out, shells_under, skin_points)
 from .eyes import eye_geometry
 from .geometry import split_faces
+from .face_hair import build_brows, build_lashes
 from .hair import build_hair
 from .headwear import build_headwear, press_hair
 from .hair_fibre import HairFibre, fibres_for_colour
@@ -255,6 +256,11 @@ FABRIC_SPECULAR = 0.15
 # Independent noise streams per texture: np.random.default_rng([seed, stream]).
 _STREAM_SKIN, _STREAM_HAIR, _STREAM_SOLE, _STREAM_SKIN_DETAIL, _STREAM_GARMENT0, _STREAM_HEADWEAR0 = 1, 2, 3, 4, 10, 30
 _STREAM_EYES = 5
+_STREAM_FACE_HAIR = 6  # brows and lashes (face_hair.py)
+# The face's hair grown as strands (face_hair.py): the brows. Not the lashes: at the protocol's 4-5 mm a pixel they
+# change the image no more than the Monte Carlo noise does (bench/bench_brows.py; docs/ARCHITECTURE.md, "Brows").
+FACE_HAIR = ("brows",)
+FACE_HAIR_BUILDERS = {"brows": build_brows, "lashes": build_lashes}
 
 # Sheen of each fabric (recipe.FABRICS) for the principled BSDF's sheen lobe: woven cotton and denim have none worth
 # the name, a jersey a little, a knit's fibres more, a velvet's pile most (Burley 2012 uses sheen for exactly this).
@@ -328,7 +334,8 @@ def _build_cached(recipe_json: str, res: int, drape: str = "full") -> Character:
     body = split_faces(np.arange(len(topo.faces)), topology)
     positions = texel_positions(feats, res, topology)  # shared by the skin and every body-layout garment
     skin = skin_texture(recipe.skin, recipe.hair.colour, feats, np.random.default_rng([seed, _STREAM_SKIN]), res,
-                        topology, positions, detail_rng=np.random.default_rng([seed, _STREAM_SKIN_DETAIL]))
+                        topology, positions, detail_rng=np.random.default_rng([seed, _STREAM_SKIN_DETAIL]),
+                        brows=False)  # grown as strands (FACE_HAIR)
     parts = [
         CharacterPart("body", body.faces, body.uvs, body.body_vertex, np.zeros(len(body.body_vertex), np.float32),
                       Material(skin, SKIN_ROUGHNESS, SKIN_SPECULAR, two_sided=False))
@@ -380,7 +387,12 @@ def _build_cached(recipe_json: str, res: int, drape: str = "full") -> Character:
     covers = [g.cover for g in hats if g.cover is not None]
     press = (lambda pts, sc: press_hair(pts, covers, sc)) if covers else None
     hair = build_hair(recipe.hair.style, feats, rng, topology, under=under, press=press)
-    strands = () if hair is None else _split_fibres(hair, fibres_for_colour(recipe.hair.colour), rng)
+    fibres = fibres_for_colour(recipe.hair.colour)
+    strands = () if hair is None else _split_fibres(hair, fibres, rng)
+    # The face's hair (FACE_HAIR) of the scalp hair's fibres, whatever the style or headwear.
+    rng = np.random.default_rng([seed, _STREAM_FACE_HAIR])
+    for kind in FACE_HAIR:
+        strands += _split_fibres(FACE_HAIR_BUILDERS[kind](feats, rng), fibres, rng, kind)
     return Character(recipe=recipe, parts=parts, phenotype=dict(recipe.phenotype), strands=strands)
 
 
@@ -390,8 +402,10 @@ def _nearest_body_vertex(feats, points: np.ndarray) -> np.ndarray:
     return cKDTree(feats.rest_vertices).query(points)[1].astype(np.int64)
 
 
-def _split_fibres(hair, fibres: tuple[HairFibre, ...], rng: np.random.Generator) -> tuple[CharacterStrands, ...]:
-    """Deal the strands to the fibres in proportion to their fractions (a random, seeded assignment)."""
+def _split_fibres(hair, fibres: tuple[HairFibre, ...], rng: np.random.Generator,
+                  name: str = "hair") -> tuple[CharacterStrands, ...]:
+    """Deal the strands to the fibres in proportion to their fractions (a random, seeded assignment): one
+    `CharacterStrands` per fibre, named `name`, `name`_1, ..."""
     s, k = hair.radius.shape
     order = rng.permutation(s)
     counts = np.round(np.cumsum([f.fraction for f in fibres]) * s).astype(int)
@@ -402,7 +416,7 @@ def _split_fibres(hair, fibres: tuple[HairFibre, ...], rng: np.random.Generator)
         if not len(idx):
             continue
         rows = (idx[:, None] * k + np.arange(k)[None, :]).ravel()
-        out.append(CharacterStrands("hair" if i == 0 else f"hair_{i}", hair.radius[idx], hair.blend_vertices[rows],
+        out.append(CharacterStrands(name if i == 0 else f"{name}_{i}", hair.radius[idx], hair.blend_vertices[rows],
                                     hair.blend_weights[rows], hair.offset[rows], f))
     return tuple(out)
 

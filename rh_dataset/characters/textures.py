@@ -27,6 +27,8 @@ __all__ = [
     "value_noise",
     "texel_positions",
     "skin_texture",
+    "brow_band",
+    "BROW_SPAN",
     "garment_texture",
     "body_layout_coords",
     "shoe_sole",
@@ -80,11 +82,12 @@ def skin_texture(
     topology: str = ANNY_TOPOLOGY,
     positions: np.ndarray | None = None,
     detail_rng: np.random.Generator | None = None,
+    brows: bool = True,
 ) -> np.ndarray:
     """Skin albedo: base tone with blotchy and fine variation, the skin's freckles, blush and veins
     (`surface_detail.skin_detail`, drawn from `detail_rng`; none when the tone's strengths are all 0), redder lips,
-    lighter nails, slightly darker eyelids, eyebrows in the hair colour. `positions`: `texel_positions(feats,
-    resolution)` if already computed."""
+    lighter nails, slightly darker eyelids, eyebrows in the hair colour (`brows`; False only for benches).
+    `positions`: `texel_positions(feats, resolution)` if already computed."""
     res = int(resolution)
     base = skin_albedo_linear(skin)
     low = value_noise(rng, (res, res), 24)
@@ -115,23 +118,37 @@ def skin_texture(
     nails = np.maximum(_mask("fingernails", res), _mask("toenails", res))
     nail_col = 0.55 * img + 0.3 * np.array([0.75, 0.55, 0.5], dtype=np.float32)
     img = _lerp(img, nail_col, nails)
-    # Eyebrows: an arched band ~1.8 cm above each eye centre, painted through the baked rest positions.
-    face = _mask("face", res) > 0.2
-    brow = np.zeros((res, res), dtype=np.float32)
-    for side, sign in (("L", 1.0), ("R", -1.0)):
-        e = feats.bone_heads[f"eye.{side}"]
-        dx = (pos[..., 0] - e[0]) * sign  # > 0 towards the temple
-        dz = pos[..., 2] - e[2]
-        front = pos[..., 1] < e[1] + 0.015
-        arch = 0.017 + 0.004 * (1.0 - ((dx - 0.004) / 0.026) ** 2)
-        half = 0.0032 * np.clip(1.0 - np.maximum(dx - 0.012, 0.0) / 0.03, 0.35, 1.0)  # thins towards the temple
-        inside = (dx > -0.017) & (dx < 0.03) & (np.abs(dz - arch) < half) & front & face
-        brow = np.maximum(brow, inside.astype(np.float32))
-    brow = ndimage.gaussian_filter(brow, sigma=max(res / 2048.0, 0.5))
-    brow_col = np.clip(srgb_decode(np.asarray(hair_colour_srgb, dtype=np.float32)) * 0.7, 0.01, 0.5)
-    strands = 0.85 + 0.15 * fine[..., None]
-    img = _lerp(img, brow_col[None, None, :] * strands, 0.85 * brow)
+    if brows:
+        # Eyebrows: an arched band ~1.8 cm above each eye centre (`brow_band`), painted through the baked rest
+        # positions. Painted, not grown as strands: at the protocol's pixel footprint the two look alike
+        # (bench/bench_brows.py; docs/ARCHITECTURE.md, "Skin and cloth detail").
+        face = _mask("face", res) > 0.2
+        brow = np.zeros((res, res), dtype=np.float32)
+        for side, sign in (("L", 1.0), ("R", -1.0)):
+            e = feats.bone_heads[f"eye.{side}"]
+            dx = (pos[..., 0] - e[0]) * sign  # > 0 towards the temple
+            dz = pos[..., 2] - e[2]
+            front = pos[..., 1] < e[1] + 0.015
+            arch, half = brow_band(dx)
+            inside = (dx > BROW_SPAN[0]) & (dx < BROW_SPAN[1]) & (np.abs(dz - arch) < half) & front & face
+            brow = np.maximum(brow, inside.astype(np.float32))
+        brow = ndimage.gaussian_filter(brow, sigma=max(res / 2048.0, 0.5))
+        brow_col = np.clip(srgb_decode(np.asarray(hair_colour_srgb, dtype=np.float32)) * 0.7, 0.01, 0.5)
+        strands = 0.85 + 0.15 * fine[..., None]
+        img = _lerp(img, brow_col[None, None, :] * strands, 0.85 * brow)
     return np.clip(img, 0.0, 1.0).astype(np.float32)
+
+
+BROW_SPAN = (-0.017, 0.03)  # metres from an eye's centre along x, > 0 towards the temple: where its brow runs
+
+
+def brow_band(dx):
+    """The eyebrow over an eye at `dx` metres from its centre towards the temple (within BROW_SPAN): (the height of
+    the band's middle above the eye centre, half the band's height), metres. It arches over the eye and thins
+    towards the temple."""
+    arch = 0.017 + 0.004 * (1.0 - ((dx - 0.004) / 0.026) ** 2)
+    half = 0.0032 * np.clip(1.0 - np.maximum(dx - 0.012, 0.0) / 0.03, 0.35, 1.0)
+    return arch, half
 
 
 def _fabric_colour(rgb: tuple[float, float, float]) -> np.ndarray:

@@ -1,0 +1,194 @@
+"""Eyebrows and eyelashes: grown as strands or painted, what the protocol's pixels show of each, and their cost.
+
+    python bench/bench_brows.py                          # subjects 22, 0, 7 (light, medium, dark skin)
+    python bench/bench_brows.py --subjects 22 --figure docs/brows.png
+
+The generator grows each brow as strands (`face_hair.build_brows`, character.FACE_HAIR: hairs rooted in the band
+`textures.brow_band` places above each eye, of the scalp hair's fibres). Before, it painted that band into the
+skin's albedo in a darkened hair colour (`skin_texture(..., brows=True)`, kept for this comparison). Lashes
+(`face_hair.build_lashes`, along the upper lids) are not grown by the generator; here they are, over the brows.
+For each subject, in the rest pose under Blender's studio HDRI, front view, rh-generate's standard preset (test
+split), at two framings:
+
+  protocol   the benchmark's camera (512 x 512, fov 30 degrees, `framing_box` + `frame_body`): its footprint at
+             the brows printed in mm per pixel
+  close-up   the head alone filling --closeup-fill of the 512 px frame (~0.5-0.7 mm a pixel)
+
+it renders the painted subject with sample seeds 1 and 2, and the generated one (strand brows) and that one with
+lashes with seed 1. Over the brows' pixels (the brow hairs' projected box, 2 px wider) it prints the PSNR (sRGB,
+exposure x1.3) of strand brows against painted ones, and over the lashes' box that of lashes against none; beside
+each, the PSNR of the two painted seeds (the Monte Carlo noise a change has to stand out of; the changes are
+rendered with the same seed, so the noise mostly cancels in them) and the albedo layer's mean absolute difference,
+likewise. Then the seconds of each frame (image and AOV passes), each variant rendered twice and the second timed
+(the first compiles the scene's kernels), with the load average. `--figure`: each subject's face at 4x (protocol)
+and 1x (close-up): painted | strand brows | with lashes, image above albedo.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the bench folder's modules
+
+
+def posed_strands(geometry, name: str, phenotype, fibres, rng):
+    """A `face_hair` StrandGeometry on the posed rest body, dealt to the fibres (one `PosedStrands` each)."""
+    from rh_dataset.characters import PosedStrands
+    from rh_dataset.characters.body import anchor_points, body_topology, run_anny, vertex_normals
+
+    verts = run_anny(phenotype)["vertices"]
+    pts = anchor_points(verts, vertex_normals(verts, body_topology().faces), geometry.blend_vertices,
+                        geometry.blend_weights, geometry.offset).reshape(geometry.rest.shape)
+    which = rng.choice(len(fibres), size=len(pts), p=[f.fraction for f in fibres])
+    return [PosedStrands(name if i == 0 else f"{name}_{i}", pts[which == i].astype(np.float32),
+                         geometry.radius[which == i], f) for i, f in enumerate(fibres) if np.any(which == i)]
+
+
+def bind_error(geometry, feats) -> float:
+    """The worst distance (m) between a bound control point's rest-pose anchor and the point grown there."""
+    from rh_dataset.characters.body import anchor_points
+
+    back = anchor_points(feats.rest_vertices, feats.rest_normals, geometry.blend_vertices, geometry.blend_weights,
+                         geometry.offset)
+    return float(np.linalg.norm(back - geometry.rest.reshape(-1, 3), axis=1).max())
+
+
+def _psnr(x, y, where) -> float:
+    from rh_common.colourspace import srgb_encode
+
+    a = srgb_encode(np.clip(x[where] * 1.3, 0, 1))
+    b = srgb_encode(np.clip(y[where] * 1.3, 0, 1))
+    return float(10 * np.log10(1.0 / max(float(np.mean((a - b) ** 2)), 1e-12)))
+
+
+def _box(cam, points, shape, pad: int):
+    uv = cam.project(np.asarray(points, np.float64).reshape(-1, 3))
+    x0, y0 = np.floor(uv.min(0)).astype(int) - pad
+    x1, y1 = np.ceil(uv.max(0)).astype(int) + pad
+    m = np.zeros(shape[:2], bool)
+    m[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = True
+    return m, (max(x0, 0), max(y0, 0), x1, y1)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--subjects", default="22,0,7", help="comma-separated benchmark subjects (rh-generate's)")
+    ap.add_argument("--seed", type=int, default=0, help="dataset seed the recipes come from")
+    ap.add_argument("--spp", type=int, default=None, help="samples per pixel (default: the standard preset's)")
+    ap.add_argument("--closeup-fill", type=float, default=0.9,
+                    help="fraction of the frame the head fills in the close-up")
+    ap.add_argument("--figure", type=Path, help="write the brow crops at 4x here (PNG)")
+    args = ap.parse_args(argv)
+
+    from subject_diversity import benchmark_recipes
+    from subjects_gallery import studio_environment
+
+    from rh_common.camera import frame_body
+    from rh_common.colourspace import quantize8, srgb_encode
+    from rh_common.imageio import write_png
+    from rh_dataset.characters import body_bounds, build_character, pose_character
+    from rh_dataset.characters.body_features import body_features
+    from rh_dataset.characters.hair_fibre import fibres_for_colour
+    from rh_dataset.characters.character import _STREAM_FACE_HAIR, _STREAM_SKIN, _STREAM_SKIN_DETAIL
+    from rh_dataset.characters.face_hair import BROW_HAIRS, POINTS, build_lashes
+    from rh_dataset.characters.textures import skin_texture
+    from rh_dataset.cli import render_settings
+    from rh_dataset.generate.subjects import CAMERA_FILL, framing_box
+    from rh_dataset.render.passes import render_frame
+    from rh_dataset.spec import load_protocol
+    from rh_dataset.variant import load_mitsuba, select_variant
+
+    select_variant(None)
+    env = studio_environment(load_mitsuba())
+    test = next(x for x in load_protocol("protocol_a").splits if x.name == "test")
+    settings = render_settings("standard", spp=args.spp).for_split(test)
+    recipes = benchmark_recipes("protocol_a", args.seed)
+    layers = ["image", "albedo", "mask"]
+    print(f"load average at start: {' '.join(open('/proc/loadavg').read().split()[:3])}; standard preset, "
+          f"{settings.spp} spp, AOV {settings.aov_spp} spp, depth {settings.max_depth}; {BROW_HAIRS} hairs a brow")
+    rows = []
+    for s in (int(x) for x in args.subjects.split(",")):
+        r = recipes[s]
+        feats = body_features(r.phenotype)
+        generated = pose_character(build_character(r))
+        brows = [m for m in generated if m.name.startswith("brows")]  # the generator's (character.FACE_HAIR)
+        posed = [m for m in generated if not m.name.startswith("brows")]
+        at = next(i for i, m in enumerate(posed) if m.name == "body")
+        body = posed[at]
+        # The build's skin (no brows painted) and the same with them painted (its streams: character._STREAM_SKIN*).
+        skins = {paint: skin_texture(r.skin, r.hair.colour, feats, np.random.default_rng([r.seed, _STREAM_SKIN]),
+                                     body.material.albedo.shape[0], brows=paint,
+                                     detail_rng=np.random.default_rng([r.seed, _STREAM_SKIN_DETAIL]))
+                 for paint in (True, False)}
+        if not np.array_equal(skins[False], body.material.albedo):
+            raise SystemExit(f"subject {s}: the skin texture rebuilt here is not the character's")
+        lashes = build_lashes(feats, np.random.default_rng([r.seed, _STREAM_FACE_HAIR, 1]))
+        painted = list(posed)
+        painted[at] = dataclasses.replace(body, material=dataclasses.replace(body.material, albedo=skins[True]))
+        with_brows = posed + brows
+        with_lashes = with_brows + posed_strands(lashes, "lashes", r.phenotype, fibres_for_colour(r.hair.colour),
+                                                 np.random.default_rng([r.seed, _STREAM_FACE_HAIR, 2]))
+        variants = {"painted": (painted, 1), "painted2": (painted, 2), "brows": (with_brows, 1),
+                    "lashes": (with_lashes, 1)}
+        lo, hi = body_bounds(posed)
+        head = body.vertices[body.vertices[:, 2] > feats.bone_heads["eye.L"][2] - 0.14].astype(np.float64)
+        hlo, hhi = head.min(0), head.max(0)
+        hlo[0], hhi[0] = min(hlo[0], hlo[1]), max(hhi[0], hhi[1])  # a square-ish box round the head
+        cams = {"protocol": frame_body(*framing_box(lo, hi), 512, 512, 30.0, fill=CAMERA_FILL),
+                "close-up": frame_body(hlo, hhi + [0, 0, 0.03], 512, 512, 30.0, fill=args.closeup_fill)}
+        brow_pts = np.concatenate([m.points.reshape(-1, 3) for m in brows]).astype(np.float64)
+        lash_pts = next(m for m in with_lashes if m.name == "lashes").points.reshape(-1, 3).astype(np.float64)
+        print(f"subject {s}: hair colour (sRGB) {tuple(round(c, 2) for c in r.hair.colour)}, headwear "
+              f"{','.join(h.kind for h in r.headwear) or 'none'}; {len(brow_pts) // POINTS} brow hairs, "
+              f"{lashes.rest.shape[0]} lashes (bound within {1e3 * bind_error(lashes, feats):.3f} mm)")
+        crops = []
+        for name, cam in cams.items():
+            img, alb, secs = {}, {}, {}
+            for label, (meshes, seed) in variants.items():
+                for _ in range(2):  # the second run is timed: the first compiles the scene's kernels
+                    t0 = time.perf_counter()
+                    out = render_frame(meshes, env, cam, settings, layers, seed=seed).layers
+                    secs[label], img[label], alb[label] = time.perf_counter() - t0, out["image"], out["albedo"]
+            shape = img["painted"].shape
+            brow_px, (x0, y0, x1, y1) = _box(cam, brow_pts, shape, 2)
+            lash_px, _ = _box(cam, lash_pts, shape, 2)
+            z = float(np.median(brow_pts[:, 1]) - cam.origin[1])
+            mm = 2000.0 * z * np.tan(np.radians(15.0)) / 512
+            print(f"  {name:9s} {mm:.2f} mm/px at the brows; boxes {x1 - x0}x{y1 - y0} px (brows), "
+                  f"{int(lash_px.sum())} px (lashes); load {os.getloadavg()[0]:.2f}")
+            for what, px, a, b in (("brows", brow_px, "brows", "painted"), ("lashes", lash_px, "lashes", "brows")):
+                print(f"    {what:6s} PSNR {a} vs {b} {_psnr(img[a], img[b], px):5.1f} dB, two painted seeds "
+                      f"{_psnr(img['painted2'], img['painted'], px):5.1f} dB | albedo mean |diff| "
+                      f"{np.abs(alb[a] - alb[b])[px].mean():.4f}, seeds "
+                      f"{np.abs(alb['painted2'] - alb['painted'])[px].mean():.4f}")
+            print("    frame s: " + ", ".join(f"{k} {v:.1f}" for k, v in secs.items()), flush=True)
+            cx, cy = (x0 + x1) // 2, (y0 + y1) // 2
+            half = max(x1 - x0, 24) // 2 + 4 if name == "protocol" else 128
+            ya, xa = max(cy - half // 2, 0), max(cx - half, 0)
+
+            def crop(a):
+                c = a[ya:ya + half + (half // 2 if name == "protocol" else 64), xa:xa + 2 * half]
+                k = 4 if name == "protocol" else 1
+                return np.repeat(np.repeat(c, k, 0), k, 1)
+
+            pic = np.concatenate([np.concatenate([crop(img[k] * 1.3) for k in ("painted", "brows", "lashes")], 1),
+                                  np.concatenate([crop(alb[k]) for k in ("painted", "brows", "lashes")], 1)], 0)
+            crops.append(pic)
+        w = max(c.shape[1] for c in crops)
+        rows.append(np.concatenate([np.pad(c, ((0, 4), (0, w - c.shape[1]), (0, 0))) for c in crops], 0))
+    if args.figure is not None:
+        w = max(x.shape[1] for x in rows)
+        fig = np.concatenate([np.pad(x, ((0, 0), (0, w - x.shape[1]), (0, 0))) for x in rows], 0)
+        write_png(args.figure, quantize8(srgb_encode(np.clip(fig, 0, 1))))
+        print(f"wrote {args.figure}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
