@@ -83,6 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--spp", type=int, default=None, help="samples per pixel (default: the standard preset's)")
     ap.add_argument("--closeup-fill", type=float, default=0.9,
                     help="fraction of the frame the head fills in the close-up")
+    ap.add_argument("--framings", nargs="+", default=["protocol", "close-up"], choices=("protocol", "close-up"),
+                    help="the camera framings to render")
     ap.add_argument("--figure", type=Path, help="write the brow crops at 4x here (PNG)")
     args = ap.parse_args(argv)
 
@@ -148,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{','.join(h.kind for h in r.headwear) or 'none'}; {len(brow_pts) // POINTS} brow hairs, "
               f"{lashes.rest.shape[0]} lashes (bound within {1e3 * bind_error(lashes, feats):.3f} mm)")
         crops = []
-        for name, cam in cams.items():
+        for name, cam in ((k, cams[k]) for k in args.framings):
             img, alb, secs = {}, {}, {}
             for label, (meshes, seed) in variants.items():
                 for _ in range(2):  # the second run is timed: the first compiles the scene's kernels
