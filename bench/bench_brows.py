@@ -21,7 +21,9 @@ each, the PSNR of the two painted seeds (the Monte Carlo noise a change has to s
 rendered with the same seed, so the noise mostly cancels in them) and the albedo layer's mean absolute difference,
 likewise. Then the seconds of each frame (image and AOV passes), each variant rendered twice and the second timed
 (the first compiles the scene's kernels), with the load average. `--figure`: each subject's face at 4x (protocol)
-and 1x (close-up): painted | strand brows | with lashes, image above albedo.
+and 1x (close-up): painted | strand brows | with lashes, image above albedo. `--clearance`: instead, for every
+subject wearing headwear, how close its brows come to each piece, in the bind pose (caps, hats and glasses move
+rigidly with the head, as the brows do; only a scarf's hem bends with the neck).
 """
 from __future__ import annotations
 
@@ -59,6 +61,33 @@ def bind_error(geometry, feats) -> float:
     return float(np.linalg.norm(back - geometry.rest.reshape(-1, 3), axis=1).max())
 
 
+def headwear_clearance(recipes) -> None:
+    """For each subject wearing headwear: the closest any of its brow hairs' control points (bind pose, the
+    generator's stream) comes to each piece's surface (bind pose; trimesh closest points)."""
+    import trimesh
+
+    from rh_dataset.characters.body_features import body_features
+    from rh_dataset.characters.character import _STREAM_FACE_HAIR
+    from rh_dataset.characters.face_hair import build_brows
+    from rh_dataset.characters.headwear import build_headwear
+
+    worst = {}
+    for s, r in enumerate(recipes):
+        if not r.headwear:
+            continue
+        feats = body_features(r.phenotype)
+        pieces = build_headwear(r.headwear, feats, r.phenotype, np.zeros(len(feats.rest_vertices)))
+        brows = build_brows(feats, np.random.default_rng([r.seed, _STREAM_FACE_HAIR])).rest.reshape(-1, 3)
+        row = []
+        for h, g in zip(r.headwear, pieces):
+            d = float(trimesh.proximity.closest_point(trimesh.Trimesh(g.vertices, g.faces, process=False),
+                                                      brows)[1].min())
+            worst[h.kind] = min(worst.get(h.kind, np.inf), d)
+            row.append(f"{h.kind} {1e3 * d:.1f} mm")
+        print(f"  subject {s:2d}: " + "; ".join(row), flush=True)
+    print("  closest per kind: " + ", ".join(f"{k} {1e3 * v:.1f} mm" for k, v in sorted(worst.items())))
+
+
 def _psnr(x, y, where) -> float:
     from rh_common.colourspace import srgb_encode
 
@@ -86,7 +115,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--framings", nargs="+", default=["protocol", "close-up"], choices=("protocol", "close-up"),
                     help="the camera framings to render")
     ap.add_argument("--figure", type=Path, help="write the brow crops at 4x here (PNG)")
+    ap.add_argument("--clearance", action="store_true",
+                    help="only print how close the brows come to each headwear wearer's headwear (all subjects)")
     args = ap.parse_args(argv)
+    if args.clearance:
+        from subject_diversity import benchmark_recipes
+
+        print(f"brows to headwear, protocol a, seed {args.seed} (bind pose; the headwear's surface):")
+        headwear_clearance(benchmark_recipes("protocol_a", args.seed))
+        return 0
 
     from subject_diversity import benchmark_recipes
     from subjects_gallery import studio_environment
