@@ -7,8 +7,8 @@ The generator grows each brow as strands (`face_hair.build_brows`, character.FAC
 `textures.brow_band` places above each eye, of the scalp hair's fibres). Before, it painted that band into the
 skin's albedo in a darkened hair colour (`skin_texture(..., brows=True)`, kept for this comparison). Lashes
 (`face_hair.build_lashes`, along the upper lids) are not grown by the generator; here they are, over the brows.
-For each subject, in the rest pose under Blender's studio HDRI, front view, rh-generate's standard preset (test
-split), at two framings:
+For each subject, in the rest pose under Blender's studio HDRI, front view, rh-generate's --preset (standard; test
+split), at two framings (--framings):
 
   protocol   the benchmark's camera (512 x 512, fov 30 degrees, `framing_box` + `frame_body`): its footprint at
              the brows printed in mm per pixel
@@ -19,8 +19,8 @@ lashes with seed 1. Over the brows' pixels (the brow hairs' projected box, 2 px 
 exposure x1.3) of strand brows against painted ones, and over the lashes' box that of lashes against none; beside
 each, the PSNR of the two painted seeds (the Monte Carlo noise a change has to stand out of; the changes are
 rendered with the same seed, so the noise mostly cancels in them) and the albedo layer's mean absolute difference,
-likewise. Then the seconds of each frame (image and AOV passes), each variant rendered twice and the second timed
-(the first compiles the scene's kernels), with the load average. `--figure`: each subject's face at 4x (protocol)
+likewise. Then the seconds of each frame (image and AOV passes): every variant rendered once untimed (that compiles its
+scene's kernels), then --repeats timed rounds, the variants interleaved; the median, with the load average. `--figure`: each subject's face at 4x (protocol)
 and 1x (close-up): painted | strand brows | with lashes, image above albedo. `--clearance`: instead, for every
 subject wearing headwear, how close its brows come to each piece, in the bind pose (caps, hats and glasses move
 rigidly with the head, as the brows do; only a scarf's hem bends with the neck).
@@ -109,11 +109,13 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--subjects", default="22,0,7", help="comma-separated benchmark subjects (rh-generate's)")
     ap.add_argument("--seed", type=int, default=0, help="dataset seed the recipes come from")
-    ap.add_argument("--spp", type=int, default=None, help="samples per pixel (default: the standard preset's)")
+    ap.add_argument("--preset", default="standard", help="rh-generate's render preset (scenes/presets.json)")
+    ap.add_argument("--spp", type=int, default=None, help="samples per pixel (default: the preset's)")
     ap.add_argument("--closeup-fill", type=float, default=0.9,
                     help="fraction of the frame the head fills in the close-up")
     ap.add_argument("--framings", nargs="+", default=["protocol", "close-up"], choices=("protocol", "close-up"),
                     help="the camera framings to render")
+    ap.add_argument("--repeats", type=int, default=1, help="timed rounds of every variant (the median is printed)")
     ap.add_argument("--figure", type=Path, help="write the brow crops at 4x here (PNG)")
     ap.add_argument("--clearance", action="store_true",
                     help="only print how close the brows come to each headwear wearer's headwear (all subjects)")
@@ -146,10 +148,10 @@ def main(argv: list[str] | None = None) -> int:
     select_variant(None)
     env = studio_environment(load_mitsuba())
     test = next(x for x in load_protocol("protocol_a").splits if x.name == "test")
-    settings = render_settings("standard", spp=args.spp).for_split(test)
+    settings = render_settings(args.preset, spp=args.spp).for_split(test)
     recipes = benchmark_recipes("protocol_a", args.seed)
     layers = ["image", "albedo", "mask"]
-    print(f"load average at start: {' '.join(open('/proc/loadavg').read().split()[:3])}; standard preset, "
+    print(f"load average at start: {' '.join(open('/proc/loadavg').read().split()[:3])}; {args.preset} preset, "
           f"{settings.spp} spp, AOV {settings.aov_spp} spp, depth {settings.max_depth}; {BROW_HAIRS} hairs a brow")
     rows = []
     for s in (int(x) for x in args.subjects.split(",")):
@@ -188,12 +190,16 @@ def main(argv: list[str] | None = None) -> int:
               f"{lashes.rest.shape[0]} lashes (bound within {1e3 * bind_error(lashes, feats):.3f} mm)")
         crops = []
         for name, cam in ((k, cams[k]) for k in args.framings):
-            img, alb, secs = {}, {}, {}
-            for label, (meshes, seed) in variants.items():
-                for _ in range(2):  # the second run is timed: the first compiles the scene's kernels
+            img, alb = {}, {}
+            times = {k: [] for k in variants}
+            for rnd in range(1 + args.repeats):  # round 0 compiles each scene's kernels; the others are timed
+                for label, (meshes, seed) in variants.items():  # interleaved: a load change hits every variant
                     t0 = time.perf_counter()
                     out = render_frame(meshes, env, cam, settings, layers, seed=seed).layers
-                    secs[label], img[label], alb[label] = time.perf_counter() - t0, out["image"], out["albedo"]
+                    if rnd:
+                        times[label].append(time.perf_counter() - t0)
+                    img[label], alb[label] = out["image"], out["albedo"]
+            secs = {k: float(np.median(v)) for k, v in times.items()}
             shape = img["painted"].shape
             brow_px, (x0, y0, x1, y1) = _box(cam, brow_pts, shape, 2)
             lash_px, _ = _box(cam, lash_pts, shape, 2)
