@@ -19,11 +19,13 @@ lashes with seed 1. Over the brows' pixels (the brow hairs' projected box, 2 px 
 exposure x1.3) of strand brows against painted ones, and over the lashes' box that of lashes against none; beside
 each, the PSNR of the two painted seeds (the Monte Carlo noise a change has to stand out of; the changes are
 rendered with the same seed, so the noise mostly cancels in them) and the albedo layer's mean absolute difference,
-likewise. Then the seconds of each frame (image and AOV passes): every variant rendered once untimed (that compiles its
-scene's kernels), then --repeats timed rounds, the variants interleaved; the median, with the load average. `--figure`: each subject's face at 4x (protocol)
-and 1x (close-up): painted | strand brows | with lashes, image above albedo. `--clearance`: instead, for every
-subject wearing headwear, how close its brows come to each piece, in the bind pose (caps, hats and glasses move
-rigidly with the head, as the brows do; only a scarf's hem bends with the neck).
+likewise. Then the seconds of each frame (image and AOV passes): every variant rendered once untimed (that
+compiles its scene's kernels), then --repeats timed rounds, the variants interleaved; the median, with the load
+average. Per subject it also prints the seconds growing its brows takes (`build_brows`, once per subject build).
+`--figure`: each subject's face at 4x (protocol) and 1x (close-up): painted | strand brows | with lashes, image
+above albedo. `--clearance`: instead, for every subject wearing headwear, how close its brows come to each piece,
+in the bind pose (caps, hats and glasses move rigidly with the head, as the brows do; only a scarf's hem bends
+with the neck).
 """
 from __future__ import annotations
 
@@ -137,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.hair_fibre import fibres_for_colour
     from rh_dataset.characters.character import _STREAM_FACE_HAIR, _STREAM_SKIN, _STREAM_SKIN_DETAIL
-    from rh_dataset.characters.face_hair import BROW_HAIRS, POINTS, build_lashes
+    from rh_dataset.characters.face_hair import BROW_HAIRS, POINTS, build_brows, build_lashes
     from rh_dataset.characters.textures import skin_texture
     from rh_dataset.cli import render_settings
     from rh_dataset.generate.subjects import CAMERA_FILL, framing_box
@@ -169,6 +171,9 @@ def main(argv: list[str] | None = None) -> int:
                  for paint in (True, False)}
         if not np.array_equal(skins[False], body.material.albedo):
             raise SystemExit(f"subject {s}: the skin texture rebuilt here is not the character's")
+        t0 = time.perf_counter()
+        build_brows(feats, np.random.default_rng([r.seed, _STREAM_FACE_HAIR]))  # what the build spends on them
+        t_brows = time.perf_counter() - t0
         lashes = build_lashes(feats, np.random.default_rng([r.seed, _STREAM_FACE_HAIR, 1]))
         painted = list(posed)
         painted[at] = dataclasses.replace(body, material=dataclasses.replace(body.material, albedo=skins[True]))
@@ -187,7 +192,8 @@ def main(argv: list[str] | None = None) -> int:
         lash_pts = next(m for m in with_lashes if m.name == "lashes").points.reshape(-1, 3).astype(np.float64)
         print(f"subject {s}: hair colour (sRGB) {tuple(round(c, 2) for c in r.hair.colour)}, headwear "
               f"{','.join(h.kind for h in r.headwear) or 'none'}; {len(brow_pts) // POINTS} brow hairs, "
-              f"{lashes.rest.shape[0]} lashes (bound within {1e3 * bind_error(lashes, feats):.3f} mm)")
+              f"{lashes.rest.shape[0]} lashes (bound within {1e3 * bind_error(lashes, feats):.3f} mm); growing the "
+              f"brows {t_brows:.2f} s")
         crops = []
         for name, cam in ((k, cams[k]) for k in args.framings):
             img, alb = {}, {}
