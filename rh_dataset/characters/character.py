@@ -258,7 +258,7 @@ _STREAM_SKIN, _STREAM_HAIR, _STREAM_SOLE, _STREAM_SKIN_DETAIL, _STREAM_GARMENT0,
 _STREAM_EYES = 5
 _STREAM_FACE_HAIR = 6  # brows and lashes (face_hair.py)
 # The face's hair grown as strands (face_hair.py): the brows. Not the lashes: at the protocol's 4-5 mm a pixel they
-# change the image no more than the Monte Carlo noise does (bench/bench_brows.py; docs/ARCHITECTURE.md, "Brows").
+# change the image by about the Monte Carlo noise at most (bench/bench_brows.py; docs/SUBJECTS.md, "Eyebrows ...").
 FACE_HAIR = ("brows",)
 FACE_HAIR_BUILDERS = {"brows": build_brows, "lashes": build_lashes}
 
