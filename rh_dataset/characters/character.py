@@ -334,8 +334,7 @@ def _build_cached(recipe_json: str, res: int, drape: str = "full") -> Character:
     body = split_faces(np.arange(len(topo.faces)), topology)
     positions = texel_positions(feats, res, topology)  # shared by the skin and every body-layout garment
     skin = skin_texture(recipe.skin, recipe.hair.colour, feats, np.random.default_rng([seed, _STREAM_SKIN]), res,
-                        topology, positions, detail_rng=np.random.default_rng([seed, _STREAM_SKIN_DETAIL]),
-                        brows=False)  # grown as strands (FACE_HAIR)
+                        topology, positions, detail_rng=np.random.default_rng([seed, _STREAM_SKIN_DETAIL]))
     parts = [
         CharacterPart("body", body.faces, body.uvs, body.body_vertex, np.zeros(len(body.body_vertex), np.float32),
                       Material(skin, SKIN_ROUGHNESS, SKIN_SPECULAR, two_sided=False))

@@ -83,12 +83,13 @@ def skin_texture(
     topology: str = ANNY_TOPOLOGY,
     positions: np.ndarray | None = None,
     detail_rng: np.random.Generator | None = None,
-    brows: bool = True,
+    brows: bool = False,
 ) -> np.ndarray:
     """Skin albedo: base tone with blotchy and fine variation, the skin's freckles, blush and veins
     (`surface_detail.skin_detail`, drawn from `detail_rng`; none when the tone's strengths are all 0), redder lips,
-    lighter nails, slightly darker eyelids, eyebrows in the hair colour (`brows`; False only for benches).
-    `positions`: `texel_positions(feats, resolution)` if already computed."""
+    lighter nails, slightly darker eyelids; with `brows`, eyebrows painted in the hair colour (bench/bench_brows.py's
+    comparison: the generator grows them as strands, face_hair.py). `positions`: `texel_positions(feats,
+    resolution)` if already computed."""
     res = int(resolution)
     base = skin_albedo_linear(skin)
     low = value_noise(rng, (res, res), 24)
