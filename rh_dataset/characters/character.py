@@ -1,5 +1,5 @@
-"""A character = anny body + eyeballs, garments and headwear (textured meshes) + strand hair, each following the
-body's skinning.
+"""A character = anny body + eyeballs, garments and headwear (textured meshes) + strand hair and brows, each
+following the body's skinning.
 
 UV convention: every `uvs` array is v-up (OpenGL): texture row 0 (the top of an albedo array) is v = 1. Mitsuba 3's
 `bitmap` texture looks rows up the other way round (row 0 at v = 0, checked by rendering a two-colour quad), so a
@@ -14,8 +14,9 @@ the body's linear-blend weights transferred to them or simulated from the rest p
 rigidly to the head bone, head scarves with the body's weights), and presses or hides the hair under it; the
 eyeballs (eyes.py) are rigid with anny's eye joints and, alone among skinned parts, are not pushed off the skin
 (they sit in the sockets, inside the head). Hair is
-strands (`hair.py`): every control point is anchored the same way as a shell vertex, and posing gives
-`PosedStrands` (control points and radii, one `HairFibre` per set of strands) beside the `PosedMesh`es.
+strands (`hair.py`), and so are the brows (`face_hair.py`, of the hair's fibres): every control point is anchored
+the same way as a shell vertex, and posing gives `PosedStrands` (control points and radii, one `HairFibre` per set
+of strands) beside the `PosedMesh`es.
 """
 from __future__ import annotations
 
