@@ -41,19 +41,6 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the bench folder's modules
 
 
-def posed_strands(geometry, name: str, phenotype, fibres, rng):
-    """A `face_hair` StrandGeometry on the posed rest body, dealt to the fibres (one `PosedStrands` each)."""
-    from rh_dataset.characters import PosedStrands
-    from rh_dataset.characters.body import anchor_points, body_topology, run_anny, vertex_normals
-
-    verts = run_anny(phenotype)["vertices"]
-    pts = anchor_points(verts, vertex_normals(verts, body_topology().faces), geometry.blend_vertices,
-                        geometry.blend_weights, geometry.offset).reshape(geometry.rest.shape)
-    which = rng.choice(len(fibres), size=len(pts), p=[f.fraction for f in fibres])
-    return [PosedStrands(name if i == 0 else f"{name}_{i}", pts[which == i].astype(np.float32),
-                         geometry.radius[which == i], f) for i, f in enumerate(fibres) if np.any(which == i)]
-
-
 def bind_error(geometry, feats) -> float:
     """The worst distance (m) between a bound control point's rest-pose anchor and the point grown there."""
     from rh_dataset.characters.body import anchor_points
@@ -138,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters import body_bounds, build_character, pose_character
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.hair_fibre import fibres_for_colour
-    from rh_dataset.characters.character import _STREAM_FACE_HAIR, _STREAM_SKIN, _STREAM_SKIN_DETAIL
+    from rh_dataset.characters.character import (_STREAM_FACE_HAIR, _STREAM_SKIN, _STREAM_SKIN_DETAIL,
+                                                  _split_fibres)
     from rh_dataset.characters.face_hair import BROW_HAIRS, POINTS, build_brows, build_lashes
     from rh_dataset.characters.textures import skin_texture
     from rh_dataset.cli import render_settings
@@ -159,7 +147,8 @@ def main(argv: list[str] | None = None) -> int:
     for s in (int(x) for x in args.subjects.split(",")):
         r = recipes[s]
         feats = body_features(r.phenotype)
-        generated = pose_character(build_character(r))
+        character = build_character(r)
+        generated = pose_character(character)
         brows = [m for m in generated if m.name.startswith("brows")]  # the generator's (character.FACE_HAIR)
         posed = [m for m in generated if not m.name.startswith("brows")]
         at = next(i for i, m in enumerate(posed) if m.name == "body")
@@ -178,8 +167,11 @@ def main(argv: list[str] | None = None) -> int:
         painted = list(posed)
         painted[at] = dataclasses.replace(body, material=dataclasses.replace(body.material, albedo=skins[True]))
         with_brows = posed + brows
-        with_lashes = with_brows + posed_strands(lashes, "lashes", r.phenotype, fibres_for_colour(r.hair.colour),
-                                                 np.random.default_rng([r.seed, _STREAM_FACE_HAIR, 2]))
+        # The lashes posed as the build's strands are (dealt to the hair's fibres, anchored by pose_character).
+        dealt = _split_fibres(lashes, fibres_for_colour(r.hair.colour),
+                              np.random.default_rng([r.seed, _STREAM_FACE_HAIR, 2]), "lashes")
+        with_lashes = with_brows + [m for m in pose_character(dataclasses.replace(character, strands=dealt))
+                                    if m.name.startswith("lashes")]
         variants = {"painted": (painted, 1), "painted2": (painted, 2), "brows": (with_brows, 1),
                     "lashes": (with_lashes, 1)}
         lo, hi = body_bounds(posed)
