@@ -88,15 +88,34 @@ def test_pattern_is_a_pair_of_trousers_outside_the_body(pheno, level, kind):
     assert uvs.min() >= 0.0 and uvs.max() <= 1.0 and mpu > 0.8
 
 
-def test_trousers_render_mesh_copies_the_cloth_per_piece():
+@pytest.mark.parametrize("kind", ["draped_trousers", "draped_shorts"])
+def test_trousers_render_mesh_copies_the_cloth_per_piece(kind):
     """`draped_part`'s render mesh: each tube with its wrap column repeated, every render vertex on a simulated
-    one, UVs in [0, 1] with u growing round each tube, faces outward as the cloth's."""
+    one, UVs in [0, 1] with u growing round each tube, faces outward as the cloth's. The print runs on across the
+    split ring: where a leg shares a vertex with the waist (but the waist's wrap column) both have one UV; along
+    every ring u is the cut's arc length, v its height over the hem (metres over `metres_per_uv`)."""
     from rh_dataset.characters.drape import DrapedGarment, _pieces_render_mesh, _trouser_pattern
 
-    st = drape_settings(KIND, "coarse")
-    v, f, uv, pinned, mpu, pieces = _trouser_pattern(PHENO, st, PROFILES[KIND])
-    g = DrapedGarment(KIND, v, f, uv, pinned, mpu, v, tuple(pieces))
-    src, faces, uvs = _pieces_render_mesh(g)
+    st = drape_settings(kind, "coarse")
+    v, f, uv, pinned, mpu, pieces = _trouser_pattern(PHENO, st, PROFILES[kind])
+    g = DrapedGarment(kind, v, f, uv, pinned, mpu, v, tuple(pieces))
+    src, faces, uvs, m = _pieces_render_mesh(g)
+    piece = np.concatenate([np.full(p.shape[0] * (p.shape[1] + 1), j) for j, p in enumerate(pieces)])
+    shared = 0
+    for q in np.setdiff1d(pieces[0][-1], pieces[0][-1, :1]):  # the split ring but its wrap vertex
+        at = np.flatnonzero(src == q)
+        assert set(piece[at]) >= {0} and len(set(piece[at])) > 1  # every split-ring vertex lies on a leg
+        np.testing.assert_allclose(uvs[at], np.broadcast_to(uvs[at[0]], uvs[at].shape), atol=1e-6)
+        shared += len(at) - 1
+    assert shared == len(pieces[0][-1])  # on one leg each, the centre back on both
+    n = 0
+    for p in pieces:
+        full = np.concatenate([p, p[:, :1]], axis=1)
+        ring = uvs[n:n + full.size].reshape(*full.shape, 2) * m
+        np.testing.assert_allclose(np.diff(ring[..., 0], axis=1),
+                                   np.linalg.norm(np.diff(v[full], axis=1), axis=-1), rtol=1e-4, atol=1e-6)
+        np.testing.assert_allclose(ring[..., 1], v[full][..., 2] - v[:, 2].min(), atol=1e-6)
+        n += full.size
     assert len(src) == sum(p.shape[0] * (p.shape[1] + 1) for p in pieces) and len(faces) == len(f)
     assert np.array_equal(np.unique(src), np.arange(len(v)))
     assert uvs.min() >= 0.0 and uvs.max() <= 1.0

@@ -736,8 +736,9 @@ def _trouser_pattern(phenotype: dict[str, float], st: DrapeSettings, prof: Drape
         pieces.append(grid)
     verts = np.concatenate(verts)
     faces = np.concatenate([_grid_faces(g) for g in pieces]).astype(np.int32)
-    # UVs: metres along the ring and up from the hem, over one scale that fits the longest ring and the whole
-    # length; each piece's columns from u = 0 (the render mesh duplicates the wrap column: `draped_part`).
+    # UVs of the particles: metres along the ring and up from the hem, over one scale that fits the longest ring and
+    # the whole length; each piece's columns from u = 0. The render mesh has its own (`_pieces_render_mesh`: the wrap
+    # column duplicated, u continuous across the split ring), which is what the texture is drawn on.
     circ = [float(np.linalg.norm(verts[g[-1]] - verts[np.roll(g[-1], -1)], axis=1).sum()) for g in pieces]
     mpu = max(max(circ), z_top - z_hem)
     uvs = np.zeros((len(verts), 2))
@@ -1157,8 +1158,9 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
 
     settings = drape_settings(kind) if settings is None else settings
     g = drape_garment(kind, phenotype, settings, over=over) if garment is None else garment
+    mpu = g.metres_per_uv
     if g.pieces is not None:
-        src, faces, uvs = _pieces_render_mesh(g)
+        src, faces, uvs, mpu = _pieces_render_mesh(g)
     elif kind == "draped_hoodie":  # an open sheet cut with its own UVs (the hood-up shape's metres)
         src, faces, uvs = np.arange(len(g.vertices)), g.faces, g.uvs
     else:
@@ -1184,36 +1186,58 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
         body_vertex=body_vertex,
         offset=np.zeros(len(src), np.float32),
         uv_layout="own",
-        metres_per_uv=g.metres_per_uv,
+        metres_per_uv=mpu,
         skinning=skin,
         drape=settings,
     )
 
 
 def _pieces_render_mesh(g: DrapedGarment):
-    """The render mesh of a garment made of several tubes (`DrapedGarment.pieces`): each tube's grid with its first
-    column repeated at the end, so u runs from 0 to the tube's hem circumference over `metres_per_uv` without a
-    wrap; v is the pattern's (undraped) height over the hem, so the fabric's texture stays where it was cut.
-    Where tubes meet (the trousers' split ring and crotch seam) each keeps its own copies, at the same simulated
-    vertex. Returns (render vertex -> simulated vertex (R,), faces (F, 3), uvs (R, 2))."""
-    src, faces, uvs = [], [], []
-    z_hem = float(g.pattern[:, 2].min())
+    """The render mesh of a garment made of several tubes (`DrapedGarment.pieces`: the waist tube, then the legs):
+    each tube's grid with its first column repeated at the end. Where tubes meet (the split ring, the crotch seam)
+    each keeps its own copies, at the same simulated vertex. Returns (render vertex -> simulated vertex (R,), faces
+    (F, 3), uvs (R, 2), metres per UV).
+
+    UVs are metres of the cut (`pattern`, undraped), so the fabric's print stays where it was cut: v the height over
+    the hem; u the length along each ring, every ring of a tube centred on the middle of the tube's reference ring
+    (the waist's split ring, its last; a leg's first, which is half the split ring and the crotch seam). A leg's
+    first ring takes the waist's u where it shares the split ring and runs on along the seam, so a print carries
+    across the split ring unbroken (each tube once u-per-column of its own, before 5 December: checks and prints
+    broke there, docs/SUBJECTS.md); u jumps only at each tube's wrap column: the waist's centre front (a fly) and
+    each leg's front crotch point (an inseam), where the crotch seam mirrors the print as a sewn one does. One scale
+    for every piece: the wider of the u span and the length."""
+    pat = np.asarray(g.pattern, np.float64)
+    z_hem = float(pat[:, 2].min())
+    src, faces, us, vs = [], [], [], []
+    waist_u: dict[int, float] = {}  # split-ring vertex (but the wrap column's) -> the waist's u there
     n = 0
-    for grid in g.pieces:
+    for j, grid in enumerate(g.pieces):
         rows, cols = grid.shape
         full = np.concatenate([grid, grid[:, :1]], axis=1)
         local = n + np.arange(rows * (cols + 1)).reshape(rows, cols + 1)
         a, c = local[:-1, :-1], local[1:, :-1]
         b, d = local[:-1, 1:], local[1:, 1:]
         faces.append(np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)]))
-        hem = g.pattern[grid[-1]]
-        circ = float(np.linalg.norm(hem - np.roll(hem, -1, axis=0), axis=1).sum())
-        u = np.broadcast_to(np.arange(cols + 1)[None, :] / cols * circ / g.metres_per_uv, full.shape)
-        v = (g.pattern[full][..., 2] - z_hem) / g.metres_per_uv
-        uvs.append(np.stack([u, v], -1).reshape(-1, 2))
+        arc = np.concatenate([np.zeros((rows, 1)), np.cumsum(np.linalg.norm(np.diff(pat[full], axis=1), axis=-1), 1)],
+                             axis=1)  # (rows, cols + 1): metres along each ring from its first column
+        if j == 0:
+            ref, first = rows - 1, 0.0
+        else:
+            ref = 0
+            i = next(i for i, q in enumerate(grid[0]) if int(q) in waist_u)
+            first = waist_u[int(grid[0][i])] - arc[0, i]
+        middle = first + 0.5 * arc[ref, -1]
+        u = middle - 0.5 * arc[:, -1:] + arc
+        if j == 0:
+            waist_u = {int(q): float(x) for q, x in zip(grid[-1, 1:], u[-1, 1:-1])}
+        us.append(u.ravel())
+        vs.append((pat[full][..., 2] - z_hem).ravel())
         src.append(full.ravel())
         n += full.size
-    return np.concatenate(src), np.concatenate(faces), np.clip(np.concatenate(uvs), 0.0, 1.0)
+    u, v = np.concatenate(us), np.concatenate(vs)
+    u -= u.min()
+    mpu = float(max(u.max(), v.max()))
+    return np.concatenate(src), np.concatenate(faces), np.clip(np.stack([u, v], 1) / mpu, 0.0, 1.0), mpu
 
 
 def _closest(body_vertices, body_faces, points, body_normals=None, mesh=None, triangles: bool = False):
