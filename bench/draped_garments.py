@@ -16,6 +16,8 @@ body in each view.
     python bench/draped_garments.py --subjects 3,31 --tile 512 --out docs/draped_tshirt.png  # two loose t-shirts
     python bench/draped_garments.py --subjects 11,36 --tile 512 --out docs/draped_longsleeve.png  # loose long sleeves
     python bench/draped_garments.py --subjects 1,8,23,44 --tile 512 --out docs/draped_shorts.png  # loose shorts
+    python bench/draped_garments.py --subjects 23,30 --tile 512 --crop 0.3,0.38,0.7,0.72 --zoom 2 \
+        --out docs/trousers_print.png  # the hips at 2x: a check running across the split ring
     python bench/draped_garments.py --subjects 9,18,42,47 --tile 512 \
         --out docs/draped_straight_trousers.png                           # straight-leg trousers
     python bench/draped_garments.py --dresses 0 --skirts 0 --straight 2   # the first two straight-trousers wearers
@@ -97,8 +99,18 @@ def main(argv: list[str] | None = None) -> int:
                     help="shell-trousers wearers count as draped-trousers wearers (in draped_trousers)")
     ap.add_argument("--drape", default="full", help="drape level (full: the benchmark's; coarse: draft's)")
     ap.add_argument("--tile", type=int, default=256, help="tile size in pixels")
+    ap.add_argument("--crop", default="",
+                    help="x0,y0,x1,y1: keep this part of every tile, as fractions of it (0,0 its top left; "
+                         "default the whole tile)")
+    ap.add_argument("--zoom", type=int, default=1, help="magnify every (cropped) tile this many times, nearest")
     ap.add_argument("--out", type=Path, default=Path("/tmp/draped_garments.png"))
     args = ap.parse_args(argv)
+    crop = tuple(float(x) for x in args.crop.split(",")) if args.crop else (0.0, 0.0, 1.0, 1.0)
+    if len(crop) != 4 or not (0 <= crop[0] < crop[2] <= 1 and 0 <= crop[1] < crop[3] <= 1) or args.zoom < 1:
+        raise SystemExit(f"--crop: x0,y0,x1,y1 with 0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1, got {args.crop!r}; "
+                         f"--zoom: 1 or more, got {args.zoom}")
+    rows_px = slice(int(round(crop[1] * args.tile)), int(round(crop[3] * args.tile)))
+    cols_px = slice(int(round(crop[0] * args.tile)), int(round(crop[2] * args.tile)))
 
     import pyoidn
 
@@ -145,7 +157,8 @@ def main(argv: list[str] | None = None) -> int:
                 img = render_preview(posed, width=args.tile, height=args.tile, spp=32, seed=s)
                 guide = render_preview(posed, width=args.tile, height=args.tile, spp=4, seed=s, albedo=True)
                 img = pyoidn.denoise(np.ascontiguousarray(img), albedo=np.ascontiguousarray(guide), hdr=True)
-                tiles.append(quantize8(srgb_encode(np.clip(img, 0, None) * 1.3)))
+                tile = quantize8(srgb_encode(np.clip(img, 0, None) * 1.3))[rows_px, cols_px]
+                tiles.append(np.repeat(np.repeat(tile, args.zoom, axis=0), args.zoom, axis=1))
         rows.append(np.concatenate(tiles, axis=1))
         print(f"subject {s:3d} {','.join(g.kind for g in recipe.garments):40s} build (drape {args.drape}) "
               f"{t_build:6.1f} s  cloth depth in the body (worst / 99th percentile): rest {depth[0][0]:6.2f} / "
