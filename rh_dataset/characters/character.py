@@ -33,8 +33,9 @@ from .garments import LAYER_GAP, PartGeometry, build_garments, garment_parts, sh
 from .body_features import body_features, group_mask
 from .cloth_pose import (CLOTH_MODES, ClothPoseSettings, lift_over_skin, push_over_layers, push_under,
                          simulated_parts)
-from .drape import (DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, DrapeSettings, SkinBinding, penetration,
-                    SLEEVE_GROUPS, push_clearance, push_out, shells_under, skin_points)
+from .drape import (BOTTOMS_UNDER, DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, SHELL_TOPS, SHELLS_UNDER,
+                    DrapeSettings, SkinBinding, penetration, SLEEVE_GROUPS, push_clearance, push_out, shells_under,
+                    skin_points)
 from .eyes import eye_geometry
 from .geometry import split_faces
 from .face_hair import build_brows, build_lashes
@@ -527,6 +528,7 @@ def pose_character(
         )
     _tuck_inner_layers(character, posed, cloth_under, verts, normals, topo.faces)
     _shell_under_panels(character, posed, cloth_under, verts, normals, topo.faces)
+    _bottoms_under_shell_top(posed, cloth_under, verts, normals, topo.faces)
     for h in character.strands:
         pts = anchor_points(verts, normals, h.blend_vertices, h.blend_weights, h.offset).reshape(*h.radius.shape, 3)
         posed.append(PosedStrands(h.name, _ro(pts, np.float32), h.radius, h.fibre))
@@ -605,6 +607,29 @@ def _shell_under_panels(character: Character, posed: list, cloth_under: dict, ve
         v[trunk] = w
         v[moved] = push_out(v[moved], verts, normals, faces)
         posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32))
+
+
+def _bottoms_under_shell_top(posed: list, cloth_under: dict, verts, normals, faces) -> None:
+    """In place: a draped bottom (`drape.BOTTOMS_UNDER`) put back LAYER_GAP_DRAPE under the shell top worn over it
+    (`drape.SHELL_TOPS`) where it came out through the top (`cloth_pose.push_under`: within reach, not beyond the
+    top's hem or cuffs), then out of the skin where that took it in (the skin wins). Skipped under a draped jacket or
+    coat, which holds the top under its panels (`_shell_under_panels`). Where nothing came through, nothing
+    changes."""
+    if any(k in cloth_under for k in SHELLS_UNDER):
+        return
+    tops = [m for m in posed if m.name in SHELL_TOPS]
+    for k in (k for k in BOTTOMS_UNDER if k in cloth_under):
+        v, f = cloth_under[k]
+        for top in tops:
+            w, moved = push_under(v, top.vertices, top.faces, LAYER_GAP_DRAPE)
+            if len(moved):
+                w[moved] = push_out(w[moved], verts, normals, faces, push_clearance(k))
+                v = w
+        if v is not cloth_under[k][0]:
+            cloth_under[k] = (v, f)
+            at = next(j for j, m in enumerate(posed) if m.name == k)
+            posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32),
+                                            normals=_ro(_unit(_welded_normals(v, f)), np.float32))
 
 
 def body_bounds(posed_meshes: list[PosedMesh | PosedStrands]) -> tuple[np.ndarray, np.ndarray]:

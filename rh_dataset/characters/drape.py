@@ -44,7 +44,7 @@ from .body_features import body_features
 from .geometry import edge_counts, hull_anchors
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
-           "DRAPED_OVER", "draped_over", "SHELLS_UNDER", "SLEEVE_GROUPS", "shells_under",
+           "DRAPED_OVER", "draped_over", "SHELLS_UNDER", "SLEEVE_GROUPS", "shells_under", "SHELL_TOPS", "BOTTOMS_UNDER",
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
@@ -413,6 +413,16 @@ SHELLS_UNDER = {"draped_jacket": ("tshirt", "longsleeve"), "draped_coat": ("tshi
 # nothing (they lie under the jacket's own shell). Not only "torso": the top's lowest band, over the hips, is on
 # "upperleg" vertices, and left out it came through the panels' hem in the pictures.
 SLEEVE_GROUPS = ("upperarm", "lowerarm", "hand")
+
+
+# A shell top worn over a draped bottom with no draped jacket or coat over both (those hold the top under their
+# panels instead: SHELLS_UNDER): the top's hem hangs over the bottom's waistband, raised over its cloth at rest
+# (garments.build_garments' `under`), but posed, the bottom's skinned, pushed-out and lifted cloth came out through
+# it: seed 0's subject 23 bending, 16 of its shorts' vertices over its t-shirt, 12 of them seen. Posing puts them
+# back under the top (character._bottoms_under_shell_top; bench/bench_shell_top_over_bottom.py). Part names: the
+# hoodie's trunk is the long sleeve's shell (its hood, draped on the upper back, lies far above any bottom).
+SHELL_TOPS = ("tshirt", "longsleeve", "hoodie")
+BOTTOMS_UNDER = _BOTTOMS_UNDER
 
 
 def shells_under(kind: str, worn: Sequence[str]) -> tuple[str, ...]:
