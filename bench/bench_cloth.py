@@ -227,8 +227,6 @@ def main(argv: list[str] | None = None) -> int:
         coat_layers(recipe, poses, g, kind=kind)
 
     if args.image is not None:
-        import pyoidn
-
         from rh_common.colourspace import quantize8, srgb_encode
         from rh_common.imageio import write_png
         from rh_dataset.characters.preview import render_preview
@@ -243,9 +241,7 @@ def main(argv: list[str] | None = None) -> int:
             views.append((dict(shown.bones), None))
         for bones, turn in views:
             posed = pose_character(character, bones, turn)
-            img = render_preview(posed, width=256, height=256, spp=32)
-            guide = render_preview(posed, width=256, height=256, spp=4, albedo=True)
-            img = pyoidn.denoise(np.ascontiguousarray(img), albedo=np.ascontiguousarray(guide), hdr=True)
+            img = render_preview(posed, width=256, height=256, spp=32, denoise=True)
             tiles.append(quantize8(srgb_encode(np.clip(img, 0, None) * 1.3)))
         write_png(args.image, np.concatenate(tiles, axis=1))  # rest front | rest side | a sampled walk
         print(f"wrote {args.image}")

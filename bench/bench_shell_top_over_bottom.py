@@ -130,8 +130,6 @@ def main(argv: list[str] | None = None) -> int:
     print(f"total over / seen: without {totals[0, 0]} / {totals[0, 1]}, with {totals[1, 0]} / {totals[1, 1]}")
 
     if args.figure is not None:
-        import pyoidn
-
         from rh_common.colourspace import quantize8, srgb_encode
         from rh_common.imageio import write_png
         from rh_dataset.characters.preview import render_preview
@@ -151,9 +149,7 @@ def main(argv: list[str] | None = None) -> int:
                     posed = pose_character(subject.character, dict(pose.bones), root)
                 finally:
                     character_module._bottoms_under_shell_top = step
-                img = render_preview(posed, width=512, height=512, spp=32, seed=s)
-                guide = render_preview(posed, width=512, height=512, spp=4, seed=s, albedo=True)
-                img = pyoidn.denoise(np.ascontiguousarray(img), albedo=np.ascontiguousarray(guide), hdr=True)
+                img = render_preview(posed, width=512, height=512, spp=32, seed=s, denoise=True)
                 tile = quantize8(srgb_encode(np.clip(img, 0, None) * 1.3))[180:360, 128:384]
                 tiles.append(np.repeat(np.repeat(tile, 2, axis=0), 2, axis=1))
             rows.append(np.concatenate(tiles, axis=1))

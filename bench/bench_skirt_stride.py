@@ -87,7 +87,6 @@ def figure(args) -> int:
     """The before | after sheet (module docstring): rows = cases."""
     import dataclasses
 
-    import pyoidn
     from scipy.spatial import cKDTree
 
     from rh_common.colourspace import quantize8, srgb_encode
@@ -126,9 +125,7 @@ def figure(args) -> int:
         tiles = []
         for c in variants:
             posed = [m for m in pose_character(c, dict(pose.bones), world) if isinstance(m, PosedMesh)]
-            img = render_preview(posed, width=size, height=size, spp=32, seed=s)
-            guide = render_preview(posed, width=size, height=size, spp=4, seed=s, albedo=True)
-            img = pyoidn.denoise(np.ascontiguousarray(img), albedo=np.ascontiguousarray(guide), hdr=True)
+            img = render_preview(posed, width=size, height=size, spp=32, seed=s, denoise=True)
             # Rows from the hips down to the shins: the preview frames the whole body, feet at the bottom.
             top = int(0.30 * size)
             tiles.append(quantize8(srgb_encode(np.clip(img[top:top + crop, (size - crop) // 2:][:, :crop], 0, None)

@@ -112,8 +112,6 @@ def main(argv: list[str] | None = None) -> int:
     rows_px = slice(int(round(crop[1] * args.tile)), int(round(crop[3] * args.tile)))
     cols_px = slice(int(round(crop[0] * args.tile)), int(round(crop[2] * args.tile)))
 
-    import pyoidn
-
     from rh_common.body_model import load_anny
     from rh_common.colourspace import quantize8, srgb_encode
     from rh_common.imageio import write_png
@@ -154,9 +152,7 @@ def main(argv: list[str] | None = None) -> int:
                     d = penetration(body, faces, cloth.vertices)
                     depth.append((1e3 * float(d.max()), 1e3 * float(np.percentile(d, 99))))
                     crossings.append(self_crossings(cloth.vertices, cloth.faces))
-                img = render_preview(posed, width=args.tile, height=args.tile, spp=32, seed=s)
-                guide = render_preview(posed, width=args.tile, height=args.tile, spp=4, seed=s, albedo=True)
-                img = pyoidn.denoise(np.ascontiguousarray(img), albedo=np.ascontiguousarray(guide), hdr=True)
+                img = render_preview(posed, width=args.tile, height=args.tile, spp=32, seed=s, denoise=True)
                 tile = quantize8(srgb_encode(np.clip(img, 0, None) * 1.3))[rows_px, cols_px]
                 tiles.append(np.repeat(np.repeat(tile, args.zoom, axis=0), args.zoom, axis=1))
         rows.append(np.concatenate(tiles, axis=1))

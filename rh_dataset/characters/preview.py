@@ -57,9 +57,17 @@ def _mesh(mi, pm: PosedMesh):
 
 
 def render_preview(posed: list, width: int = 256, height: int = 512, spp: int = 16,
-                   seed: int = 0, albedo: bool = False) -> np.ndarray:
+                   seed: int = 0, albedo: bool = False, denoise: bool = False) -> np.ndarray:
     """Linear RGB render (H, W, 3) of posed meshes seen from -Y, framed on their bounds (`albedo`: the albedo AOV
-    instead of radiance, e.g. as the denoiser's guide)."""
+    instead of radiance, e.g. as the denoiser's guide). `denoise`: Open Image Denoise over it, guided by the albedo
+    AOV at 4 spp (the same seed), clipped at 0: a look at low spp, not a dataset frame."""
+    if denoise and not albedo:
+        import pyoidn
+
+        img = render_preview(posed, width, height, spp, seed)
+        guide = render_preview(posed, width, height, 4, seed, albedo=True)
+        return np.clip(pyoidn.denoise(np.ascontiguousarray(img), albedo=np.ascontiguousarray(guide), hdr=True),
+                       0.0, None)
     mi = _mi()
     lo, hi = body_bounds(posed)
     centre = 0.5 * (lo + hi)
@@ -118,13 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         t1 = time.perf_counter()
         posed = pose_character(character)
         t2 = time.perf_counter()
-        img = render_preview(posed, spp=args.spp, seed=i)
-        if args.denoise:
-            import pyoidn
-
-            guide = render_preview(posed, spp=4, seed=i, albedo=True)
-            img = np.clip(pyoidn.denoise(np.ascontiguousarray(img), albedo=np.ascontiguousarray(guide), hdr=True),
-                          0.0, None)
+        img = render_preview(posed, spp=args.spp, seed=i, denoise=args.denoise)
         t3 = time.perf_counter()
         kinds = ",".join(g.kind for g in recipe.garments)
         print(f"[{i}] {recipe.hair.style:8s} melanin={recipe.skin.melanin:.2f} {kinds:40s} "
