@@ -1,7 +1,7 @@
 """A shell top over a draped bottom with no draped jacket or coat (drape.SHELL_TOPS over drape.BOTTOMS_UNDER): posed,
 the bottom's cloth that came out through the top is put back under it (character._bottoms_under_shell_top).
 
-Benchmark subject 23 of seed 0 wears a shell t-shirt over loose shorts; its first test pose bends forward. Measured
+Benchmark subject 23 of seed 0 wears a shell t-shirt over loose shorts; its second test pose sits. Measured
 with the full drape (bench/bench_shell_top_over_bottom.py; docs/ARCHITECTURE.md, "A shell top over a draped
 bottom") and, for this test, at the coarse drape level: see BOUNDS.
 """
@@ -18,9 +18,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 SUBJECT = 23
 # The shorts' vertices over the t-shirt (layer_depth < 0 within LAYER_REACH, not beyond its hem), coarse drape,
 # skinned, measured 5 December: at rest 2 without the step (3.4 mm, both seen), none with it; in the first test pose
-# 8 without (27.7 mm, all seen), none with it. Held: at least FEW_WITHOUT without in the pose (the case is exercised),
-# at most AT_MOST with it in either, none FARTHEST_M over, none seen.
-FEW_WITHOUT = 5
+# (bending) 8 without (27.7 mm, all seen), none with it. Since the cloth lifts the t-shirt over every body vertex it
+# covers (drape.layer_lift, that afternoon) and the lifted shell no longer folds into the back's hollow, fewer come
+# through to begin with: at rest and bending 1 each (1.7 and 2.3 mm, seen), sitting (its second test pose) 30 (28.2
+# mm, 22 seen); none with it. So the test poses it sitting. Held: at least FEW_WITHOUT without sitting (the case is
+# exercised), at most AT_MOST with it at rest or sitting, none FARTHEST_M over, none seen.
+FEW_WITHOUT = 10
 AT_MOST = 2
 FARTHEST_M = 0.002
 
@@ -46,9 +49,9 @@ def _over(meshes):
 
 
 def test_the_bottom_goes_back_under_the_shell_top(subject, monkeypatch):
-    """In the rest pose and the first test pose (skinned, as draft and standard pose it) the shorts come out through
-    the t-shirt without the step; with it at most AT_MOST vertices stay over it, by under FARTHEST_M, none seen by a
-    camera around the subject, and nothing but the shorts moves."""
+    """In the rest pose and the second test pose (sitting; skinned, as draft and standard pose it) the shorts come out
+    through the t-shirt without the step; with it at most AT_MOST vertices stay over it, by under FARTHEST_M, none
+    seen by a camera around the subject, and nothing but the shorts moves."""
     from bench_cloth_pose import seen_around
     from rh_common.body_model import load_anny
     from rh_dataset.characters import character as character_module
@@ -57,8 +60,9 @@ def test_the_bottom_goes_back_under_the_shell_top(subject, monkeypatch):
     from rh_dataset.poses import sample_pose
 
     ch = subject
-    first = dict(sample_pose(rng_for(0, "pose", SUBJECT, "test", 0), load_anny()).bones)
-    for i, bones in enumerate(({}, first)):
+    sitting = sample_pose(rng_for(0, "pose", SUBJECT, "test", 1), load_anny())
+    assert sitting.label == "sit"
+    for i, bones in enumerate(({}, dict(sitting.bones))):
         with_step = pose_character(ch, bones)
         with monkeypatch.context() as patch:
             patch.setattr(character_module, "_bottoms_under_shell_top", lambda *a: None)

@@ -107,6 +107,30 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return n / length
 
 
+@functools.lru_cache(maxsize=4)
+def _ring_mean(topology: str = ANNY_TOPOLOGY):
+    """Sparse (V, V) operator: each body vertex's mean with its edge neighbours, uniform weights."""
+    from scipy import sparse
+
+    f = body_topology(topology).faces
+    n = body_topology(topology).n_vertices
+    i = np.concatenate([f[:, 0], f[:, 1], f[:, 2], np.arange(n)])
+    j = np.concatenate([f[:, 1], f[:, 2], f[:, 0], np.arange(n)])
+    adj = sparse.coo_matrix((np.ones(len(i)), (i, j)), shape=(n, n)).tocsr()
+    adj = ((adj + adj.T) > 0).astype(np.float64)
+    return sparse.diags(1.0 / np.asarray(adj.sum(axis=1)).ravel()) @ adj
+
+
+def smoothed_normals(normals: np.ndarray, rounds: int, topology: str = ANNY_TOPOLOGY) -> np.ndarray:
+    """The body's vertex normals averaged `rounds` times over each vertex and its edge neighbours, unit length: a
+    linear map of the normals, so a rigid motion of the body moves them with it."""
+    out = np.asarray(normals, np.float64)
+    op = _ring_mean(topology)
+    for _ in range(rounds):
+        out = op @ out
+    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+
+
 def blended_normals(normals: np.ndarray, bv: np.ndarray, bw: np.ndarray) -> np.ndarray:
     """Unit normals (P, 3) float64 of blended anchors: the `bw`-weighted sums (P, K) of body vertex normals `bv`."""
     nb = (normals[bv] * bw.astype(np.float64)[..., None]).sum(1)

@@ -1152,16 +1152,66 @@ def skin_points(binding: SkinBinding, bone_poses: np.ndarray, rest_bone_poses: n
 
 
 LAYER_GAP_DRAPE = 0.004  # what a top laid over the draped waistband keeps above it (metres)
+LIFT_SLOPE = 0.5  # how steeply a layer over draped cloth falls back to the skin past the cloth's edge (`layer_lift`)
+DIP = 0.003  # metres under the skin from which `cloth_height` looks for the cloth over it
 NEAR_BODY = 0.03  # cloth closer than this to the skin in the rest pose registers as a layer under the tops
+
+
+def cloth_height(body: np.ndarray, cloth: np.ndarray, cloth_faces: np.ndarray, reach: float) -> np.ndarray:
+    """Per body vertex (`body`: anny's vertices in the pose the cloth was draped in), how far out along its normal the
+    cloth (`cloth`, `cloth_faces`) first lies, in metres (negative where it dips into the skin); inf where it lies
+    farther than `reach` or not over that vertex at all."""
+    from .body import vertex_normals
+    from .geometry import first_hit
+
+    normals = vertex_normals(body, body_topology().faces)
+    lo, hi = cloth.min(axis=0) - reach, cloth.max(axis=0) + reach
+    idx = np.flatnonzero(((body >= lo) & (body <= hi)).all(axis=1))
+    out = np.full(len(body), np.inf)
+    # From DIP under the skin: the cloth may dip a millimetre or two into it (the loaded waistband), and a ray from
+    # the skin itself would pass it by and find the cloth's far side or nothing.
+    hit = first_hit(cloth, cloth_faces, body[idx] - DIP * normals[idx], normals[idx]) - DIP
+    out[idx] = np.where(hit < reach, hit, np.inf)
+    return out
+
+
+def layer_lift(body: np.ndarray, height: np.ndarray, slope: float = LIFT_SLOPE) -> np.ndarray:
+    """The least offset (metres, per body vertex) a layer over cloth `height` over the skin (`cloth_height`, inf
+    where none) must keep: LAYER_GAP_DRAPE over the cloth where it lies, and beyond its edge falling off no faster
+    than `slope` metres per metre along the surface (the body's edges in the pose `body`), 0 once it has fallen off.
+    A shell over the draped shorts' waistband, where the band bridges the hollow of the back 1-2 cm off the skin,
+    rose by that in one row of triangles and folded over when posed; so does a top over a sparse subset of body
+    vertices (each cloth vertex's nearest: the rule until 5 December, afternoon)."""
+    from scipy import sparse
+    from scipy.sparse import csgraph
+
+    covered = np.isfinite(height)
+    lift = np.where(covered, np.maximum(height, 0.0) + LAYER_GAP_DRAPE, 0.0)
+    if not covered.any():
+        return lift
+    top = float(lift.max())
+    # lift'(v) = max_u lift(u) - slope * d(u, v): a shortest path from one source joined to every covered u by
+    # (top - lift(u)) / slope, so every weight is >= 0.
+    e, _ = edge_counts(body_topology().faces)
+    n = len(body)
+    src = np.flatnonzero(covered)
+    w = np.concatenate([np.linalg.norm(body[e[:, 0]] - body[e[:, 1]], axis=1) + 1e-9,
+                        (top - lift[src]) / slope + 1e-9])
+    i = np.concatenate([e[:, 0], np.full(len(src), n)])
+    j = np.concatenate([e[:, 1], src])
+    graph = sparse.coo_matrix((w, (i, j)), shape=(n + 1, n + 1)).tocsr()
+    d = csgraph.dijkstra(graph, directed=False, indices=n)[:n]
+    return np.maximum(np.maximum(top - slope * d, 0.0), lift)  # (the 1e-9's aside, the first term is >= lift)
 
 
 def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray,
                 settings: DrapeSettings | None = None, over: Sequence[DrapedGarment] = (),
                 garment: DrapedGarment | None = None):
     """The draped garment as a `PartGeometry` skinned by `SkinBinding`, with a seam column duplicated so u runs
-    0..1 around. `under` (body vertices' outermost offset so far) is raised where the cloth lies within
-    `NEAR_BODY` of the skin, so a top hanging over the waistband stays outside it. `over`: as `drape_garment`'s;
-    `garment`: the drape itself, if the caller has it (`drape_garment(kind, phenotype, settings, over=over)`)."""
+    0..1 around. `under` (body vertices' outermost offset so far) is raised to `layer_lift` over every body vertex
+    the cloth covers within `NEAR_BODY` of the skin, so a top hanging over the waistband stays outside it. `over`:
+    as `drape_garment`'s; `garment`: the drape itself, if the caller has it (`drape_garment(kind, phenotype,
+    settings, over=over)`)."""
     from scipy.spatial import cKDTree
 
     from .garments import PartGeometry
@@ -1184,9 +1234,9 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
         u = np.tile(g.uvs[:na, 0].astype(np.float64) if opened else np.arange(na + 1) / na, nr)
         uvs = np.clip(np.stack([u, (1.0 - ts) * length / g.metres_per_uv], 1), 0.0, 1.0)
     binding = bind_loose(g, phenotype)
-    dist, nn = cKDTree(run_anny(phenotype)["vertices"]).query(g.vertices)  # the A-pose the cloth was draped on
-    near = dist < NEAR_BODY
-    np.maximum.at(under, nn[near], dist[near] + LAYER_GAP_DRAPE)
+    rest = run_anny(phenotype)["vertices"]  # the A-pose the cloth was draped on
+    np.maximum(under, layer_lift(rest, cloth_height(rest, g.vertices, g.faces, NEAR_BODY)), out=under)
+    nn = cKDTree(rest).query(g.vertices)[1]
     skin = SkinBinding(binding.bind[src], binding.bones[src], binding.weights[src])
     body_vertex = nn[src].astype(np.int64)
     return PartGeometry(
