@@ -484,6 +484,11 @@ def pose_character(
                  else {})
     posed = []
     cloth_under = {}  # draped part name -> (posed vertices, faces): what draped cloth over it is pushed over
+    names = [p.name for p in character.parts]
+    # A shell top held under an open jacket's or a coat's panels keeps its offset direction when lifted: capped under
+    # them at rest and put back under them posed (`_shell_under_panels`), turned it came out through them (seed 0's
+    # subject 25, tests/test_shell_under_jacket.py).
+    held = {n for k in ("draped_coat", "draped_jacket") if k in names for n in shells_under(k, names)}
     for part in character.parts:
         if part.skinning is not None:
             if part.name in simulated:
@@ -512,7 +517,7 @@ def pose_character(
             v = p + part.offset[:, None].astype(np.float64) * n
         else:
             v = anchor_points(verts, normals, part.blend_vertices, part.blend_weights, part.offset)
-            lifted = _lift_weight(part)
+            lifted = None if part.name in held else _lift_weight(part)
             if lifted is not None:
                 v = _lifted_shell_points(part, lifted, v, verts, normals)
             if part.body_faces is not None:  # a shell: the body's own (interpolated) normals, as before it was cut
@@ -544,7 +549,8 @@ def pose_character(
 # (bench/bench_shell_folds.py). Where a shell vertex's offset rises more than LIFT_SMOOTH_FROM over its garment's
 # own (BASE_OFFSET), its offset direction turns, over the next LIFT_SMOOTH_WIDTH, to the posed body's normals averaged
 # LIFT_SMOOTH_ROUNDS times over each vertex's edge neighbours (`body.smoothed_normals`; some 3-5 cm on the trunk): the
-# lift no longer follows the grooves it bridges. Shells not lifted keep their points bit for bit.
+# lift no longer follows the grooves it bridges. Shells not lifted keep their points bit for bit, and so do shell
+# tops held under draped panels (`drape.SHELLS_UNDER`).
 LIFT_SMOOTH_FROM = 0.002
 LIFT_SMOOTH_WIDTH = 0.008
 LIFT_SMOOTH_ROUNDS = 8
