@@ -68,9 +68,8 @@ def test_layer_lift_keeps_the_gap_over_the_cloth_and_falls_off_at_its_slope(band
 def test_a_shell_lifted_over_the_shorts_does_not_fold_into_the_back(monkeypatch):
     """Benchmark subject 8 of seed 0 (a shell t-shirt over loose shorts, coarse drape): the t-shirt lifted 2-3 cm over
     the shorts' waistband, offset along the body's own normals, turned 8 triangles over in the hollow of the back at
-    rest and in its first test pose (measured 5 December at the coarse level; 4-8 lifted ones in 54 frames of 18
-    subjects with full drapes, bench/bench_shell_folds.py). Offset along the smoothed normals where lifted, none
-    turns over; the vertices not lifted keep their bits."""
+    rest and in its first test pose (measured 5 December at the coarse level; full drapes: bench/bench_shell_folds.py).
+    Offset along the smoothed normals where lifted, none turns over; the vertices not lifted keep their bits."""
     import sys
     from pathlib import Path
 
