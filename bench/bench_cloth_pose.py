@@ -94,6 +94,13 @@ def seen_around(points: np.ndarray, normals: np.ndarray, meshes, n_views: int = 
     return seen
 
 
+def rest_and_test_poses(source, subject, split, n: int) -> list[tuple]:
+    """[(label, bone deltas or None, root transform or None)]: anny's rest pose, then the split's first `n` poses of
+    `subject` as rh-generate draws them (`AnnySubjects.pose`)."""
+    return [("rest", None, None)] + [(p.label, dict(p.bones), p.root_transform)
+                                     for p in (source.pose(subject, split, j) for j in range(n))]
+
+
 def load() -> str:
     return " ".join(open("/proc/loadavg").read().split()[:3])
 

@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.poses < 0 or args.repeats < 1:
         raise SystemExit(f"--poses: 0 or more, got {args.poses}; --repeats: 1 or more, got {args.repeats}")
 
-    from bench_cloth_pose import seen_around
+    from bench_cloth_pose import rest_and_test_poses, seen_around
 
     from rh_dataset.characters import character as character_module
     from rh_dataset.characters import pose_character
@@ -106,9 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     for s in subjects:
         subject = source.subject(s)
         ch = subject.character
-        poses = [("rest", None, None)] + [
-            (p.label, dict(p.bones), p.root_transform)
-            for p in (source.pose(subject, test, j) for j in range(args.poses))]
+        poses = rest_and_test_poses(source, subject, test, args.poses)
         for label, bones, root in poses:
             both = posed_both(ch, bones, root)
             cells = []
