@@ -74,7 +74,7 @@ def test_tshirt_shell_is_the_tshirts_cut_ending_under_the_ring():
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.garments import BASE_OFFSET, garment_level, garment_parts
 
-    assert SHELL_KINDS_OVER[KIND] == "tee" and garment_parts(KIND) == ("tee", KIND)
+    assert SHELL_KINDS_OVER[KIND] == "tee" and garment_parts(KIND) == ("tee", KIND, "draped_sleeves")
     assert BASE_OFFSET["tee"] == BASE_OFFSET["tshirt"]
     feats = body_features(PHENO)
     hem = shell_hem(KIND, PHENO)

@@ -345,7 +345,8 @@ def _build_cached(recipe_json: str, res: int, drape: str = "full") -> Character:
     under = np.zeros(len(feats.rest_vertices))
     geos = build_garments(recipe.garments, feats, topology, under=under, phenotype=recipe.phenotype, drape=drape)
     body_coords = None
-    owner = [i for i, g in enumerate(recipe.garments) for _ in garment_parts(g.kind)]  # part -> its garment
+    worn = [g.kind for g in recipe.garments]
+    owner = [i for i, g in enumerate(recipe.garments) for _ in garment_parts(g.kind, worn)]  # part -> its garment
     for i, geo in zip(owner, geos):
         g = recipe.garments[i]
         rng = np.random.default_rng([seed, _STREAM_GARMENT0 + i])  # a garment's parts: the same texture draws

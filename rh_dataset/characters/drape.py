@@ -42,18 +42,20 @@ from rh_common.imageio import atomic_path
 from .body import PHENOTYPE_LABELS, body_topology, run_anny
 from .body_features import body_features
 from .geometry import edge_counts, hull_anchors
+from .sleeves import sleeve_pattern, sleeves_render_mesh
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
            "DRAPED_OVER", "draped_over", "SHELLS_UNDER", "SLEEVE_GROUPS", "shells_under", "SHELL_TOPS", "BOTTOMS_UNDER",
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
-           "cloth_model", "cloth_solver", "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
+           "cloth_model", "cloth_solver", "binding_faces", "SLEEVE_CLEARANCE",
+           "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
            "HoodCut", "HOOD_CLEARANCE", "FRONT_OPENING", "JACKET_HEM", "TSHIRT_CLEARANCE",
            "TSHIRT_HEM", "SHORTS_HEM", "SHORTS_MIN_LEG", "STRAIGHT_LEGS"]
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
-                "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers")
+                "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers", "draped_sleeves")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -65,9 +67,13 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 # The loose t-shirt's body (`draped_tshirt`) hangs over the shell trousers' or shorts' waistband (7 mm): push_out
 # keeps it 10 mm off the skin (the waistband's offset and `garments.LAYER_GAP`), its drape TSHIRT_CLEARANCE (its
 # particles settle a little closer than their radius where the cloth rests on the body, as the coat's do).
-PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010, "draped_tshirt": 0.010}
+# The loose t-shirt's sleeves (`draped_sleeves`, sleeves.py) lie over the shell "tee"'s sleeves (6 mm) just under
+# their pinned rings: 8 mm, their cut's ring gap.
+PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010, "draped_tshirt": 0.010,
+                   "draped_sleeves": 0.008}
 COAT_CLEARANCE = 0.014
 TSHIRT_CLEARANCE = 0.012
+SLEEVE_CLEARANCE = 0.006
 # The hood lies over the hoodie's shell (6 mm off the skin, a longsleeve's): its particles keep this far off the skin
 # at rest (the coat's; where its weight rests on the shoulders' slope the worst particle comes to 2-6 mm,
 # tests/test_drape_hoodie.py), push_out 10 mm (PUSH_CLEARANCES) when posed.
@@ -295,6 +301,15 @@ _SETTINGS = {
 }
 
 
+# The loose t-shirt's sleeves (`draped_sleeves`, sleeves.py): the t-shirt body's fabric, particles SLEEVE_CLEARANCE
+# (the cut keeps its rings 8 mm off the arm's hull), 32 around (~1 cm apart) and 10 rings (~1 cm) over their 7-10 cm;
+# coarse, half of each.
+_SETTINGS[("draped_sleeves", "full")] = DrapeSettings(n_around=32, n_rings=10, contact_ke=5.0e4,
+                                                      clearance=SLEEVE_CLEARANCE)
+_SETTINGS[("draped_sleeves", "coarse")] = DrapeSettings(n_around=16, n_rings=5, steps=150, contact_ke=5.0e4,
+                                                        clearance=SLEEVE_CLEARANCE)
+
+
 # The loose long sleeve (`draped_longsleeve`) is the loose t-shirt's body of cloth under the longsleeve's shell:
 # the same cut, settings and clearances.
 PROFILES["draped_longsleeve"] = PROFILES["draped_tshirt"]
@@ -460,10 +475,12 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     hangs over (`DRAPED_OVER`); the rings are also kept outside their cross-section's hull, so that no particle starts
     under that cloth."""
     st = drape_settings(kind) if settings is None else settings
-    if over is not None and (kind == "draped_hoodie" or PROFILES[kind].legs):
+    if over is not None and (kind in ("draped_hoodie", "draped_sleeves") or PROFILES[kind].legs):
         raise ValueError(f"drape: {kind} is not draped over other cloth (DRAPED_OVER)")
     if kind == "draped_hoodie":
         return _hood_pattern(phenotype, st)
+    if kind == "draped_sleeves":
+        return sleeve_pattern(phenotype, st.n_around, st.n_rings)[:5]
     prof = PROFILES[kind]
     if prof.legs:
         return _trouser_pattern(phenotype, st, prof)[:5]
@@ -837,12 +854,26 @@ def collider_faces(phenotype: dict[str, float], kind: str | None = None) -> np.n
     """Body faces the cloth collides with and takes its skinning from: all but the arms and hands, which hang beside
     the hips in the A-pose; cloth bound to a hand would fly up with every reach. `kind` "draped_hoodie": the drape's
     collider keeps the upper arms, on whose deltoids the hood's sides come to rest on a broad body (its skinning
-    still comes from the collider without them)."""
+    still comes from the collider without them); "draped_sleeves": all but the hands (the sleeves hang round the
+    upper arms)."""
     feats = body_features(phenotype)
-    arm = feats.in_groups("lowerarm", "hand") if kind == "draped_hoodie" else \
-        feats.in_groups("upperarm", "lowerarm", "hand")
+    arm = {"draped_hoodie": feats.in_groups("lowerarm", "hand"),
+           "draped_sleeves": feats.in_groups("hand")}.get(kind)
+    if arm is None:
+        arm = feats.in_groups("upperarm", "lowerarm", "hand")
     faces = body_topology().faces
     return faces[~arm[faces].any(axis=1)]
+
+
+def binding_faces(phenotype: dict[str, float], kind: str) -> np.ndarray:
+    """Body faces a draped kind takes its skinning weights from (`bind_loose`): `collider_faces` without the arms,
+    but for the sleeves, the arms' own (upper arm, forearm): a sleeve bound to the closest point of the whole body
+    would take the chest's weights where it hangs by the armpit and stay behind when the arm is raised."""
+    if kind != "draped_sleeves":
+        return collider_faces(phenotype)
+    arm = body_features(phenotype).in_groups("upperarm", "lowerarm")
+    faces = body_topology().faces
+    return faces[arm[faces].all(axis=1)]
 
 
 def push_clearance(kind: str) -> float:
@@ -984,6 +1015,8 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
     if kind in PROFILES and PROFILES[kind].legs:
         verts, faces, uvs, pinned, mpu, pieces = _trouser_pattern(phenotype, settings, PROFILES[kind])
         pieces = tuple(pieces)
+    elif kind == "draped_sleeves":
+        verts, faces, uvs, pinned, mpu, pieces = sleeve_pattern(phenotype, settings.n_around, settings.n_rings)
     else:
         verts, faces, uvs, pinned, mpu = garment_pattern(
             kind, phenotype, settings, np.concatenate([g.vertices for g in over]) if over else None)
@@ -1118,7 +1151,7 @@ def bind_loose(garment: DrapedGarment, phenotype: dict[str, float], max_bones: i
 
     run = run_anny(phenotype)
     pts = np.asarray(garment.vertices, dtype=np.float64)
-    mesh = trimesh.Trimesh(run["vertices"], collider_faces(phenotype), process=False)
+    mesh = trimesh.Trimesh(run["vertices"], binding_faces(phenotype, garment.kind), process=False)
     dense = _closest_weights(mesh, pts)
     labels = body_topology().bone_labels
     z_hip = 0.5 * sum(float(run["bone_poses"][labels.index(b), 2, 3]) for b in ("upperleg01.L", "upperleg01.R"))
@@ -1219,7 +1252,9 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
     settings = drape_settings(kind) if settings is None else settings
     g = drape_garment(kind, phenotype, settings, over=over) if garment is None else garment
     mpu = g.metres_per_uv
-    if g.pieces is not None:
+    if kind == "draped_sleeves":
+        src, faces, uvs, mpu = sleeves_render_mesh(g.pattern, g.pieces)
+    elif g.pieces is not None:
         src, faces, uvs, mpu = _pieces_render_mesh(g)
     elif kind == "draped_hoodie":  # an open sheet cut with its own UVs (the hood-up shape's metres)
         src, faces, uvs = np.arange(len(g.vertices)), g.faces, g.uvs

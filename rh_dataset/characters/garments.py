@@ -21,6 +21,7 @@ draped hood; `garment_parts`).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from scipy import sparse
@@ -35,6 +36,7 @@ from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP
                     push_out, shell_hem, shells_under)
 from .cloth_pose import LIFT_KINDS, skin_inside
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
+from .sleeves import sleeve_axis, sleeve_tops
 from .recipe import Garment
 
 __all__ = ["PartGeometry", "build_garments", "garment_level", "garment_parts", "SHELL_KINDS", "BASE_OFFSET",
@@ -120,7 +122,8 @@ def _z(feats: BodyFeatures, bone: str) -> float:
     return float(feats.bone_heads[bone][2])
 
 
-def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> np.ndarray:
+def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None,
+                  sleeves: Mapping[str, float] | None = None) -> np.ndarray:
     """A smooth field (V,) float64 over the body vertices (rest pose of this phenotype), in metres, negative where
     a shell garment covers the body: its zero level set is the garment's open edges (neckline, hem, cuffs, waist),
     along which `split_faces` cuts the body's triangles. Each edge is a level of a smooth function (height, a
@@ -128,7 +131,9 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
     labels only pick which function applies to a vertex (an arm takes the sleeve's, never the trunk's), so their
     ragged borders never become an edge. `hem` (bind-space height; the "coat", "bodice", "tee" and "longtop" shells
     only, whose hem is where the draped cloth under them is pinned: `drape.shell_hem`). Shells in CUT_AS take the
-    neckline and sleeves of the kind named there."""
+    neckline and sleeves of the kind named there. `sleeves` ({"L": metres, "R": metres}; the "tee" under the loose
+    t-shirt's draped sleeves): each sleeve ends that far along its upper arm's axis (`sleeves.sleeve_axis`, from the
+    upperarm01 joint) instead of at the t-shirt's length."""
     v = feats.rest_vertices
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     z_neck = _z(feats, "neck01")
@@ -161,6 +166,10 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None) -> n
                    for s in "LR"}
         length = np.where(x > 0, arm_len["L"], arm_len["R"])
         cuff = np.maximum(collar, (np.nan_to_num(feats.arm_t, nan=9.0) - sleeve) * length)
+        if sleeves is not None:
+            along = {s: (v - sleeve_axis(feats.bone_heads, s)[0]) @ sleeve_axis(feats.bone_heads, s)[1] - sleeves[s]
+                     for s in "LR"}
+            cuff = np.maximum(collar, np.where(x > 0, along["L"], along["R"]))
         out = np.where(trunk, body, out)
         out = np.where(arm, np.minimum(cuff, np.where(trunk, body, np.inf)), out)
     elif kind in ("trousers", "shorts"):
@@ -182,14 +191,22 @@ SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe
 # sleeves) and the draped panels below it, the dress a shell (its bodice) and the draped skirt below it, the loose
 # t-shirt and long sleeve a shell ("tee", "longtop": shoulders, sleeves, chest) and a draped body below it
 # (drape.SHELL_KINDS_OVER), the draped hoodie the longsleeve's shell ("hoodie") and its draped hood; all in the
-# garment's fabric.
+# garment's fabric. The loose t-shirt's sleeves are draped too ("draped_sleeves", sleeves.py), but not under an open
+# jacket or coat (SLEEVES_UNDER_NOT): its shell sleeves lie over the arms at 17 mm, which the cloth would come through.
 GARMENT_PARTS = {**{kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()},
-                 "draped_hoodie": ("hoodie", "draped_hoodie")}
+                 "draped_hoodie": ("hoodie", "draped_hoodie"),
+                 "draped_tshirt": ("tee", "draped_tshirt", "draped_sleeves")}
+SLEEVES_UNDER_NOT = ("draped_jacket", "draped_coat")
 
 
-def garment_parts(kind: str) -> tuple[str, ...]:
-    """The names of the parts (`PartGeometry.name`) `build_garments` makes of a recipe garment of this kind."""
-    return GARMENT_PARTS.get(kind, (kind,))
+def garment_parts(kind: str, worn: Sequence[str] = ()) -> tuple[str, ...]:
+    """The names of the parts (`PartGeometry.name`) `build_garments` makes of a recipe garment of this kind, worn
+    with the garments `worn` (a recipe's garment kinds: the loose t-shirt's draped sleeves are left out under an open
+    jacket or a coat)."""
+    parts = GARMENT_PARTS.get(kind, (kind,))
+    if "draped_sleeves" in parts and any(k in SLEEVES_UNDER_NOT for k in worn):
+        parts = tuple(p for p in parts if p != "draped_sleeves")
+    return parts
 LEVEL_MIN = 1e-5  # metres: no vertex sits on the level set itself (a cut there would make a zero-area face)
 
 
@@ -240,14 +257,15 @@ def _metres_per_uv(face_ids: np.ndarray, feats: BodyFeatures, topology: str) -> 
 
 
 def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem: float | None = None,
-           cover: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> PartGeometry:
+           cover: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+           sleeves: Mapping[str, float] | None = None) -> PartGeometry:
     """A shell cut from the body along `garment_level`'s zero level (`hem`: the coat's). Every vertex is a blend of
     the two ends of a body edge (weight 1 on one end except on the cut), offset along the blended normal: the taper
     runs over the surface distance from the cut, and layering compares with the layers below interpolated the same
     way. `cover` (the coat's shell, and a shell top's trunk under the open jacket or coat: drape.SHELLS_UNDER): (the
     body's vertices in anny's rest A-pose, and the vertices and faces of the draped cloth over the shell in that
-    pose): the shell stays under that cloth (`_under_cover`)."""
-    level = _clean_level(garment_level(kind, feats, hem), topology)
+    pose): the shell stays under that cloth (`_under_cover`). `sleeves`: as `garment_level`'s."""
+    level = _clean_level(garment_level(kind, feats, hem, sleeves), topology)
     topo = body_topology(topology)
     face_ids = np.flatnonzero((level[topo.faces] < 0).any(axis=1))
     split = split_faces(face_ids, topology, level=level)
@@ -681,7 +699,13 @@ def build_garments(
                 shell = SHELL_KINDS_OVER[g.kind]
                 cover = ((run_anny(phenotype)["vertices"], draped[g.kind].vertices, draped[g.kind].faces)
                          if shell == "coat" else None)
-                out.append(_shell(shell, feats, under, topology, hem=shell_hem(g.kind, phenotype, st), cover=cover))
+                ends = None
+                if "draped_sleeves" in garment_parts(g.kind, kinds):
+                    # The shell's sleeves end SHELL_OVERLAP under the draped sleeves' pinned rings, inside the cloth.
+                    st_sleeves = drape_settings("draped_sleeves", drape)
+                    ends = {s: t + SHELL_OVERLAP for s, t in sleeve_tops(phenotype, st_sleeves.n_around).items()}
+                out.append(_shell(shell, feats, under, topology, hem=shell_hem(g.kind, phenotype, st), cover=cover,
+                                  sleeves=ends))
             elif g.kind == "draped_hoodie":
                 out.append(_shell("hoodie", feats, under, topology))
             part = draped_part(g.kind, phenotype, feats, under, st, over, draped[g.kind])
@@ -696,6 +720,10 @@ def build_garments(
                 cloth = push_out(draped[g.kind].vertices, rest, normals, faces, push_clearance(g.kind))
                 part = dataclasses.replace(part, inside_skin=skin_inside(cloth, draped[g.kind].faces, rest, normals))
             out.append(part)
+            if "draped_sleeves" in garment_parts(g.kind, kinds):
+                st_sleeves = drape_settings("draped_sleeves", drape)
+                sleeves = drape_garment("draped_sleeves", phenotype, st_sleeves)
+                out.append(draped_part("draped_sleeves", phenotype, feats, under, st_sleeves, (), sleeves))
         else:
             outer = next((k for k in SHELLS_UNDER if k in kinds and g.kind in shells_under(k, kinds)), None)
             cover = None

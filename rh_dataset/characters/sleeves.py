@@ -1,0 +1,199 @@
+"""The loose t-shirt's short sleeves, cut as two cloth tubes that newton drapes (drape.py's `draped_sleeves`).
+
+In: a phenotype and the sleeves' `DrapeSettings` (drape.py); the cut, `SleeveCut`.
+Out: `sleeve_pattern`, the undraped cloth (two closed tubes around the upper arms in anny's A-pose, each pinned at
+its top ring), which `drape.drape_garment` simulates and caches like any draped kind; `sleeve_tops`, where each
+pinned ring lies along its upper arm, which the shell "tee" (garments.py) is cut to end just under
+(`SHELL_OVERLAP`), as its hem ends under the t-shirt body's ring; `sleeves_render_mesh`, the tubes' render mesh
+with UVs in metres of the cut.
+
+Why cloth: the shell's sleeve follows the arm at 6 mm, where a loose t-shirt's sleeve stands off the arm, hangs
+open below it and shades it. Only the loose t-shirt's sleeves so far: the long sleeve's would have to bend at the
+elbow, and under an open jacket or coat the jacket's shell sleeve lies over the arm at 17 mm, which the cloth
+would come through (garments.garment_parts leaves the sleeves out there).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+__all__ = ["SleeveCut", "SLEEVES", "SIDES", "sleeve_axis", "sleeve_tops", "sleeve_pattern", "sleeves_render_mesh"]
+
+SIDES = ("L", "R")
+
+
+@dataclasses.dataclass(frozen=True)
+class SleeveCut:
+    """The cut of a loose short sleeve along its upper arm (the axis from the upperarm01 joint to the lowerarm01
+    joint in anny's A-pose, where the arm hangs ~42 degrees from the vertical). The pinned ring is the first ring
+    (perpendicular to the axis, `ring_gap` metres outside the convex hull of the arm's cross-section there) that
+    keeps `ring_gap` off the rest of the body (the armpit, the chest, the back), searched from `top_from` metres
+    along the axis in `top_step` steps up to `top_to`; the tube runs from there to `hem` times the shoulder-to-wrist
+    distance (the shell t-shirt's sleeve ends at 0.3), widening at `flare` radians, each ring kept `gap` outside
+    the arm's hull (its particle radius plus 2 mm is the drape's)."""
+
+    ring_gap: float = 0.008
+    gap: float = 0.008
+    hem: float = 0.34
+    flare: float = 0.2
+    top_from: float = 0.03
+    top_step: float = 0.005
+    top_to: float = 0.15
+    band: float = 0.012  # metres along the axis either side of a ring whose arm vertices make its cross-section
+
+
+SLEEVES = SleeveCut()
+
+
+def _unit(x: np.ndarray) -> np.ndarray:
+    return x / np.linalg.norm(x)
+
+
+def sleeve_axis(heads: dict, side: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(origin, axis, p, q) of a side's upper arm, `heads` a bone label -> joint position map: the upperarm01 joint,
+    the unit axis towards the lowerarm01 joint, and two unit directions across it (p: the arm's upper side, q = p x
+    axis: so a ring's angle turns as the drape's body tubes' do, and `drape._grid_faces` faces outwards)."""
+    o = np.asarray(heads[f"upperarm01.{side}"], np.float64)
+    a = _unit(np.asarray(heads[f"lowerarm01.{side}"], np.float64) - o)
+    p = _unit(np.array([0.0, 0.0, 1.0]) - a[2] * a)
+    return o, a, p, np.cross(p, a)
+
+
+def _arm_section(points: np.ndarray, o, a, p, q, t: float, band: float, ang: np.ndarray) -> np.ndarray:
+    """Radii (N,) at `ang` of the convex hull of the cross-section of `points` (an arm's vertices) within `band` of
+    `t` metres along the axis."""
+    from .geometry import hull_anchors
+
+    rel = points - o
+    sel = np.flatnonzero(np.abs(rel @ a - t) < band)
+    if len(sel) < 3:
+        raise ValueError(f"sleeves: too few arm vertices {t:.3f} m along the upper arm; is the body an adult's?")
+    xy = np.c_[rel[sel] @ q, -(rel[sel] @ p), np.zeros(len(sel))]  # (hull_anchors: angle from -Y towards +X)
+    idx, w = hull_anchors(xy, np.arange(len(sel)), np.zeros(2), ang)
+    return np.linalg.norm((xy[idx, :2] * w[..., None]).sum(1), axis=1)
+
+
+def _ring(o, a, p, q, t: float, r: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    return o + t * a + (r * np.cos(ang))[:, None] * p + (r * np.sin(ang))[:, None] * q
+
+
+def _frame(phenotype: dict[str, float]):
+    from .body import body_topology, run_anny
+    from .body_features import body_features
+
+    run = run_anny(phenotype)
+    heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
+    return run["vertices"], heads, body_features(phenotype)
+
+
+def _tops(body, heads, feats, n_around: int, cut: SleeveCut) -> dict[str, float]:
+    import trimesh
+
+    from .body import body_topology
+    from .drape import penetration
+
+    faces = body_topology().faces
+    rest = ~feats.in_groups("upperarm", "lowerarm", "hand")
+    mesh = trimesh.Trimesh(body, faces[rest[faces].all(axis=1)], process=False)
+    arm = feats.in_groups("upperarm", "lowerarm")
+    ang = np.arange(n_around) * (2.0 * np.pi / n_around)
+    out = {}
+    for side in SIDES:
+        o, a, p, q = sleeve_axis(heads, side)
+        pts = body[arm & ((body[:, 0] > 0) == (side == "L"))]
+        for t in np.arange(cut.top_from, cut.top_to + 1e-9, cut.top_step):
+            ring = _ring(o, a, p, q, float(t), _arm_section(pts, o, a, p, q, float(t), cut.band, ang) + cut.ring_gap,
+                         ang)
+            # Off the rest of the body by the gap, and outside the body (a ring point deep in the chest of a heavy
+            # body lies farther than the gap from its surface).
+            if (trimesh.proximity.closest_point(mesh, ring)[1].min() >= cut.ring_gap
+                    and penetration(body, faces, ring).max() < 0.0):
+                out[side] = float(t)
+                break
+        else:
+            raise ValueError(f"sleeves: no ring around the {side} upper arm within {cut.top_to} m of the shoulder "
+                             f"keeps {cut.ring_gap} m off the trunk; this body cannot wear the loose sleeves")
+    return out
+
+
+def sleeve_tops(phenotype: dict[str, float], n_around: int, cut: SleeveCut = SLEEVES) -> dict[str, float]:
+    """{side: metres along its upper arm axis (`sleeve_axis`, from the upperarm01 joint) of the pinned ring} for a
+    sleeve pattern of `n_around` particles a ring (the search tests those points)."""
+    body, heads, feats = _frame(phenotype)
+    return _tops(body, heads, feats, n_around, cut)
+
+
+def sleeve_pattern(phenotype: dict[str, float], n_around: int, n_rings: int, cut: SleeveCut = SLEEVES):
+    """The undraped sleeves in the A-pose frame the drape simulates in: the left tube, then the right, each
+    `n_rings` rings of `n_around` particles, ring 0 pinned. Returns (vertices (V, 3), faces (F, 3) int32 outward,
+    uvs (V, 2) (metres of the cut over the returned scale: u around from the arm's upper side, v up from the hem),
+    pinned (V,) bool, metres per UV, pieces: each tube's (rings, around) vertex grid)."""
+    from .drape import _grid_faces
+
+    body, heads, feats = _frame(phenotype)
+    tops = _tops(body, heads, feats, n_around, cut)
+    arm = feats.in_groups("upperarm", "lowerarm")
+    ang = np.arange(n_around) * (2.0 * np.pi / n_around)
+    verts, pieces, uvs = [], [], []
+    for k, side in enumerate(SIDES):
+        o, a, p, q = sleeve_axis(heads, side)
+        pts = body[arm & ((body[:, 0] > 0) == (side == "L"))]
+        reach = cut.hem * float(np.linalg.norm(np.asarray(heads[f"wrist.{side}"]) - o))
+        if reach <= tops[side] + 0.02:
+            raise ValueError(f"sleeves: the {side} sleeve's ring ({tops[side]:.3f} m along the arm) leaves under 2 cm "
+                             f"of sleeve before its hem ({reach:.3f} m)")
+        ts = np.linspace(tops[side], reach, n_rings)
+        m = _arm_section(pts, o, a, p, q, ts[0], cut.band, ang) + cut.ring_gap
+        rings = []
+        for i, t in enumerate(ts):
+            out = (t - ts[0]) * np.tan(cut.flare)
+            if i:  # the cone as cut where the arm stays inside it, pushed out (and kept out below) where it reaches
+                m = np.maximum(m, _arm_section(pts, o, a, p, q, float(t), cut.band, ang) + cut.gap - out)
+            rings.append(_ring(o, a, p, q, float(t), m + out, ang))
+        grid = k * n_rings * n_around + np.arange(n_rings * n_around).reshape(n_rings, n_around)
+        v = np.concatenate(rings)
+        verts.append(v)
+        pieces.append(grid)
+        uvs.append(np.stack(np.broadcast_arrays(ang[None, :] / (2.0 * np.pi), (ts[-1] - ts[:, None])), -1)
+                   .reshape(-1, 2))
+    verts = np.concatenate(verts)
+    faces = np.concatenate([_grid_faces(g) for g in pieces]).astype(np.int32)
+    circ = max(float(np.linalg.norm(verts[g[-1]] - verts[np.roll(g[-1], -1)], axis=1).sum()) for g in pieces)
+    length = max(float(u[:, 1].max()) for u in uvs)
+    mpu = max(circ, length)
+    uv = np.concatenate(uvs) * np.array([circ, 1.0]) / mpu
+    pinned = np.zeros(len(verts), dtype=bool)
+    for g in pieces:
+        pinned[g[0]] = True
+    return verts, faces, np.clip(uv, 0.0, 1.0).astype(np.float32), pinned, mpu, tuple(pieces)
+
+
+def sleeves_render_mesh(pattern: np.ndarray, pieces) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """The sleeves' render mesh: each tube's grid with its first column repeated at the end, UVs metres of the cut
+    (`pattern`, undraped): u along each ring from the arm's upper side (each ring centred on the tube's top ring's
+    middle), v along the tube from its hem; the same scale for both tubes. Returns (render vertex -> simulated
+    vertex (R,), faces (F, 3), uvs (R, 2), metres per UV), as `drape._pieces_render_mesh` does for the trousers."""
+    pat = np.asarray(pattern, np.float64)
+    src, faces, us, vs = [], [], [], []
+    n = 0
+    for grid in pieces:
+        rows, cols = grid.shape
+        full = np.concatenate([grid, grid[:, :1]], axis=1)
+        local = n + np.arange(rows * (cols + 1)).reshape(rows, cols + 1)
+        a, c = local[:-1, :-1], local[1:, :-1]
+        b, d = local[:-1, 1:], local[1:, 1:]
+        faces.append(np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)]))
+        arc = np.concatenate([np.zeros((rows, 1)), np.cumsum(np.linalg.norm(np.diff(pat[full], axis=1), axis=-1), 1)],
+                             axis=1)
+        u = 0.5 * arc[0, -1] - 0.5 * arc[:, -1:] + arc
+        step = np.linalg.norm(np.diff(pat[grid].mean(1), axis=0), axis=1)  # ring centre to ring centre
+        down = np.concatenate([[0.0], np.cumsum(step)])
+        us.append(u.ravel())
+        vs.append(np.repeat(down[-1] - down, cols + 1))
+        src.append(full.ravel())
+        n += full.size
+    u, v = np.concatenate(us), np.concatenate(vs)
+    u -= u.min()
+    mpu = float(max(u.max(), v.max()))
+    return np.concatenate(src), np.concatenate(faces), np.clip(np.stack([u, v], 1) / mpu, 0.0, 1.0), mpu

@@ -1,0 +1,170 @@
+"""The loose t-shirt's draped sleeves (drape.py kind `draped_sleeves`, cut by sleeves.py): the pattern is two closed
+tubes round the upper arms, faces outward, pinned at a ring clear of the trunk, every particle off the body; the
+shell "tee"'s sleeves end SHELL_OVERLAP under those rings; newton's coarse drape settles off the body and hangs
+lower than it was cut; a character in a loose t-shirt wears them (not under an open jacket or coat), skinned to the
+arms in every cloth mode, and posed they stay off the body with the shell's sleeves inside them. Bounds measured on
+this machine (5 December; bench/bench_sleeves.py for the benchmark's wearers) and stated here."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from rh_dataset.characters.body import body_topology, run_anny
+from rh_dataset.characters.drape import (DRAPE_LEVELS, SHELL_OVERLAP, binding_faces, collider_faces, drape_garment,
+                                         drape_settings, garment_pattern, penetration, push_clearance,
+                                         shell_hem)
+from rh_dataset.characters.geometry import edge_counts
+from rh_dataset.characters.sleeves import SIDES, SLEEVES, sleeve_axis, sleeve_pattern, sleeve_tops
+from test_drape_coat import HEAVY, PHENO, _heads
+
+KIND = "draped_sleeves"
+
+
+@pytest.mark.parametrize("level", DRAPE_LEVELS)
+@pytest.mark.parametrize("pheno", [PHENO, HEAVY], ids=["slim", "heavy"])
+def test_sleeve_pattern_is_two_outward_tubes_round_the_upper_arms(pheno, level):
+    """Each tube: every edge in two faces but its top ring's and hem's, faces outward (away from its axis), its top
+    ring pinned and perpendicular to the upper arm at `sleeve_tops`, clear of the rest of the body by the ring gap,
+    every particle off the arm by half the ring gap, wider at the hem than at the ring (the flare), the hem at
+    SLEEVES.hem of the shoulder-to-wrist distance; the pattern function and the drape's agree."""
+    st = drape_settings(KIND, level)
+    na, nr = st.n_around, st.n_rings
+    verts, faces, uvs, pinned, mpu, pieces = sleeve_pattern(pheno, na, nr)
+    assert verts.shape == (2 * na * nr, 3) and len(pieces) == 2
+    np.testing.assert_array_equal(garment_pattern(KIND, pheno, st)[0], verts)
+    _, counts = edge_counts(faces)
+    assert set(counts.tolist()) == {1, 2} and (counts == 1).sum() == 4 * na
+    assert np.array_equal(np.flatnonzero(pinned), np.sort(np.concatenate([g[0] for g in pieces])))
+    heads = _heads(pheno)
+    tops = sleeve_tops(pheno, na)
+    body = run_anny(pheno)["vertices"]
+    depth = penetration(body, body_topology().faces, verts)
+    assert depth.max() < -0.5 * SLEEVES.ring_gap
+    for side, grid in zip(SIDES, pieces):
+        o, a, p, q = sleeve_axis(heads, side)
+        t = (verts[grid] - o) @ a  # (rings, around): metres along the arm
+        assert np.ptp(t, axis=1).max() < 1e-9 and t[0, 0] == pytest.approx(tops[side], abs=1e-12)
+        reach = SLEEVES.hem * np.linalg.norm(heads[f"wrist.{side}"] - o)
+        assert t[-1, 0] == pytest.approx(reach, abs=1e-9)
+        centre = o + t[:, :1, None] * a  # each ring's point on the axis
+        r = np.linalg.norm(verts[grid] - centre, axis=-1)
+        assert (r[-1] - r[0] >= (t[-1, 0] - t[0, 0]) * np.tan(SLEEVES.flare) - 1e-9).all()
+        own = np.isin(faces, grid.ravel()).all(1)
+        tri = verts[faces[own]]
+        radial = tri.mean(1) - o - ((tri.mean(1) - o) @ a)[:, None] * a
+        assert ((np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) * radial).sum(1) > 0).all()
+    assert uvs.min() >= 0.0 and uvs.max() <= 1.0 and mpu > 0.2
+    assert push_clearance(KIND) == SLEEVES.ring_gap > st.clearance
+
+
+def test_sleeves_collide_with_the_arms_and_are_bound_to_them():
+    """The drape's collider keeps the arms (the sleeves hang round them) but the hands; the skinning comes from the
+    upper arms and forearms alone, so no sleeve vertex takes the chest's weights by the armpit."""
+    from rh_dataset.characters.body_features import body_features
+
+    feats = body_features(PHENO)
+    f = body_topology().faces
+    hand, arm = feats.in_groups("hand"), feats.in_groups("upperarm", "lowerarm")
+    cf = collider_faces(PHENO, KIND)
+    assert not hand[cf].any() and arm[cf].any() and len(cf) == (~hand[f].any(1)).sum()
+    bf = binding_faces(PHENO, KIND)
+    assert arm[bf].all() and len(bf) == arm[f].all(1).sum()
+    np.testing.assert_array_equal(binding_faces(PHENO, "draped_tshirt"), collider_faces(PHENO))
+
+
+def test_coarse_drape_settles_off_the_arm_and_hangs(tmp_path, monkeypatch):
+    """newton's coarse drape: no particle in the body (at least half the particle radius off it), the pinned rings
+    where they were cut, and the tubes' hems lower than cut (the cloth hangs round the arm under its weight)."""
+    monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
+    st = drape_settings(KIND, "coarse")
+    g = drape_garment(KIND, PHENO, st)
+    body = run_anny(PHENO)["vertices"]
+    assert penetration(body, body_topology().faces, g.vertices).max() < -0.5 * st.clearance
+    np.testing.assert_allclose(g.vertices[g.pinned], g.pattern[g.pinned], atol=1e-6)  # (newton: float32)
+    for grid in g.pieces:
+        assert g.vertices[grid[-1], 2].mean() < g.pattern[grid[-1], 2].mean() - 0.005
+
+
+def test_tee_sleeves_end_under_the_pinned_rings():
+    """Worn with the draped sleeves, the shell "tee"'s sleeves end SHELL_OVERLAP along the arm past the sleeves'
+    pinned rings (inside the cloth); without them, at the t-shirt's length."""
+    from rh_dataset.characters.body_features import body_features
+    from rh_dataset.characters.garments import garment_level
+
+    feats = body_features(PHENO)
+    tops = sleeve_tops(PHENO, drape_settings(KIND).n_around)
+    ends = {s: t + SHELL_OVERLAP for s, t in tops.items()}
+    hem = shell_hem("draped_tshirt", PHENO)
+    level = garment_level("tee", feats, hem, sleeves=ends)
+    plain = garment_level("tee", feats, hem)
+    v = feats.rest_vertices
+    for side in SIDES:
+        o, a, _, _ = sleeve_axis(feats.bone_heads, side)
+        arm = feats.in_groups("upperarm", "lowerarm") & ((v[:, 0] > 0) == (side == "L"))
+        t = (v - o) @ a
+        assert (level[arm & (t > ends[side] + 0.002)] > 0).all()
+        assert (level[arm & (t > tops[side] + 0.002) & (t < ends[side] - 0.002)] < 0).any()
+        assert (plain[arm & (t > ends[side] + 0.01) & (t < ends[side] + 0.03)] < 0).any()  # the t-shirt's: longer
+
+
+def test_parts_of_a_loose_tshirt():
+    """The loose t-shirt is the shell, its body of cloth and its sleeves; under an open jacket or a coat, no draped
+    sleeves (the jacket's shell sleeves lie over the arm)."""
+    from rh_dataset.characters.garments import garment_parts
+
+    assert garment_parts("draped_tshirt") == ("tee", "draped_tshirt", KIND)
+    for outer in ("draped_jacket", "draped_coat"):
+        assert garment_parts("draped_tshirt", ["draped_tshirt", outer]) == ("tee", "draped_tshirt")
+    assert garment_parts("draped_tshirt", ["draped_tshirt", "draped_skirt"]) == ("tee", "draped_tshirt", KIND)
+    assert garment_parts("draped_longsleeve") == ("longtop", "draped_longsleeve")
+
+
+@pytest.fixture(scope="module")
+def wearer(tmp_path_factory):
+    """A character in a loose t-shirt over shell shorts, coarse drapes (its own drape cache)."""
+    import os
+
+    from rh_dataset.characters import build_character
+    from rh_dataset.characters import Garment, HairSpec, recipe_from_seed
+
+    old = os.environ.get("RH_DRAPE_CACHE")
+    os.environ["RH_DRAPE_CACHE"] = str(tmp_path_factory.mktemp("drape"))
+    try:
+        garments = (Garment("shoes", (0.2, 0.2, 0.2)), Garment("shorts", (0.1, 0.1, 0.3)),
+                    Garment("draped_tshirt", (0.7, 0.2, 0.2), (0.9, 0.9, 0.8), "stripes", 0.03))
+        recipe = dataclasses.replace(recipe_from_seed(12, "benchmark", 0), garments=garments,
+                                     hair=HairSpec("short", (0.3, 0.2, 0.1)))
+        yield build_character(recipe, 64, drape="coarse")
+    finally:
+        if old is None:
+            os.environ.pop("RH_DRAPE_CACHE", None)
+        else:
+            os.environ["RH_DRAPE_CACHE"] = old
+
+
+def test_posed_sleeves_stay_off_the_body_with_the_shell_inside(wearer):
+    """Rest and a raised arm, skinned and simulated (the sleeves are skinned in both; the same bits): the sleeves
+    keep off the skin (push_out: more than 1 mm), and no vertex of the shell's sleeves lies more than 3 mm over
+    the cloth."""
+    from rh_common.body_model import ANNY_TOPOLOGY
+    from rh_dataset.characters import pose_character
+    from rh_dataset.characters.body_features import group_mask
+    from rh_dataset.characters.cloth_pose import layer_depth
+    from scipy.spatial.transform import Rotation
+
+    names = [p.name for p in wearer.parts]
+    assert names.index("tee") < names.index("draped_tshirt") < names.index(KIND)
+    raise_arm = np.eye(4)
+    raise_arm[:3, :3] = Rotation.from_euler("y", 50, degrees=True).as_matrix()
+    on_arm = group_mask(ANNY_TOPOLOGY, "upperarm", "lowerarm")[wearer.part("tee").body_vertex]
+    for bones in (None, {"upperarm01.L": raise_arm}):
+        posed = {m.name: m for m in pose_character(wearer, bones) if hasattr(m, "faces")}
+        sim = {m.name: m for m in pose_character(wearer, bones, cloth="simulated") if hasattr(m, "faces")}
+        np.testing.assert_array_equal(posed[KIND].vertices, sim[KIND].vertices)
+        sl, tee, body = posed[KIND], posed["tee"], posed["body"]
+        v = np.asarray(sl.vertices, np.float64)
+        assert penetration(np.asarray(body.vertices, np.float64), body.faces, v).max() < -0.001
+        d = layer_depth(np.asarray(tee.vertices, np.float64)[on_arm], v, sl.faces)
+        assert np.nan_to_num(d, nan=0.0).min() > -0.003
