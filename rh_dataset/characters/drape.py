@@ -4,7 +4,8 @@ In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth
 or straight-leg trousers or loose shorts, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`,
 `_hood_pattern`: a bag pinned on the back of the neckline, laid back and let fall down the upper back), a loose
 t-shirt's or long sleeve's body (a tube hanging from under the arms to the hips; its shoulders and sleeves are the
-shell "tee" or "longtop")); `PROFILES` cuts
+shell "tee" or "longtop"), the loose t-shirt's short sleeves (`draped_sleeves`: two tubes round the upper arms, cut
+by sleeves.py)); `PROFILES` cuts
 the others from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
 `_trouser_pattern`; the coat's and the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their
 shoulders and sleeves are one shell, garments.py's "coat", whose hem `shell_hem` places, as it places the dress's
@@ -395,7 +396,7 @@ def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre
 # (one shell "coat": both are pinned from the chest with the same clearance, so `shell_hem` puts its hem at the same
 # height, and the front is open as wide, FRONT_OPENING); the dress's bodice (without it the dress is strapless, its
 # top edge across the bust); the loose t-shirt's shoulders, sleeves and chest ("tee": the t-shirt's cut, its hem
-# under the ring); the loose long sleeve's ("longtop": the longsleeve's cut, its hem under the ring).
+# under the ring; its sleeves end under the draped sleeves' rings, sleeves.py); the loose long sleeve's ("longtop": the longsleeve's cut, its hem under the ring).
 SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dress": "bodice", "draped_tshirt": "tee",
                     "draped_longsleeve": "longtop"}
 

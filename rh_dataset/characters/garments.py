@@ -54,7 +54,8 @@ BASE_OFFSET = {
     "coat": 0.017,  # the draped coat's and jacket's shoulders, yoke and sleeves (a jacket's cut down to the chest)
     "bodice": 0.006,  # the draped dress's top: a t-shirt's cut with cap sleeves and a scoop neck, down to the chest
     "hoodie": 0.006,  # the hoodie's body and sleeves: the longsleeve's shell (its hood is draped: drape.py)
-    "tee": 0.006,  # the loose t-shirt's shoulders, sleeves and chest: the t-shirt's cut down to the chest
+    "tee": 0.006,  # the loose t-shirt's shoulders, sleeves and chest: the t-shirt's cut down to the chest (its sleeves
+    # cut short under the draped sleeves, sleeves.py, where the t-shirt wears them)
     "longtop": 0.006,  # the loose long sleeve's: the longsleeve's cut down to the chest
 }
 # The coat's (and open jacket's) front opening in its shell: a V from the panels' gap (drape.FRONT_OPENING wide at
