@@ -101,6 +101,35 @@ def rest_and_test_poses(source, subject, split, n: int) -> list[tuple]:
                                      for p in (source.pose(subject, split, j) for j in range(n))]
 
 
+def subject_bench_args(doc: str, argv: list[str] | None):
+    """The arguments of the per-subject benches with a before | after picture (bench_shell_folds.py,
+    bench_sleeves.py): --seed, --subjects, --poses, --figure, --before, checked."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--seed", type=int, default=0, help="dataset seed whose subjects are used")
+    ap.add_argument("--subjects", default="", help="comma-separated subject indices (default: every wearer)")
+    ap.add_argument("--poses", type=int, default=2, help="test poses per subject besides the rest pose")
+    ap.add_argument("--figure", type=Path, default=None, help="write the first subject's picture here")
+    ap.add_argument("--before", type=Path, default=None, help="--figure: a row written in another checkout, put above")
+    args = ap.parse_args(argv)
+    if args.before is not None and (args.figure is None or not args.before.is_file()):
+        raise SystemExit(f"--before {args.before}: needs --figure and an existing PNG written by this script")
+    if args.poses < 0:
+        raise SystemExit(f"--poses: 0 or more, got {args.poses}")
+    return args
+
+
+def test_source(seed: int):
+    """(rh-generate's subjects of protocol a at `seed`, built as at the `standard` preset; protocol a's test split)."""
+    from rh_dataset.cli import render_settings
+    from rh_dataset.generate.plan import DatasetPlan
+    from rh_dataset.generate.subjects import AnnySubjects
+    from rh_dataset.spec import load_protocol
+
+    spec = load_protocol("protocol_a")
+    source = AnnySubjects(DatasetPlan(out=Path("unused"), spec=spec, settings=render_settings("standard"), seed=seed))
+    return source, next(s for s in spec.splits if s.name == "test")
+
+
 def load() -> str:
     return " ".join(open("/proc/loadavg").read().split()[:3])
 

@@ -23,11 +23,11 @@ places along the upper arms (cm from the shoulder joint) and their hems'; then p
 --figure PATH: the first subject at rest and in its first test pose, front and from its left, shoulders at 2x
 (render_preview: 32 spp, Open Image Denoise, a look, not a dataset frame), one row; --before PNG: a row this script
 wrote in another checkout (there, shell sleeves), put above it. To run the rules of another commit, copy this script
-into a checkout of it and run it there (sys.path takes the script's own checkout). The load average is printed.
+into a checkout of it, with bench_cloth_pose.py (its arguments and subjects), and run it there (sys.path takes the
+script's own checkout). The load average is printed.
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import sys
 import time
@@ -53,19 +53,9 @@ def wearers(seed: int) -> list[int]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--seed", type=int, default=0, help="dataset seed whose subjects are used")
-    ap.add_argument("--subjects", default="", help="comma-separated subject indices (default: every wearer)")
-    ap.add_argument("--poses", type=int, default=2, help="test poses per subject besides the rest pose")
-    ap.add_argument("--figure", type=Path, default=None, help="write the first subject's picture here")
-    ap.add_argument("--before", type=Path, default=None, help="--figure: a row written in another checkout, put above")
-    args = ap.parse_args(argv)
-    if args.before is not None and (args.figure is None or not args.before.is_file()):
-        raise SystemExit(f"--before {args.before}: needs --figure and an existing PNG written by this script")
-    if args.poses < 0:
-        raise SystemExit(f"--poses: 0 or more, got {args.poses}")
+    from bench_cloth_pose import rest_and_test_poses, seen_around, subject_bench_args, test_source
 
-    from bench_cloth_pose import rest_and_test_poses, seen_around
+    args = subject_bench_args(__doc__, argv)
 
     from rh_common.body_model import ANNY_TOPOLOGY
     from rh_dataset.characters import pose_character
@@ -73,15 +63,8 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.body_features import group_mask
     from rh_dataset.characters.cloth_pose import layer_depth, self_crossings
     from rh_dataset.characters.drape import penetration
-    from rh_dataset.cli import render_settings
-    from rh_dataset.generate.plan import DatasetPlan
-    from rh_dataset.generate.subjects import AnnySubjects
-    from rh_dataset.spec import load_protocol
 
-    spec = load_protocol("protocol_a")
-    source = AnnySubjects(DatasetPlan(out=Path("unused"), spec=spec, settings=render_settings("standard"),
-                                      seed=args.seed))
-    test = next(s for s in spec.splits if s.name == "test")
+    source, test = test_source(args.seed)
     subjects = [int(x) for x in args.subjects.split(",") if x] if args.subjects else wearers(args.seed)
     if not subjects:
         raise SystemExit(f"no subject of seed {args.seed} wears a loose t-shirt without a jacket or coat over it")

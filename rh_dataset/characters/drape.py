@@ -42,7 +42,7 @@ from rh_common.imageio import atomic_path
 
 from .body import PHENOTYPE_LABELS, body_topology, run_anny
 from .body_features import body_features
-from .geometry import edge_counts, hull_anchors
+from .geometry import edge_counts, hull_anchors, metre_uvs, seamed_grid
 from .sleeves import sleeve_pattern, sleeves_render_mesh
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
@@ -396,7 +396,8 @@ def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre
 # (one shell "coat": both are pinned from the chest with the same clearance, so `shell_hem` puts its hem at the same
 # height, and the front is open as wide, FRONT_OPENING); the dress's bodice (without it the dress is strapless, its
 # top edge across the bust); the loose t-shirt's shoulders, sleeves and chest ("tee": the t-shirt's cut, its hem
-# under the ring; its sleeves end under the draped sleeves' rings, sleeves.py); the loose long sleeve's ("longtop": the longsleeve's cut, its hem under the ring).
+# under the ring; its sleeves end under the draped sleeves' rings, sleeves.py); the loose long sleeve's ("longtop":
+# the longsleeve's cut, its hem under the ring).
 SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dress": "bodice", "draped_tshirt": "tee",
                     "draped_longsleeve": "longtop"}
 
@@ -1309,13 +1310,8 @@ def _pieces_render_mesh(g: DrapedGarment):
     n = 0
     for j, grid in enumerate(g.pieces):
         rows, cols = grid.shape
-        full = np.concatenate([grid, grid[:, :1]], axis=1)
-        local = n + np.arange(rows * (cols + 1)).reshape(rows, cols + 1)
-        a, c = local[:-1, :-1], local[1:, :-1]
-        b, d = local[:-1, 1:], local[1:, 1:]
-        faces.append(np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)]))
-        arc = np.concatenate([np.zeros((rows, 1)), np.cumsum(np.linalg.norm(np.diff(pat[full], axis=1), axis=-1), 1)],
-                             axis=1)  # (rows, cols + 1): metres along each ring from its first column
+        full, f, arc = seamed_grid(grid, n, pat)  # arc (rows, cols + 1): metres along each ring from its first column
+        faces.append(f)
         if j == 0:
             ref, first = rows - 1, 0.0
         else:
@@ -1330,10 +1326,8 @@ def _pieces_render_mesh(g: DrapedGarment):
         vs.append((pat[full][..., 2] - z_hem).ravel())
         src.append(full.ravel())
         n += full.size
-    u, v = np.concatenate(us), np.concatenate(vs)
-    u -= u.min()
-    mpu = float(max(u.max(), v.max()))
-    return np.concatenate(src), np.concatenate(faces), np.clip(np.stack([u, v], 1) / mpu, 0.0, 1.0), mpu
+    uvs, mpu = metre_uvs(us, vs)
+    return np.concatenate(src), np.concatenate(faces), uvs, mpu
 
 
 def _closest(body_vertices, body_faces, points, body_normals=None, mesh=None, triangles: bool = False):

@@ -468,6 +468,31 @@ def closed_tube(rings: np.ndarray, start: np.ndarray, end: np.ndarray) -> tuple[
     return grid.reshape(-1, 3), np.array(faces, dtype=np.int64)
 
 
+def seamed_grid(grid: np.ndarray, start: int, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A tube's render grid: `grid` (rings, around) its vertex indices into `points` (V, 3), the first column
+    repeated at the end so UVs can run 0..1 round it. Returns (full (rings, around + 1): the source vertex of each
+    render vertex, faces (F, 3) of the render vertices numbered from `start` row by row, arc (rings, around + 1):
+    metres along each ring from its first column through `points`)."""
+    rows, cols = grid.shape
+    full = np.concatenate([grid, grid[:, :1]], axis=1)
+    local = start + np.arange(rows * (cols + 1)).reshape(rows, cols + 1)
+    a, c = local[:-1, :-1], local[1:, :-1]
+    b, d = local[:-1, 1:], local[1:, 1:]
+    faces = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
+    arc = np.concatenate([np.zeros((rows, 1)), np.cumsum(np.linalg.norm(np.diff(points[full], axis=1), axis=-1), 1)],
+                         axis=1)
+    return full, faces, arc
+
+
+def metre_uvs(us: list[np.ndarray], vs: list[np.ndarray]) -> tuple[np.ndarray, float]:
+    """UVs (R, 2) in [0, 1] from per-piece metres along (`us`) and up (`vs`) a cut, u shifted to start at 0, both over
+    one scale (the larger span), and that scale in metres per UV: the draped pieces' render meshes."""
+    u, v = np.concatenate(us), np.concatenate(vs)
+    u -= u.min()
+    mpu = float(max(u.max(), v.max()))
+    return np.clip(np.stack([u, v], 1) / mpu, 0.0, 1.0), mpu
+
+
 def first_hit(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """Distance along each unit direction (broadcast to origins' shape) from each origin to the first triangle of
     the mesh it hits (trimesh ray casting); inf where the ray misses."""

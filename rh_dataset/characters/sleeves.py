@@ -174,18 +174,15 @@ def sleeves_render_mesh(pattern: np.ndarray, pieces) -> tuple[np.ndarray, np.nda
     (`pattern`, undraped): u along each ring from the arm's upper side (each ring centred on the tube's top ring's
     middle), v along the tube from its hem; the same scale for both tubes. Returns (render vertex -> simulated
     vertex (R,), faces (F, 3), uvs (R, 2), metres per UV), as `drape._pieces_render_mesh` does for the trousers."""
+    from .geometry import metre_uvs, seamed_grid
+
     pat = np.asarray(pattern, np.float64)
     src, faces, us, vs = [], [], [], []
     n = 0
     for grid in pieces:
-        rows, cols = grid.shape
-        full = np.concatenate([grid, grid[:, :1]], axis=1)
-        local = n + np.arange(rows * (cols + 1)).reshape(rows, cols + 1)
-        a, c = local[:-1, :-1], local[1:, :-1]
-        b, d = local[:-1, 1:], local[1:, 1:]
-        faces.append(np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)]))
-        arc = np.concatenate([np.zeros((rows, 1)), np.cumsum(np.linalg.norm(np.diff(pat[full], axis=1), axis=-1), 1)],
-                             axis=1)
+        cols = grid.shape[1]
+        full, f, arc = seamed_grid(grid, n, pat)
+        faces.append(f)
         u = 0.5 * arc[0, -1] - 0.5 * arc[:, -1:] + arc
         step = np.linalg.norm(np.diff(pat[grid].mean(1), axis=0), axis=1)  # ring centre to ring centre
         down = np.concatenate([[0.0], np.cumsum(step)])
@@ -193,7 +190,5 @@ def sleeves_render_mesh(pattern: np.ndarray, pieces) -> tuple[np.ndarray, np.nda
         vs.append(np.repeat(down[-1] - down, cols + 1))
         src.append(full.ravel())
         n += full.size
-    u, v = np.concatenate(us), np.concatenate(vs)
-    u -= u.min()
-    mpu = float(max(u.max(), v.max()))
-    return np.concatenate(src), np.concatenate(faces), np.clip(np.stack([u, v], 1) / mpu, 0.0, 1.0), mpu
+    uvs, mpu = metre_uvs(us, vs)
+    return np.concatenate(src), np.concatenate(faces), uvs, mpu
