@@ -15,6 +15,7 @@ would come through (garments.garment_parts leaves the sleeves out there).
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -119,9 +120,15 @@ def _tops(body, heads, feats, n_around: int, cut: SleeveCut) -> dict[str, float]
 
 def sleeve_tops(phenotype: dict[str, float], n_around: int, cut: SleeveCut = SLEEVES) -> dict[str, float]:
     """{side: metres along its upper arm axis (`sleeve_axis`, from the upperarm01 joint) of the pinned ring} for a
-    sleeve pattern of `n_around` particles a ring (the search tests those points)."""
-    body, heads, feats = _frame(phenotype)
-    return _tops(body, heads, feats, n_around, cut)
+    sleeve pattern of `n_around` particles a ring (the search tests those points). Cached per phenotype: a loose
+    t-shirt's build asks twice, for the shell's cut and for the pattern (~0.3 s a search)."""
+    return dict(_tops_cached(tuple(sorted((k, float(v)) for k, v in phenotype.items())), int(n_around), cut))
+
+
+@functools.lru_cache(maxsize=16)
+def _tops_cached(pheno_items: tuple[tuple[str, float], ...], n_around: int, cut: SleeveCut):
+    body, heads, feats = _frame(dict(pheno_items))
+    return tuple(_tops(body, heads, feats, n_around, cut).items())
 
 
 def sleeve_pattern(phenotype: dict[str, float], n_around: int, n_rings: int, cut: SleeveCut = SLEEVES):
@@ -132,7 +139,7 @@ def sleeve_pattern(phenotype: dict[str, float], n_around: int, n_rings: int, cut
     from .drape import _grid_faces
 
     body, heads, feats = _frame(phenotype)
-    tops = _tops(body, heads, feats, n_around, cut)
+    tops = sleeve_tops(phenotype, n_around, cut)
     arm = feats.in_groups("upperarm", "lowerarm")
     ang = np.arange(n_around) * (2.0 * np.pi / n_around)
     verts, pieces, uvs = [], [], []
