@@ -44,7 +44,7 @@ cat "$OUT/machine.txt"
   step "anny cache"; timed python3 -c "import rh_common.body_model as b; b.warm_cache()" 2>&1 | tail -2
   for run in 1 2; do
     step "demo, cuda_ad_rgb, run $run"
-    timed timeout 150 rh-generate --protocol demo --out "/tmp/rh_demo/cuda$run" --frames 2 --resolution 64 \
+    timed timeout 120 rh-generate --protocol demo --out "/tmp/rh_demo/cuda$run" --frames 2 --resolution 64 \
       --preset draft --variant cuda_ad_rgb --no-progress 2>&1 | grep -v -i warp | tail -3
   done
   step "demo runs 1 and 2, file by file"
@@ -54,12 +54,12 @@ cat "$OUT/machine.txt"
   diff /tmp/rh_demo/s1 /tmp/rh_demo/s2 | grep '^<' | head -20
   (cd /tmp/rh_demo && tar cf "$OUT/demo_cuda.tar" cuda1)
   step "bench_generate"
-  timeout 200 python3 bench/bench_generate.py --presets draft standard reference --repeats 3 --distinct-frames \
+  timeout 170 python3 bench/bench_generate.py --presets draft standard reference --repeats 3 --distinct-frames \
     2>&1 | grep -v -i 'warp\|^Module'
   step "rh-generate, protocol a, 1 subject, 8 frames a split, 512x512, standard"
-  timed timeout 150 rh-generate --protocol a --subjects 1 --frames 8 --resolution 512 \
+  timed timeout 120 rh-generate --protocol a --subjects 1 --frames 8 --resolution 512 \
     --preset standard --variant cuda_ad_rgb --out /tmp/rh_a 2>&1 | grep -v -i 'warp\|^Module' | tail -4
-  step "rh-verify"; timeout 60 rh-verify /tmp/rh_a 2>&1 | tail -4
+  step "rh-verify"; timeout 40 rh-verify /tmp/rh_a 2>&1 | tail -4
   (cd /tmp && tar cf "$OUT/a_frame.tar" \
     $(find rh_a -path '*/test/*' \( -name 'frame_000000*' -o -name contact_sheet.png \) | head -20))
   step done
