@@ -101,10 +101,12 @@ def rest_and_test_poses(source, subject, split, n: int) -> list[tuple]:
                                      for p in (source.pose(subject, split, j) for j in range(n))]
 
 
-def subject_bench_args(doc: str, argv: list[str] | None):
+def subject_bench_args(doc: str, argv: list[str] | None, extra=None):
     """The arguments of the per-subject benches with a before | after picture (bench_shell_folds.py,
-    bench_sleeves.py): --seed, --subjects, --poses, --figure, --before, checked."""
+    bench_sleeves.py): --seed, --subjects, --poses, --figure, --before, checked; `extra(parser)` adds a bench's own."""
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
+    if extra is not None:
+        extra(ap)
     ap.add_argument("--seed", type=int, default=0, help="dataset seed whose subjects are used")
     ap.add_argument("--subjects", default="", help="comma-separated subject indices (default: every wearer)")
     ap.add_argument("--poses", type=int, default=2, help="test poses per subject besides the rest pose")

@@ -1,19 +1,22 @@
-"""The loose t-shirt's draped sleeves (`draped_sleeves`, rh_dataset/characters/sleeves.py) on the generator's own
-subjects: what they cost, and whether they stay clear of the arm, of themselves and of the shell sleeve under them.
+"""The loose tops' draped sleeves (`draped_sleeves`, `draped_long_sleeves`: rh_dataset/characters/sleeves.py) on the
+generator's own subjects: what they cost, and whether they stay clear of the arm, of themselves and of the shell
+sleeve under them.
 
     python bench/bench_sleeves.py                          # seed 0's loose t-shirt wearers, rest + 2 test poses
+    python bench/bench_sleeves.py --kind draped_long_sleeves   # the loose long sleeve's wearers
     python bench/bench_sleeves.py --subjects 3 --poses 1 --figure after.png --before before.png
 
-In: the dataset seed, the subjects (default: every benchmark subject of protocols a and b at that seed wearing a loose
-t-shirt with no open jacket or coat over it; built as rh-generate builds them, full drapes, the user's drape cache),
-how many test poses (`AnnySubjects.pose`, the test split's first --poses frames) besides the rest pose.
+In: the sleeves' kind (--kind), the dataset seed, the subjects (default: every benchmark subject of protocols a and b
+at that seed wearing the loose top of that kind (the loose t-shirt, the loose long sleeve) with no open jacket or coat
+over it; built as rh-generate builds them, full drapes, the user's drape cache), how many test poses
+(`AnnySubjects.pose`, the test split's first --poses frames) besides the rest pose.
 Out, printed per subject: the sleeves' drape seconds (simulated afresh, the cache not read), their pinned rings'
 places along the upper arms (cm from the shoulder joint) and their hems'; then per pose (skinned, the `draft` and
 `standard` presets' cloth mode, and simulated: the sleeves are skinned in both):
   depth     the sleeves' deepest vertex under the skin (mm, > 0 inside; `drape.penetration`);
   cross     the sleeves' self-crossing edges (`cloth_pose.self_crossings`);
-  shell out the shell "tee"'s sleeve vertices (on the upper arm or forearm) within 2 cm of the sleeves lying over
-            them (`cloth_pose.layer_depth` < 0),
+  shell out the shell's ("tee", "longtop") sleeve vertices (on the upper arm or forearm) within 2 cm of the sleeves
+            lying over them (`cloth_pose.layer_depth` < 0),
             the worst (mm) and how many a camera sees (8 horizontal views, `bench_cloth_pose.seen_around`): the shell's
             sleeve ends under the cloth's pinned ring and must stay inside the cloth;
   slot      the pinned rings' height over the shell under them (median and largest, mm): a wide slot shows as a dark
@@ -43,34 +46,40 @@ def load() -> str:
     return " ".join(open("/proc/loadavg").read().split()[:3])
 
 
-def wearers(seed: int) -> list[int]:
-    """Seed `seed`'s benchmark subjects in a loose t-shirt with no open jacket or coat over it (recipes only)."""
+# The loose top each sleeves' kind belongs to, and the shell under its sleeves' rings.
+TOPS = {"draped_sleeves": ("draped_tshirt", "tee"), "draped_long_sleeves": ("draped_longsleeve", "longtop")}
+
+
+def wearers(seed: int, kind: str = "draped_sleeves") -> list[int]:
+    """Seed `seed`'s benchmark subjects in the loose top whose sleeves are `kind`, with no open jacket or coat over it
+    (recipes only)."""
     from subject_diversity import benchmark_recipes
 
     return [s for s, r in enumerate(benchmark_recipes("protocol_a", seed))
-            if "draped_tshirt" in (kinds := [g.kind for g in r.garments])
+            if TOPS[kind][0] in (kinds := [g.kind for g in r.garments])
             and not {"draped_jacket", "draped_coat"} & set(kinds)]
 
 
 def main(argv: list[str] | None = None) -> int:
     from bench_cloth_pose import rest_and_test_poses, seen_around, subject_bench_args, test_source
 
-    args = subject_bench_args(__doc__, argv)
+    args = subject_bench_args(__doc__, argv, lambda ap: ap.add_argument(
+        "--kind", default="draped_sleeves", choices=sorted(TOPS), help="the sleeves measured (default: the short)"))
+    kind, shell_name = args.kind, TOPS[args.kind][1]
 
     from rh_common.body_model import ANNY_TOPOLOGY
     from rh_dataset.characters import pose_character
-    from rh_dataset.characters.body import body_topology
     from rh_dataset.characters.body_features import group_mask
     from rh_dataset.characters.cloth_pose import layer_depth, self_crossings
     from rh_dataset.characters.drape import penetration
 
     source, test = test_source(args.seed)
-    subjects = [int(x) for x in args.subjects.split(",") if x] if args.subjects else wearers(args.seed)
+    subjects = [int(x) for x in args.subjects.split(",") if x] if args.subjects else wearers(args.seed, kind)
     if not subjects:
-        raise SystemExit(f"no subject of seed {args.seed} wears a loose t-shirt without a jacket or coat over it")
+        raise SystemExit(f"no subject of seed {args.seed} wears a {TOPS[kind][0]} without a jacket or coat over it")
     try:
         from rh_dataset.characters.drape import drape_garment, drape_settings
-        from rh_dataset.characters.sleeves import SIDES, SLEEVES, sleeve_tops
+        from rh_dataset.characters.sleeves import SIDES, SLEEVE_CUTS, sleeve_pattern, sleeve_tops
     except ImportError:  # a checkout before the draped sleeves: only the figure and the timing
         drape_garment = None
     print(f"{'subject':>7s} {'pose':>12s} {'mode':>9s}   depth mm  cross   shell out: n  worst mm  seen   "
@@ -80,29 +89,25 @@ def main(argv: list[str] | None = None) -> int:
         subject = source.subject(s)
         ch = subject.character
         names = [p.name for p in ch.parts]
-        if drape_garment is not None and "draped_sleeves" in names:
-            st = drape_settings("draped_sleeves", "full")
+        if drape_garment is not None and kind in names:
+            st = drape_settings(kind, "full")
             t = time.perf_counter()
-            drape_garment("draped_sleeves", ch.phenotype, st, use_cache=False)
+            drape_garment(kind, ch.phenotype, st, use_cache=False)
             secs = time.perf_counter() - t
             tops = sleeve_tops(ch.phenotype, st.n_around)
-            reach = {}
-            from rh_dataset.characters.body import run_anny
-            run = run_anny(ch.phenotype)
-            labels = body_topology().bone_labels
-            for side in SIDES:
-                o = run["bone_poses"][labels.index(f"upperarm01.{side}"), :3, 3]
-                w = run["bone_poses"][labels.index(f"wrist.{side}"), :3, 3]
-                reach[side] = SLEEVES.hem * float(np.linalg.norm(w - o))
+            # Each tube's length, ring centre to ring centre, from the pinned ring to the hem, plus the ring's place.
+            v, _, _, _, _, pieces = sleeve_pattern(ch.phenotype, st.n_around, st.n_rings, SLEEVE_CUTS[kind])
+            reach = {side: tops[side] + float(np.linalg.norm(np.diff(v[g].mean(1), axis=0), axis=1).sum())
+                     for side, g in zip(SIDES, pieces)}
             print(f"{s:7d} sleeves drape {secs:.1f} s (uncached, full); rings at "
                   + ", ".join(f"{side} {100 * tops[side]:.1f} cm" for side in SIDES) + "; hems at "
                   + ", ".join(f"{side} {100 * reach[side]:.1f} cm" for side in SIDES) + f"   (load {load()})",
                   flush=True)
         # The same character without its sleeves' part (the shell's sleeves as cut for them), timed beside it.
-        without = (dataclasses.replace(ch, parts=[p for p in ch.parts if p.name != "draped_sleeves"])
-                   if "draped_sleeves" in names else None)
-        on_arm = group_mask(ANNY_TOPOLOGY, "upperarm", "lowerarm")[ch.part("tee").body_vertex] \
-            if "tee" in names else None
+        without = (dataclasses.replace(ch, parts=[p for p in ch.parts if p.name != kind])
+                   if kind in names else None)
+        on_arm = group_mask(ANNY_TOPOLOGY, "upperarm", "lowerarm")[ch.part(shell_name).body_vertex] \
+            if shell_name in names else None
         for label, bones, root in rest_and_test_poses(source, subject, test, args.poses):
             for mode in ("skinned", "simulated"):
                 posed, secs, bare = None, [], []
@@ -116,10 +121,10 @@ def main(argv: list[str] | None = None) -> int:
                         bare.append(time.perf_counter() - t)
                 plain = f"{np.median(bare):5.2f}" if bare else "    -"
                 by = {m.name: m for m in posed if hasattr(m, "faces")}
-                if "draped_sleeves" not in by:
+                if kind not in by:
                     print(f"{s:7d} {label:>12s} {mode:>9s}   (no draped sleeves)   pose s {np.median(secs):5.2f}")
                     continue
-                sl, tee, body = by["draped_sleeves"], by["tee"], by["body"]
+                sl, tee, body = by[kind], by[shell_name], by["body"]
                 v = np.asarray(sl.vertices, np.float64)
                 depth = 1e3 * float(penetration(np.asarray(body.vertices, np.float64), body.faces, v).max())
                 cross = self_crossings(v, sl.faces)
@@ -128,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
                 out = np.flatnonzero(np.nan_to_num(d, nan=1.0) < 0)
                 seen = int(seen_around(tv[out], np.asarray(tee.normals, np.float64)[out], list(by.values())).sum())
                 worst = -1e3 * float(d[out].min()) if len(out) else 0.0
-                ring = ring_vertices(ch.phenotype)
+                ring = ring_vertices(ch.phenotype, kind)
                 h = -layer_depth(v[ring], tv, tee.faces, near=0.03)
                 h = h[np.isfinite(h)]
                 slot = (1e3 * float(np.median(h)), 1e3 * float(h.max())) if len(h) else (np.nan, np.nan)
@@ -142,13 +147,13 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def ring_vertices(phenotype) -> np.ndarray:
+def ring_vertices(phenotype, kind: str = "draped_sleeves") -> np.ndarray:
     """The sleeves' render-mesh vertices on their pinned rings (`sleeves_render_mesh` maps render vertices to the
     drape's particles, whose `pinned` marks the rings)."""
     from rh_dataset.characters.drape import drape_garment, drape_settings
     from rh_dataset.characters.sleeves import sleeves_render_mesh
 
-    g = drape_garment("draped_sleeves", phenotype, drape_settings("draped_sleeves", "full"))
+    g = drape_garment(kind, phenotype, drape_settings(kind, "full"))
     src = sleeves_render_mesh(g.pattern, g.pieces)[0]
     return np.flatnonzero(np.asarray(g.pinned, bool)[src])
 

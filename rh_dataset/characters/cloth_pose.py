@@ -62,14 +62,15 @@ CLOTH_MODES = ("skinned", "simulated")
 # ~0.7-1.7; 2 subjects, 6 posed frames, no renders) found no cloth vertex in the body either way, fewer self-crossing
 # edges simulated (32 against 37) and the simulation at 5.0 s a posed frame (median); rendered (1 subject, 2 frames)
 # the two ways lie 26.4 and 31.1 dB apart against standard's 38-40 dB noise. The bench's rule: simulated at reference.
-# The loose long sleeve's cloth is the loose t-shirt's (the same cut and fabric; its sleeves are shell), measured on
+# The loose long sleeve's cloth is the loose t-shirt's (the same cut and fabric; measured when its sleeves were shell) on
 # its own (bench_cloth_pose.py --kind draped_longsleeve, 2 subjects, 6 posed frames): no cloth in the body either
 # way, 71 self-crossing edges skinned against 128 simulated (the seated laps), renders 33.6 dB apart against
 # standard's 42.3 dB noise: simulated at reference.
 # The loose shorts are the wide trousers cut above the knee, the straight-leg trousers their legs without the flare:
 # simulated, lifted and posed in their fabric likewise.
-# The loose t-shirt's sleeves (`draped_sleeves`) are skinned in every mode: the per-frame simulation's body leaves
-# the arms out (`body_motion`, `collider_faces`), so simulated they would fall through the arms they hang round.
+# The loose tops' sleeves (`draped_sleeves`, `draped_long_sleeves`) are skinned in every mode: the per-frame
+# simulation's body leaves the arms out (`body_motion`, `collider_faces`), so simulated they would fall through the arms
+# they hang round.
 SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
                    "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers")
 # What a kind's per-frame simulation changes in the `DrapeSettings` it was draped with. The wide-leg trousers: the

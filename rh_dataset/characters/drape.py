@@ -5,7 +5,8 @@ or straight-leg trousers or loose shorts, an open coat's or an open jacket's pan
 `_hood_pattern`: a bag pinned on the back of the neckline, laid back and let fall down the upper back), a loose
 t-shirt's or long sleeve's body (a tube hanging from under the arms to the hips; its shoulders and sleeves are the
 shell "tee" or "longtop"), the loose t-shirt's short sleeves (`draped_sleeves`: two tubes round the upper arms, cut
-by sleeves.py)); `PROFILES` cuts
+by sleeves.py) and the loose long sleeve's (`draped_long_sleeves`: down to the wrists, bent at the elbows));
+`PROFILES` cuts
 the others from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
 `_trouser_pattern`; the coat's and the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their
 shoulders and sleeves are one shell, garments.py's "coat", whose hem `shell_hem` places, as it places the dress's
@@ -43,7 +44,7 @@ from rh_common.imageio import atomic_path
 from .body import PHENOTYPE_LABELS, body_topology, run_anny
 from .body_features import body_features
 from .geometry import edge_counts, hull_anchors, metre_uvs, seamed_grid
-from .sleeves import sleeve_pattern, sleeves_render_mesh
+from .sleeves import SLEEVE_CUTS, sleeve_pattern, sleeves_render_mesh
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
            "DRAPED_OVER", "draped_over", "SHELLS_UNDER", "SLEEVE_GROUPS", "shells_under", "SHELL_TOPS", "BOTTOMS_UNDER",
@@ -56,7 +57,8 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "TSHIRT_HEM", "SHORTS_HEM", "SHORTS_MIN_LEG", "STRAIGHT_LEGS"]
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
-                "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers", "draped_sleeves")
+                "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers", "draped_sleeves",
+                "draped_long_sleeves")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -69,9 +71,9 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 # keeps it 10 mm off the skin (the waistband's offset and `garments.LAYER_GAP`), its drape TSHIRT_CLEARANCE (its
 # particles settle a little closer than their radius where the cloth rests on the body, as the coat's do).
 # The loose t-shirt's sleeves (`draped_sleeves`, sleeves.py) lie over the shell "tee"'s sleeves (6 mm) just under
-# their pinned rings: 8 mm, their cut's ring gap.
+# their pinned rings: 8 mm, their cut's ring gap; the loose long sleeve's (`draped_long_sleeves`) likewise.
 PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010, "draped_tshirt": 0.010,
-                   "draped_sleeves": 0.008}
+                   "draped_sleeves": 0.008, "draped_long_sleeves": 0.008}
 COAT_CLEARANCE = 0.014
 TSHIRT_CLEARANCE = 0.012
 SLEEVE_CLEARANCE = 0.006
@@ -309,6 +311,10 @@ _SETTINGS[("draped_sleeves", "full")] = DrapeSettings(n_around=32, n_rings=10, c
                                                       clearance=SLEEVE_CLEARANCE)
 _SETTINGS[("draped_sleeves", "coarse")] = DrapeSettings(n_around=16, n_rings=5, steps=150, contact_ke=5.0e4,
                                                         clearance=SLEEVE_CLEARANCE)
+# The loose long sleeve's sleeves (`draped_long_sleeves`): the same fabric and spacing round the arm, 28 rings
+# (~1.2-1.6 cm apart) over their 33-43 cm from the ring to the hem; coarse, 16 x 10.
+_SETTINGS[("draped_long_sleeves", "full")] = dataclasses.replace(_SETTINGS["draped_sleeves", "full"], n_rings=28)
+_SETTINGS[("draped_long_sleeves", "coarse")] = dataclasses.replace(_SETTINGS["draped_sleeves", "coarse"], n_rings=10)
 
 
 # The loose long sleeve (`draped_longsleeve`) is the loose t-shirt's body of cloth under the longsleeve's shell:
@@ -477,12 +483,12 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     hangs over (`DRAPED_OVER`); the rings are also kept outside their cross-section's hull, so that no particle starts
     under that cloth."""
     st = drape_settings(kind) if settings is None else settings
-    if over is not None and (kind in ("draped_hoodie", "draped_sleeves") or PROFILES[kind].legs):
+    if over is not None and (kind == "draped_hoodie" or kind in SLEEVE_CUTS or PROFILES[kind].legs):
         raise ValueError(f"drape: {kind} is not draped over other cloth (DRAPED_OVER)")
     if kind == "draped_hoodie":
         return _hood_pattern(phenotype, st)
-    if kind == "draped_sleeves":
-        return sleeve_pattern(phenotype, st.n_around, st.n_rings)[:5]
+    if kind in SLEEVE_CUTS:
+        return sleeve_pattern(phenotype, st.n_around, st.n_rings, SLEEVE_CUTS[kind])[:5]
     prof = PROFILES[kind]
     if prof.legs:
         return _trouser_pattern(phenotype, st, prof)[:5]
@@ -856,11 +862,11 @@ def collider_faces(phenotype: dict[str, float], kind: str | None = None) -> np.n
     """Body faces the cloth collides with and takes its skinning from: all but the arms and hands, which hang beside
     the hips in the A-pose; cloth bound to a hand would fly up with every reach. `kind` "draped_hoodie": the drape's
     collider keeps the upper arms, on whose deltoids the hood's sides come to rest on a broad body (its skinning
-    still comes from the collider without them); "draped_sleeves": all but the hands (the sleeves hang round the
-    upper arms)."""
+    still comes from the collider without them); the sleeves (`SLEEVE_CUTS`): all but the hands (the sleeves hang
+    round the arms)."""
     feats = body_features(phenotype)
-    arm = {"draped_hoodie": feats.in_groups("lowerarm", "hand"),
-           "draped_sleeves": feats.in_groups("hand")}.get(kind)
+    arm = feats.in_groups("hand") if kind in SLEEVE_CUTS else {"draped_hoodie": feats.in_groups("lowerarm", "hand")
+                                                               }.get(kind)
     if arm is None:
         arm = feats.in_groups("upperarm", "lowerarm", "hand")
     faces = body_topology().faces
@@ -871,7 +877,7 @@ def binding_faces(phenotype: dict[str, float], kind: str) -> np.ndarray:
     """Body faces a draped kind takes its skinning weights from (`bind_loose`): `collider_faces` without the arms,
     but for the sleeves, the arms' own (upper arm, forearm): a sleeve bound to the closest point of the whole body
     would take the chest's weights where it hangs by the armpit and stay behind when the arm is raised."""
-    if kind != "draped_sleeves":
+    if kind not in SLEEVE_CUTS:
         return collider_faces(phenotype)
     arm = body_features(phenotype).in_groups("upperarm", "lowerarm")
     faces = body_topology().faces
@@ -1017,8 +1023,9 @@ def drape_garment(kind: str, phenotype: dict[str, float], settings: DrapeSetting
     if kind in PROFILES and PROFILES[kind].legs:
         verts, faces, uvs, pinned, mpu, pieces = _trouser_pattern(phenotype, settings, PROFILES[kind])
         pieces = tuple(pieces)
-    elif kind == "draped_sleeves":
-        verts, faces, uvs, pinned, mpu, pieces = sleeve_pattern(phenotype, settings.n_around, settings.n_rings)
+    elif kind in SLEEVE_CUTS:
+        verts, faces, uvs, pinned, mpu, pieces = sleeve_pattern(phenotype, settings.n_around, settings.n_rings,
+                                                                SLEEVE_CUTS[kind])
     else:
         verts, faces, uvs, pinned, mpu = garment_pattern(
             kind, phenotype, settings, np.concatenate([g.vertices for g in over]) if over else None)
@@ -1254,7 +1261,7 @@ def draped_part(kind: str, phenotype: dict[str, float], feats, under: np.ndarray
     settings = drape_settings(kind) if settings is None else settings
     g = drape_garment(kind, phenotype, settings, over=over) if garment is None else garment
     mpu = g.metres_per_uv
-    if kind == "draped_sleeves":
+    if kind in SLEEVE_CUTS:
         src, faces, uvs, mpu = sleeves_render_mesh(g.pattern, g.pieces)
     elif g.pieces is not None:
         src, faces, uvs, mpu = _pieces_render_mesh(g)

@@ -36,7 +36,7 @@ from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP
                     push_out, shell_hem, shells_under)
 from .cloth_pose import LIFT_KINDS, skin_inside
 from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
-from .sleeves import sleeve_axis, sleeve_tops
+from .sleeves import SLEEVE_CUTS, sleeve_axis, sleeve_tops
 from .recipe import Garment
 
 __all__ = ["PartGeometry", "build_garments", "garment_level", "garment_parts", "SHELL_KINDS", "BASE_OFFSET",
@@ -56,7 +56,8 @@ BASE_OFFSET = {
     "hoodie": 0.006,  # the hoodie's body and sleeves: the longsleeve's shell (its hood is draped: drape.py)
     "tee": 0.006,  # the loose t-shirt's shoulders, sleeves and chest: the t-shirt's cut down to the chest (its sleeves
     # cut short under the draped sleeves, sleeves.py, where the t-shirt wears them)
-    "longtop": 0.006,  # the loose long sleeve's: the longsleeve's cut down to the chest
+    "longtop": 0.006,  # the loose long sleeve's: the longsleeve's cut down to the chest (its sleeves cut short under
+    # the draped long sleeves where it wears them)
 }
 # The coat's (and open jacket's) front opening in its shell: a V from the panels' gap (drape.FRONT_OPENING wide at
 # the shell's hem) widening by COAT_LAPEL metres per metre up to the collar, so the coat reads as open from the
@@ -132,9 +133,9 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None,
     labels only pick which function applies to a vertex (an arm takes the sleeve's, never the trunk's), so their
     ragged borders never become an edge. `hem` (bind-space height; the "coat", "bodice", "tee" and "longtop" shells
     only, whose hem is where the draped cloth under them is pinned: `drape.shell_hem`). Shells in CUT_AS take the
-    neckline and sleeves of the kind named there. `sleeves` ({"L": metres, "R": metres}; the "tee" under the loose
-    t-shirt's draped sleeves): each sleeve ends that far along its upper arm's axis (`sleeves.sleeve_axis`, from the
-    upperarm01 joint) instead of at the t-shirt's length."""
+    neckline and sleeves of the kind named there. `sleeves` ({"L": metres, "R": metres}; the "tee" and "longtop" under
+    the loose tops' draped sleeves): each sleeve ends that far along its upper arm's axis (`sleeves.sleeve_axis`, from
+    the upperarm01 joint) instead of at its cut's length."""
     v = feats.rest_vertices
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     z_neck = _z(feats, "neck01")
@@ -192,22 +193,31 @@ SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe
 # sleeves) and the draped panels below it, the dress a shell (its bodice) and the draped skirt below it, the loose
 # t-shirt and long sleeve a shell ("tee", "longtop": shoulders, sleeves, chest) and a draped body below it
 # (drape.SHELL_KINDS_OVER), the draped hoodie the longsleeve's shell ("hoodie") and its draped hood; all in the
-# garment's fabric. The loose t-shirt's sleeves are draped too ("draped_sleeves", sleeves.py), but not under an open
-# jacket or coat (SLEEVES_UNDER_NOT): its shell sleeves lie over the arms at 17 mm, which the cloth would come through.
+# garment's fabric. The loose tops' sleeves are draped too ("draped_sleeves", "draped_long_sleeves": sleeves.py), but
+# not under an open jacket or coat (SLEEVES_UNDER_NOT): its shell sleeves lie over the arms at 17 mm, which the cloth
+# would come through.
 GARMENT_PARTS = {**{kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()},
                  "draped_hoodie": ("hoodie", "draped_hoodie"),
-                 "draped_tshirt": ("tee", "draped_tshirt", "draped_sleeves")}
+                 "draped_tshirt": ("tee", "draped_tshirt", "draped_sleeves"),
+                 "draped_longsleeve": ("longtop", "draped_longsleeve", "draped_long_sleeves")}
 SLEEVES_UNDER_NOT = ("draped_jacket", "draped_coat")
 
 
 def garment_parts(kind: str, worn: Sequence[str] = ()) -> tuple[str, ...]:
     """The names of the parts (`PartGeometry.name`) `build_garments` makes of a recipe garment of this kind, worn
-    with the garments `worn` (a recipe's garment kinds: the loose t-shirt's draped sleeves are left out under an open
+    with the garments `worn` (a recipe's garment kinds: the loose tops' draped sleeves are left out under an open
     jacket or a coat)."""
     parts = GARMENT_PARTS.get(kind, (kind,))
-    if "draped_sleeves" in parts and any(k in SLEEVES_UNDER_NOT for k in worn):
-        parts = tuple(p for p in parts if p != "draped_sleeves")
+    if any(k in SLEEVES_UNDER_NOT for k in worn):
+        parts = tuple(p for p in parts if p not in SLEEVE_CUTS)
     return parts
+
+
+def _draped_sleeves(kind: str, worn: Sequence[str]) -> str | None:
+    """The draped sleeves' part (`SLEEVE_CUTS`) a garment of this kind makes when worn with `worn`, if any."""
+    return next((p for p in garment_parts(kind, worn) if p in SLEEVE_CUTS), None)
+
+
 LEVEL_MIN = 1e-5  # metres: no vertex sits on the level set itself (a cut there would make a zero-area face)
 
 
@@ -701,9 +711,10 @@ def build_garments(
                 cover = ((run_anny(phenotype)["vertices"], draped[g.kind].vertices, draped[g.kind].faces)
                          if shell == "coat" else None)
                 ends = None
-                if "draped_sleeves" in garment_parts(g.kind, kinds):
+                sleeves_kind = _draped_sleeves(g.kind, kinds)
+                if sleeves_kind is not None:
                     # The shell's sleeves end SHELL_OVERLAP under the draped sleeves' pinned rings, inside the cloth.
-                    st_sleeves = drape_settings("draped_sleeves", drape)
+                    st_sleeves = drape_settings(sleeves_kind, drape)
                     ends = {s: t + SHELL_OVERLAP for s, t in sleeve_tops(phenotype, st_sleeves.n_around).items()}
                 out.append(_shell(shell, feats, under, topology, hem=shell_hem(g.kind, phenotype, st), cover=cover,
                                   sleeves=ends))
@@ -721,10 +732,11 @@ def build_garments(
                 cloth = push_out(draped[g.kind].vertices, rest, normals, faces, push_clearance(g.kind))
                 part = dataclasses.replace(part, inside_skin=skin_inside(cloth, draped[g.kind].faces, rest, normals))
             out.append(part)
-            if "draped_sleeves" in garment_parts(g.kind, kinds):
-                st_sleeves = drape_settings("draped_sleeves", drape)
-                sleeves = drape_garment("draped_sleeves", phenotype, st_sleeves)
-                out.append(draped_part("draped_sleeves", phenotype, feats, under, st_sleeves, (), sleeves))
+            sleeves_kind = _draped_sleeves(g.kind, kinds)
+            if sleeves_kind is not None:
+                st_sleeves = drape_settings(sleeves_kind, drape)
+                sleeves = drape_garment(sleeves_kind, phenotype, st_sleeves)
+                out.append(draped_part(sleeves_kind, phenotype, feats, under, st_sleeves, (), sleeves))
         else:
             outer = next((k for k in SHELLS_UNDER if k in kinds and g.kind in shells_under(k, kinds)), None)
             cover = None

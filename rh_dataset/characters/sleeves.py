@@ -1,16 +1,19 @@
-"""The loose t-shirt's short sleeves, cut as two cloth tubes that newton drapes (drape.py's `draped_sleeves`).
+"""The loose tops' sleeves, cut as two cloth tubes that newton drapes (drape.py's `draped_sleeves`: the loose
+t-shirt's short sleeves; `draped_long_sleeves`: the loose long sleeve's, down to the wrist).
 
-In: a phenotype and the sleeves' `DrapeSettings` (drape.py); the cut, `SleeveCut`.
-Out: `sleeve_pattern`, the undraped cloth (two closed tubes around the upper arms in anny's A-pose, each pinned at
-its top ring), which `drape.drape_garment` simulates and caches like any draped kind; `sleeve_tops`, where each
-pinned ring lies along its upper arm, which the shell "tee" (garments.py) is cut to end just under
-(`SHELL_OVERLAP`), as its hem ends under the t-shirt body's ring; `sleeves_render_mesh`, the tubes' render mesh
-with UVs in metres of the cut.
+In: a phenotype, the sleeves' `DrapeSettings` (drape.py) and their cut (`SleeveCut`: `SLEEVES`, `LONG_SLEEVES`;
+`SLEEVE_CUTS` by kind).
+Out: `sleeve_pattern`, the undraped cloth (two closed tubes around the arms in anny's A-pose, each pinned at its top
+ring), which `drape.drape_garment` simulates and caches like any draped kind; `sleeve_tops`, where each pinned ring
+lies along its upper arm (the same for both cuts), which the shells "tee" and "longtop" (garments.py) are cut to end
+just under (`SHELL_OVERLAP`), as their hems end under the cloth body's ring; `sleeves_render_mesh`, the tubes'
+render mesh with UVs in metres of the cut.
 
-Why cloth: the shell's sleeve follows the arm at 6 mm, where a loose t-shirt's sleeve stands off the arm, hangs
-open below it and shades it. Only the loose t-shirt's sleeves so far: the long sleeve's would have to bend at the
-elbow, and under an open jacket or coat the jacket's shell sleeve lies over the arm at 17 mm, which the cloth
-would come through (garments.garment_parts leaves the sleeves out there).
+Why cloth: the shell's sleeve follows the arm at 6 mm, where a loose top's sleeve stands off the arm, hangs open
+below it and shades it. The long sleeve's tube bends with the elbow, which anny's A-pose already bends by ~42
+degrees: its axis turns from the upper arm's to the forearm's over `SleeveCut.bend` either side of the elbow joint.
+Under an open jacket or coat the jacket's shell sleeve lies over the arm at 17 mm, which the cloth would come
+through (garments.garment_parts leaves the sleeves out there).
 """
 from __future__ import annotations
 
@@ -19,7 +22,8 @@ import functools
 
 import numpy as np
 
-__all__ = ["SleeveCut", "SLEEVES", "SIDES", "sleeve_axis", "sleeve_tops", "sleeve_pattern", "sleeves_render_mesh"]
+__all__ = ["SleeveCut", "SLEEVES", "LONG_SLEEVES", "SLEEVE_CUTS", "SIDES", "sleeve_axis", "sleeve_tops",
+           "sleeve_pattern", "sleeves_render_mesh"]
 
 SIDES = ("L", "R")
 
@@ -32,7 +36,12 @@ class SleeveCut:
     keeps `ring_gap` off the rest of the body (the armpit, the chest, the back), searched from `top_from` metres
     along the axis in `top_step` steps up to `top_to`; the tube runs from there to `hem` times the shoulder-to-wrist
     distance (the shell t-shirt's sleeve ends at 0.3), widening at `flare` radians, each ring kept `gap` outside
-    the arm's hull (its particle radius plus 2 mm is the drape's)."""
+    the arm's hull (its particle radius plus 2 mm is the drape's).
+    `elbow`: the tube follows the forearm past the elbow (the long sleeve's): its axis is the upper arm's to `bend`
+    metres before the lowerarm01 joint and the forearm's (to the wrist joint) from `bend` after it, turning between
+    by a smoothstep, and `hem` is then a fraction of the axis's length from the upperarm01 joint to the wrist.
+    `taper`: how fast (metres of radius per metre along the axis) a ring may narrow where the arm does, at most down
+    to `gap` outside it (0: a ring is never narrower than the one above it, the short sleeve's cone)."""
 
     ring_gap: float = 0.008
     gap: float = 0.008
@@ -42,9 +51,18 @@ class SleeveCut:
     top_step: float = 0.005
     top_to: float = 0.15
     band: float = 0.012  # metres along the axis either side of a ring whose arm vertices make its cross-section
+    elbow: bool = False
+    bend: float = 0.06
+    taper: float = 0.0
+    band_below: float | None = None  # `band` for the rings below the pinned one (None: `band`)
 
 
 SLEEVES = SleeveCut()
+# The loose long sleeve's: to 0.93 of the way to the wrist joint (the shell longsleeve's cuff is at 0.95 of the
+# straight shoulder-to-wrist distance, which the bent axis's length exceeds by ~5 %), no flare, narrowing by at most
+# 1 mm a centimetre towards the wrist, where the forearm is some 2 cm thinner than the upper arm.
+LONG_SLEEVES = SleeveCut(hem=0.93, flare=0.0, elbow=True, taper=0.1, band_below=0.02)
+SLEEVE_CUTS = {"draped_sleeves": SLEEVES, "draped_long_sleeves": LONG_SLEEVES}
 
 
 def _unit(x: np.ndarray) -> np.ndarray:
@@ -61,13 +79,56 @@ def sleeve_axis(heads: dict, side: str) -> tuple[np.ndarray, np.ndarray, np.ndar
     return o, a, p, np.cross(p, a)
 
 
-def _arm_section(points: np.ndarray, o, a, p, q, t: float, band: float, ang: np.ndarray) -> np.ndarray:
+def _centreline(heads: dict, side: str, ts: np.ndarray, cut: SleeveCut):
+    """The long sleeve's bent axis (`SleeveCut.elbow`) at arc lengths `ts` (metres from the upperarm01 joint):
+    (centres (N, 3), unit tangents (N, 3), p (N, 3), q (N, 3)), p and q turned with the tangent (about the normal of
+    the plane the upper arm and forearm span), so the rings' particles do not twist along the tube; and the axis's
+    length to the wrist joint. Integrated in 1 mm steps."""
+    o, a, p, _ = sleeve_axis(heads, side)
+    e = np.asarray(heads[f"lowerarm01.{side}"], np.float64)
+    w = np.asarray(heads[f"wrist.{side}"], np.float64)
+    b = _unit(w - e)
+    n = np.cross(a, b)
+    theta = float(np.arctan2(np.linalg.norm(n), a @ b))
+    n = _unit(n)
+    l1 = float(np.linalg.norm(e - o))
+
+    def turn(s):
+        x = np.clip((s - (l1 - cut.bend)) / (2.0 * cut.bend), 0.0, 1.0)
+        return theta * x * x * (3.0 - 2.0 * x)
+
+    def rotate(v, phi):  # Rodrigues, about n, for each angle in phi
+        c, s = np.cos(phi)[:, None], np.sin(phi)[:, None]
+        return v * c + np.cross(n, v)[None, :] * s + np.outer(1.0 - c[:, 0], n * (n @ v))
+
+    grid = np.arange(0.0, l1 + cut.bend + float(np.linalg.norm(w - e)) + 0.05, 0.001)
+    tang = rotate(a, turn(grid))
+    steps = 0.5 * (tang[1:] + tang[:-1]) * 0.001
+    pos = o + np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
+    # The axis's length to the wrist: past the bend it runs along the forearm's direction b, so the arc length at
+    # which it comes level with the wrist joint along b.
+    past = grid >= l1 + cut.bend
+    i0 = int(np.argmax(past))
+    length = float(grid[i0] + (w - pos[i0]) @ b)
+    ts = np.asarray(ts, np.float64)
+    centre = np.stack([np.interp(ts, grid, pos[:, k]) for k in range(3)], axis=1)
+    d, pp = rotate(a, turn(ts)), rotate(p, turn(ts))
+    return centre, d, pp, np.cross(pp, d), length
+
+
+def _arm_section(points: np.ndarray, o, a, p, q, t: float, band: float, ang: np.ndarray,
+                 near: float | None = None) -> np.ndarray:
     """Radii (N,) at `ang` of the convex hull of the cross-section of `points` (an arm's vertices) within `band` of
-    `t` metres along the axis."""
+    `t` metres along the axis (`o` + `t` `a`, the section's plane spanned by `p` and `q`); with `near`, only points
+    within `near` metres of the axis (past the elbow the plane across the upper arm also cuts the forearm)."""
     from .geometry import hull_anchors
 
     rel = points - o
-    sel = np.flatnonzero(np.abs(rel @ a - t) < band)
+    along = rel @ a - t
+    keep = np.abs(along) < band
+    if near is not None:
+        keep &= np.linalg.norm(rel - (rel @ a)[:, None] * a, axis=1) < near
+    sel = np.flatnonzero(keep)
     if len(sel) < 3:
         raise ValueError(f"sleeves: too few arm vertices {t:.3f} m along the upper arm; is the body an adult's?")
     xy = np.c_[rel[sel] @ q, -(rel[sel] @ p), np.zeros(len(sel))]  # (hull_anchors: angle from -Y towards +X)
@@ -146,14 +207,26 @@ def sleeve_pattern(phenotype: dict[str, float], n_around: int, n_rings: int, cut
     for k, side in enumerate(SIDES):
         o, a, p, q = sleeve_axis(heads, side)
         pts = body[arm & ((body[:, 0] > 0) == (side == "L"))]
-        reach = cut.hem * float(np.linalg.norm(np.asarray(heads[f"wrist.{side}"]) - o))
+        if cut.elbow:
+            reach = cut.hem * _centreline(heads, side, np.zeros(1), cut)[4]
+        else:
+            reach = cut.hem * float(np.linalg.norm(np.asarray(heads[f"wrist.{side}"]) - o))
         if reach <= tops[side] + 0.02:
             raise ValueError(f"sleeves: the {side} sleeve's ring ({tops[side]:.3f} m along the arm) leaves under 2 cm "
                              f"of sleeve before its hem ({reach:.3f} m)")
         ts = np.linspace(tops[side], reach, n_rings)
         m = _arm_section(pts, o, a, p, q, ts[0], cut.band, ang) + cut.ring_gap
         rings = []
-        for i, t in enumerate(ts):
+        if cut.elbow:
+            centre, d, pp, qq, _ = _centreline(heads, side, ts, cut)
+            for i, t in enumerate(ts):
+                # Only the arm near the axis: the plane across the upper arm near the elbow also cuts the forearm.
+                hull = _arm_section(pts, centre[i], d[i], pp[i], qq[i], 0.0, cut.band_below or cut.band, ang,
+                                    near=0.12) + cut.gap
+                if i:  # narrowing with the arm by at most `taper`, never closer than `gap`
+                    m = np.maximum(m - cut.taper * (t - ts[i - 1]), hull)
+                rings.append(_ring(centre[i], d[i], pp[i], qq[i], 0.0, m, ang))
+        for i, t in enumerate([] if cut.elbow else ts):
             out = (t - ts[0]) * np.tan(cut.flare)
             if i:  # the cone as cut where the arm stays inside it, pushed out (and kept out below) where it reaches
                 m = np.maximum(m, _arm_section(pts, o, a, p, q, float(t), cut.band, ang) + cut.gap - out)
