@@ -8,7 +8,8 @@
 #      demo_cuda.tar: here, `RH_CUDA_DEMO=DIR python -m pytest tests/test_gpu_variant.py` compares it with
 #      llvm_ad_rgb layer by layer (the machine has no libLLVM, so the llvm half runs here);
 #   3. bench/bench_generate.py, seconds per frame per preset at 512x512 on cuda_ad_rgb, stage by stage;
-#   4. rh-generate of one protocol-a subject at 512x512, `standard`, timed end to end, then rh-verify on it.
+#   4. rh-generate of one protocol-a subject at 512x512, `standard`, timed end to end under cProfile
+#      ($OUT/generate.prof), then rh-verify on it.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/rh_device}
@@ -56,9 +57,13 @@ cat "$OUT/machine.txt"
   step "bench_generate"
   timeout 170 python3 bench/bench_generate.py --presets draft standard reference --repeats 3 --distinct-frames \
     2>&1 | grep -v -i 'warp\|^Module'
-  step "rh-generate, protocol a, 1 subject, 8 frames a split, 512x512, standard"
-  timed timeout 120 rh-generate --protocol a --subjects 1 --frames 8 --resolution 512 \
-    --preset standard --variant cuda_ad_rgb --out /tmp/rh_a 2>&1 | grep -v -i 'warp\|^Module' | tail -4
+  # Under cProfile ($OUT/generate.prof; here `python -m pstats`): on 5 December, without it, the first of these
+  # frames came after 57 s where bench_generate had built the same subject in 13 s. The profiler slows the Python
+  # parts (posing) a little; the run of 5 December gives the plain figure.
+  step "rh-generate under cProfile, protocol a, 1 subject, 8 frames a split, 512x512, standard"
+  timed timeout 150 python3 -m cProfile -o "$OUT/generate.prof" "$site/site/bin/rh-generate" --protocol a \
+    --subjects 1 --frames 8 --resolution 512 --preset standard --variant cuda_ad_rgb --out /tmp/rh_a 2>&1 \
+    | grep -v -i 'warp\|^Module' | tail -4
   step "rh-verify"; timeout 40 rh-verify /tmp/rh_a 2>&1 | tail -4
   (cd /tmp && tar cf "$OUT/a_frame.tar" \
     $(find rh_a -path '*/test/*' \( -name 'frame_000000*' -o -name contact_sheet.png \) | head -20))
