@@ -38,7 +38,7 @@ import numpy as np
 from .body import body_topology, run_anny, vertex_normals
 from .drape import (DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, cloth_model, cloth_solver,
                     collider_faces, drape_garment, draped_over, push_clearance, push_out, skin_points)
-from .geometry import edge_counts
+from .geometry import edge_counts, query_mesh
 
 __all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "POSE_FABRIC", "pose_fabric", "ClothPoseSettings", "BodyMotion",
            "body_motion", "simulate_into_pose", "skin_into_pose", "simulated_parts", "self_crossings", "hem_split",
@@ -62,8 +62,8 @@ CLOTH_MODES = ("skinned", "simulated")
 # ~0.7-1.7; 2 subjects, 6 posed frames, no renders) found no cloth vertex in the body either way, fewer self-crossing
 # edges simulated (32 against 37) and the simulation at 5.0 s a posed frame (median); rendered (1 subject, 2 frames)
 # the two ways lie 26.4 and 31.1 dB apart against standard's 38-40 dB noise. The bench's rule: simulated at reference.
-# The loose long sleeve's cloth is the loose t-shirt's (the same cut and fabric; measured when its sleeves were shell) on
-# its own (bench_cloth_pose.py --kind draped_longsleeve, 2 subjects, 6 posed frames): no cloth in the body either
+# The loose long sleeve's cloth is the loose t-shirt's (the same cut and fabric), measured on its own when its sleeves
+# were shells (bench_cloth_pose.py --kind draped_longsleeve, 2 subjects, 6 posed frames): no cloth in the body either
 # way, 71 self-crossing edges skinned against 128 simulated (the seated laps), renders 33.6 dB apart against
 # standard's 42.3 dB noise: simulated at reference.
 # The loose shorts are the wide trousers cut above the knee, the straight-leg trousers their legs without the flare:
@@ -381,8 +381,6 @@ def edges_through(vertices: np.ndarray, faces: np.ndarray, other_vertices: np.nd
     """How many edges of the mesh (`vertices`, `faces`) pass through a triangle of the other mesh (trimesh rays along
     each edge, hits strictly inside the edge); without another mesh, through one of its own triangles that shares
     no corner with the edge (`self_crossings`). Two surfaces that do not pass through each other: 0 both ways."""
-    import trimesh
-
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces)
     own = other_vertices is None
@@ -396,8 +394,7 @@ def edges_through(vertices: np.ndarray, faces: np.ndarray, other_vertices: np.nd
     d = v[e[:, 1]] - origin
     length = np.linalg.norm(d, axis=1)
     d = d / length[:, None]
-    tri, ray, loc = trimesh.Trimesh(ov, of, process=False).ray.intersects_id(origin, d, multiple_hits=True,
-                                                                             return_locations=True)
+    tri, ray, loc = query_mesh(ov, of).ray.intersects_id(origin, d, multiple_hits=True, return_locations=True)
     if len(ray) == 0:
         return 0
     t = ((np.asarray(loc) - origin[ray]) * d[ray]).sum(1)
@@ -433,12 +430,9 @@ def covers(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, normals: n
     skin's normal (`normals`, unit, outward), from 1 mm off the skin, meet it (trimesh)? Taken over the skin a
     garment covers in the rest pose, the share still covered in a pose: a thigh that rose out through its trouser
     leg is bare."""
-    import trimesh
-
     n = np.asarray(normals, np.float64)
     origin = np.asarray(skin, np.float64) + 1e-3 * n
-    return trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces), process=False).ray.intersects_any(
-        origin, n)
+    return query_mesh(vertices, faces).ray.intersects_any(origin, n)
 
 
 def layer_depth(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, near: float = 0.02) -> np.ndarray:
@@ -630,8 +624,6 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
     other limb. Vertices at the same position (a seam's duplicated column) move together. The moved points are then
     pushed out of the skin again at `clearance` (`drape.push_out`, as the caller pushed them before: a lift can carry
     cloth into another limb); the others are returned bit for bit."""
-    import trimesh
-
     from .drape import _closest
 
     if way not in LIFT_WAYS:
@@ -664,7 +656,7 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
         if not len(sel):
             break
         if body is None:
-            body = trimesh.Trimesh(np.asarray(body_vertices, np.float64), np.asarray(body_faces), process=False)
+            body = query_mesh(body_vertices, body_faces)
         hit = body.ray.intersects_location(skin[sel] + 1e-3 * skin_n[sel], skin_n[sel], multiple_hits=True)[1]
         inner = np.flatnonzero(np.bincount(hit, minlength=len(sel)) % 2 == 0)
         if not len(inner):

@@ -43,7 +43,7 @@ from rh_common.imageio import atomic_path
 
 from .body import PHENOTYPE_LABELS, body_topology, run_anny
 from .body_features import body_features
-from .geometry import edge_counts, hull_anchors, metre_uvs, seamed_grid
+from .geometry import edge_counts, hull_anchors, metre_uvs, query_mesh, seamed_grid
 from .sleeves import SLEEVE_CUTS, sleeve_pattern, sleeves_render_mesh
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
@@ -910,8 +910,6 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
     a thigh lifted into a skirt carries the panel over it rather than the closest skin (its underside) taking the
     panel behind it: it put 3-5x fewer vertices behind a limb (bench_skirt_stride.py's `inward`), but neighbours
     that took different ways made spikes of cloth on the shins."""
-    import trimesh
-
     p = np.array(points, dtype=np.float64)
     if not len(p):
         return p
@@ -922,7 +920,7 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
     local = f[((corners.max(axis=1) >= lo) & (corners.min(axis=1) <= hi)).all(axis=1)]
     if not len(local):
         return p
-    mesh = trimesh.Trimesh(v, local, process=False)
+    mesh = query_mesh(v, local)
     todo = np.arange(len(p))
     moved = np.zeros(len(p), bool)
     pushed = np.zeros_like(p)  # the sum of the normals each point was pushed along
@@ -1350,7 +1348,7 @@ def _closest(body_vertices, body_faces, points, body_normals=None, mesh=None, tr
     vn = vertex_normals(v, f) if body_normals is None else np.asarray(body_normals, np.float64)
     p = np.asarray(points, np.float64)
     if mesh is None:
-        mesh = trimesh.Trimesh(v, f, process=False)
+        mesh = query_mesh(v, f)
     closest, dist, tri = trimesh.proximity.closest_point(mesh, p)
     # A triangle squashed to a line or a point (two cloth vertices pushed onto one surface point) has no
     # barycentrics: its corners' normals, averaged.

