@@ -59,7 +59,7 @@ class SleeveCut:
 
 SLEEVES = SleeveCut()
 # The loose long sleeve's: to 0.93 of the way to the wrist joint (the shell longsleeve's cuff is at 0.95 of the
-# straight shoulder-to-wrist distance, which the bent axis's length exceeds by ~5 %), no flare, narrowing by at most
+# straight shoulder-to-wrist distance, which the bent axis's length exceeds by ~6 %), no flare, narrowing by at most
 # 1 mm a centimetre towards the wrist, where the forearm is some 2 cm thinner than the upper arm.
 LONG_SLEEVES = SleeveCut(hem=0.93, flare=0.0, elbow=True, taper=0.1, band_below=0.02)
 SLEEVE_CUTS = {"draped_sleeves": SLEEVES, "draped_long_sleeves": LONG_SLEEVES}
@@ -130,7 +130,7 @@ def _arm_section(points: np.ndarray, o, a, p, q, t: float, band: float, ang: np.
         keep &= np.linalg.norm(rel - (rel @ a)[:, None] * a, axis=1) < near
     sel = np.flatnonzero(keep)
     if len(sel) < 3:
-        raise ValueError(f"sleeves: too few arm vertices {t:.3f} m along the upper arm; is the body an adult's?")
+        raise ValueError(f"sleeves: too few arm vertices {t:.3f} m along the arm; is the body an adult's?")
     xy = np.c_[rel[sel] @ q, -(rel[sel] @ p), np.zeros(len(sel))]  # (hull_anchors: angle from -Y towards +X)
     idx, w = hull_anchors(xy, np.arange(len(sel)), np.zeros(2), ang)
     return np.linalg.norm((xy[idx, :2] * w[..., None]).sum(1), axis=1)
