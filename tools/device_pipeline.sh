@@ -28,6 +28,7 @@ fi
 mkdir -p /usr/share/blender/datafiles/studiolights/world "$HOME/.cache/relighting-humans/drape"
 cp "$site"/extra/hdri/* /usr/share/blender/datafiles/studiolights/world/
 cp -r "$site"/extra/drape/. "$HOME/.cache/relighting-humans/drape/"
+touch /tmp/rh_drape_mark  # drapes written after this were simulated here
 export PYTHONPATH="$site/site:$PWD" PATH="$site/site/bin:$PATH" PYTHONUNBUFFERED=1
 step() { echo "== $* ($(date -u +%T), load $(cut -d' ' -f1-3 /proc/loadavg))"; }
 # Wall seconds of a command (the image may lack /usr/bin/time), printed after its output.
@@ -48,6 +49,10 @@ cat "$OUT/machine.txt"
     timed timeout 120 rh-generate --protocol demo --out "/tmp/rh_demo/cuda$run" --frames 2 --resolution 64 \
       --preset draft --variant cuda_ad_rgb --no-progress 2>&1 | grep -v -i warp | tail -3
   done
+  # Drapes the carried cache lacked (simulated there, on the CPU): on 5 December the demo's first run compiled and ran
+  # newton's solver although this machine's demo hits the cache. The key hashes the pattern's float64 bytes.
+  step "drapes simulated there (not in the carried cache)"
+  find "$HOME/.cache/relighting-humans/drape" -name '*.npz' -newer /tmp/rh_drape_mark -printf '%f\n' | sort
   step "demo runs 1 and 2, file by file"
   (cd /tmp/rh_demo/cuda1 && find . -type f ! -name '*.log' | sort | xargs sha256sum) > /tmp/rh_demo/s1
   (cd /tmp/rh_demo/cuda2 && find . -type f ! -name '*.log' | sort | xargs sha256sum) > /tmp/rh_demo/s2
