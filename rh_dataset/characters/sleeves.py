@@ -220,17 +220,18 @@ def sleeve_pattern(phenotype: dict[str, float], n_around: int, n_rings: int, cut
         if cut.elbow:
             centre, d, pp, qq, _ = _centreline(heads, side, ts, cut)
             for i, t in enumerate(ts):
-                # Only the arm near the axis: the plane across the upper arm near the elbow also cuts the forearm.
-                hull = _arm_section(pts, centre[i], d[i], pp[i], qq[i], 0.0, cut.band_below or cut.band, ang,
-                                    near=0.12) + cut.gap
-                if i:  # narrowing with the arm by at most `taper`, never closer than `gap`
-                    m = np.maximum(m - cut.taper * (t - ts[i - 1]), hull)
+                if i:  # narrowing with the arm by at most `taper`, never closer than `gap` to it (only the arm near
+                    # the axis: the plane across the upper arm near the elbow also cuts the forearm)
+                    hull = _arm_section(pts, centre[i], d[i], pp[i], qq[i], 0.0, cut.band_below or cut.band, ang,
+                                        near=0.12)
+                    m = np.maximum(m - cut.taper * (t - ts[i - 1]), hull + cut.gap)
                 rings.append(_ring(centre[i], d[i], pp[i], qq[i], 0.0, m, ang))
-        for i, t in enumerate([] if cut.elbow else ts):
-            out = (t - ts[0]) * np.tan(cut.flare)
-            if i:  # the cone as cut where the arm stays inside it, pushed out (and kept out below) where it reaches
-                m = np.maximum(m, _arm_section(pts, o, a, p, q, float(t), cut.band, ang) + cut.gap - out)
-            rings.append(_ring(o, a, p, q, float(t), m + out, ang))
+        else:
+            for i, t in enumerate(ts):
+                out = (t - ts[0]) * np.tan(cut.flare)
+                if i:  # the cone as cut where the arm stays inside it, pushed out (and kept out below) where it reaches
+                    m = np.maximum(m, _arm_section(pts, o, a, p, q, float(t), cut.band, ang) + cut.gap - out)
+                rings.append(_ring(o, a, p, q, float(t), m + out, ang))
         grid = k * n_rings * n_around + np.arange(n_rings * n_around).reshape(n_rings, n_around)
         v = np.concatenate(rings)
         verts.append(v)
