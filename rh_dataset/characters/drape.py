@@ -865,9 +865,11 @@ def collider_faces(phenotype: dict[str, float], kind: str | None = None) -> np.n
     still comes from the collider without them); the sleeves (`SLEEVE_CUTS`): all but the hands (the sleeves hang
     round the arms)."""
     feats = body_features(phenotype)
-    arm = feats.in_groups("hand") if kind in SLEEVE_CUTS else {"draped_hoodie": feats.in_groups("lowerarm", "hand")
-                                                               }.get(kind)
-    if arm is None:
+    if kind in SLEEVE_CUTS:
+        arm = feats.in_groups("hand")
+    elif kind == "draped_hoodie":
+        arm = feats.in_groups("lowerarm", "hand")
+    else:
         arm = feats.in_groups("upperarm", "lowerarm", "hand")
     faces = body_topology().faces
     return faces[~arm[faces].any(axis=1)]

@@ -703,6 +703,8 @@ def build_garments(
             st = drape_settings(g.kind, drape)
             over = draped_over(g.kind, draped)
             draped[g.kind] = early.pop(g.kind, None) or drape_garment(g.kind, phenotype, st, over=over)
+            sleeves_kind = _draped_sleeves(g.kind, kinds)
+            st_sleeves = None if sleeves_kind is None else drape_settings(sleeves_kind, drape)
             if g.kind in SHELL_KINDS_OVER:
                 # Only the coat's shell can be lifted past its own cloth: over a loose top `under` raises it by the
                 # top's cloth, which hangs at the height of the panels' ring. The other shells sit at their TUCK
@@ -711,10 +713,8 @@ def build_garments(
                 cover = ((run_anny(phenotype)["vertices"], draped[g.kind].vertices, draped[g.kind].faces)
                          if shell == "coat" else None)
                 ends = None
-                sleeves_kind = _draped_sleeves(g.kind, kinds)
                 if sleeves_kind is not None:
                     # The shell's sleeves end SHELL_OVERLAP under the draped sleeves' pinned rings, inside the cloth.
-                    st_sleeves = drape_settings(sleeves_kind, drape)
                     ends = {s: t + SHELL_OVERLAP for s, t in sleeve_tops(phenotype, st_sleeves.n_around).items()}
                 out.append(_shell(shell, feats, under, topology, hem=shell_hem(g.kind, phenotype, st), cover=cover,
                                   sleeves=ends))
@@ -732,9 +732,7 @@ def build_garments(
                 cloth = push_out(draped[g.kind].vertices, rest, normals, faces, push_clearance(g.kind))
                 part = dataclasses.replace(part, inside_skin=skin_inside(cloth, draped[g.kind].faces, rest, normals))
             out.append(part)
-            sleeves_kind = _draped_sleeves(g.kind, kinds)
             if sleeves_kind is not None:
-                st_sleeves = drape_settings(sleeves_kind, drape)
                 sleeves = drape_garment(sleeves_kind, phenotype, st_sleeves)
                 out.append(draped_part(sleeves_kind, phenotype, feats, under, st_sleeves, (), sleeves))
         else:
