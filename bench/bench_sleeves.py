@@ -47,7 +47,8 @@ def load() -> str:
 
 
 # The loose top each sleeves' kind belongs to, and the shell under its sleeves' rings.
-TOPS = {"draped_sleeves": ("draped_tshirt", "tee"), "draped_long_sleeves": ("draped_longsleeve", "longtop")}
+TOPS = {"draped_sleeves": ("draped_tshirt", "tee"), "draped_long_sleeves": ("draped_longsleeve", "longtop"),
+        "draped_hoodie_sleeves": ("draped_hoodie", "hoodie")}
 
 
 def wearers(seed: int, kind: str = "draped_sleeves") -> list[int]:

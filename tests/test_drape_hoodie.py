@@ -109,7 +109,7 @@ def test_hoodie_shell_is_the_longsleeve():
     feats = body_features(PHENO)
     np.testing.assert_array_equal(garment_level("hoodie", feats), garment_level("longsleeve", feats))
     assert BASE_OFFSET["hoodie"] == BASE_OFFSET["longsleeve"]
-    assert garment_parts(KIND) == ("hoodie", KIND)
+    assert garment_parts(KIND) == ("hoodie", KIND, "draped_hoodie_sleeves")
 
 
 def test_benchmark_recipes_draw_hoodies_from_their_own_stream(monkeypatch):

@@ -83,3 +83,23 @@ def test_parts_of_a_loose_long_sleeve():
     assert garment_parts("draped_longsleeve") == ("longtop", "draped_longsleeve", KIND)
     for outer in ("draped_jacket", "draped_coat"):
         assert garment_parts("draped_longsleeve", ["draped_longsleeve", outer]) == ("longtop", "draped_longsleeve")
+
+
+def test_hoodie_sleeves_are_the_long_cut_in_the_hoods_fleece():
+    """The hoodie's draped sleeves: the long sleeves' cut and particles, the hood's fabric, a stiffer contact."""
+    import dataclasses
+
+    from rh_dataset.characters.drape import DRAPE_LEVELS, drape_settings
+    from rh_dataset.characters.garments import garment_parts
+    from rh_dataset.characters.sleeves import LONG_SLEEVES, SLEEVE_CUTS
+
+    assert SLEEVE_CUTS["draped_hoodie_sleeves"] == LONG_SLEEVES
+    assert garment_parts("draped_hoodie") == ("hoodie", "draped_hoodie", "draped_hoodie_sleeves")
+    for level in DRAPE_LEVELS:
+        jersey, fleece = drape_settings(KIND, level), drape_settings("draped_hoodie_sleeves", level)
+        hood = drape_settings("draped_hoodie", level)
+        fabric = ("density", "tri_ke", "tri_ka", "edge_ke")
+        assert all(getattr(fleece, k) == getattr(hood, k) != getattr(jersey, k) for k in fabric)
+        assert fleece.contact_ke > jersey.contact_ke
+        same = {f.name for f in dataclasses.fields(jersey)} - set(fabric) - {"contact_ke"}
+        assert all(getattr(fleece, k) == getattr(jersey, k) for k in same)

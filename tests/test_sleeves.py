@@ -75,7 +75,8 @@ def test_sleeves_collide_with_the_arms_and_are_bound_to_them():
     np.testing.assert_array_equal(binding_faces(PHENO, "draped_tshirt"), collider_faces(PHENO))
 
 
-@pytest.mark.parametrize("kind, fall", [(KIND, 0.005), ("draped_long_sleeves", 0.003)])
+@pytest.mark.parametrize("kind, fall", [(KIND, 0.005), ("draped_long_sleeves", 0.003),
+                                        ("draped_hoodie_sleeves", 0.003)])
 def test_coarse_drape_settles_off_the_arm_and_hangs(tmp_path, monkeypatch, kind, fall):
     """newton's coarse drape: no particle in the body (at least half the particle radius off it), the pinned rings
     where they were cut, and the tubes' hems lower than cut by `fall` (the cloth hangs round the arm under its
@@ -91,17 +92,18 @@ def test_coarse_drape_settles_off_the_arm_and_hangs(tmp_path, monkeypatch, kind,
 
 
 @pytest.mark.parametrize("shell, top, kind", [("tee", "draped_tshirt", KIND),
-                                               ("longtop", "draped_longsleeve", "draped_long_sleeves")])
+                                               ("longtop", "draped_longsleeve", "draped_long_sleeves"),
+                                               ("hoodie", "draped_hoodie", "draped_hoodie_sleeves")])
 def test_shell_sleeves_end_under_the_pinned_rings(shell, top, kind):
-    """Worn with the draped sleeves, the shell's ("tee", "longtop") sleeves end SHELL_OVERLAP along the arm past the
-    sleeves' pinned rings (inside the cloth); without them, at the t-shirt's length or down the forearm."""
+    """Worn with the draped sleeves, the shell's ("tee", "longtop", "hoodie") sleeves end SHELL_OVERLAP along the arm
+    past the sleeves' pinned rings (inside the cloth); without them, at the t-shirt's length or down the forearm."""
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.garments import garment_level
 
     feats = body_features(PHENO)
     tops = sleeve_tops(PHENO, drape_settings(kind).n_around)
     ends = {s: t + SHELL_OVERLAP for s, t in tops.items()}
-    hem = shell_hem(top, PHENO)
+    hem = None if shell == "hoodie" else shell_hem(top, PHENO)  # the hoodie's hem is the longsleeve's
     level = garment_level(shell, feats, hem, sleeves=ends)
     plain = garment_level(shell, feats, hem)
     v = feats.rest_vertices
@@ -127,6 +129,7 @@ def test_parts_of_a_loose_tshirt():
         assert garment_parts("draped_tshirt", ["draped_tshirt", outer]) == ("tee", "draped_tshirt")
     assert garment_parts("draped_tshirt", ["draped_tshirt", "draped_skirt"]) == ("tee", "draped_tshirt", KIND)
     assert garment_parts("draped_longsleeve") == ("longtop", "draped_longsleeve", "draped_long_sleeves")
+    assert garment_parts("draped_hoodie") == ("hoodie", "draped_hoodie", "draped_hoodie_sleeves")
 
 
 def loose_top_wearer(cache_dir, top: str, colour):
@@ -163,13 +166,21 @@ def long_wearer(tmp_path_factory):
     return loose_top_wearer(tmp_path_factory.mktemp("drape"), "draped_longsleeve", (0.2, 0.5, 0.7))
 
 
-# (wearer fixture, shell, cloth body, sleeves, the most a shell vertex may lie over the cloth: 3 mm for the short
-# sleeves, 5 mm for the long, whose raised arm's armpit gave 4.1 mm here)
+@pytest.fixture(scope="module")
+def hoodie_wearer(tmp_path_factory):
+    """A character in a hoodie over shell shorts, coarse drapes (its own drape cache)."""
+    return loose_top_wearer(tmp_path_factory.mktemp("drape"), "draped_hoodie", (0.5, 0.5, 0.2))
+
+
+# (wearer fixture, shell, the cloth before the sleeves (the loose tops' body, the hoodie's hood), sleeves, the most a
+# shell vertex may lie over the cloth: 3 mm for the short sleeves, 5 mm for the long, whose raised arm's armpit gave
+# 4.1 mm here)
 WEARERS = [("wearer", "tee", "draped_tshirt", KIND, 0.003),
-           ("long_wearer", "longtop", "draped_longsleeve", "draped_long_sleeves", 0.005)]
+           ("long_wearer", "longtop", "draped_longsleeve", "draped_long_sleeves", 0.005),
+           ("hoodie_wearer", "hoodie", "draped_hoodie", "draped_hoodie_sleeves", 0.005)]
 
 
-@pytest.mark.parametrize("fixture, shell, body_cloth, kind, over", WEARERS, ids=["short", "long"])
+@pytest.mark.parametrize("fixture, shell, body_cloth, kind, over", WEARERS, ids=["short", "long", "hoodie"])
 def test_posed_sleeves_stay_off_the_body_with_the_shell_inside(request, fixture, shell, body_cloth, kind, over):
     """Rest, a raised arm and a bent elbow, skinned and simulated (the sleeves are skinned in both; the same bits):
     the sleeves keep off the skin (push_out: more than 1 mm), and no vertex of the shell's sleeves lies more than

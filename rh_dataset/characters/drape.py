@@ -5,8 +5,8 @@ or straight-leg trousers or loose shorts, an open coat's or an open jacket's pan
 `_hood_pattern`: a bag pinned on the back of the neckline, laid back and let fall down the upper back), a loose
 t-shirt's or long sleeve's body (a tube hanging from under the arms to the hips; its shoulders and sleeves are the
 shell "tee" or "longtop"), the loose t-shirt's short sleeves (`draped_sleeves`: two tubes round the upper arms, cut
-by sleeves.py) and the loose long sleeve's (`draped_long_sleeves`: down to the wrists, bent at the elbows));
-`PROFILES` cuts
+by sleeves.py), the loose long sleeve's (`draped_long_sleeves`: down to the wrists, bent at the elbows) and the
+hoodie's (`draped_hoodie_sleeves`: the same cut in the hood's fleece)); `PROFILES` cuts
 the others from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
 `_trouser_pattern`; the coat's and the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their
 shoulders and sleeves are one shell, garments.py's "coat", whose hem `shell_hem` places, as it places the dress's
@@ -58,7 +58,7 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
                 "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers", "draped_sleeves",
-                "draped_long_sleeves")
+                "draped_long_sleeves", "draped_hoodie_sleeves")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -73,7 +73,8 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 # The loose t-shirt's sleeves (`draped_sleeves`, sleeves.py) lie over the shell "tee"'s sleeves (6 mm) just under
 # their pinned rings: 8 mm, their cut's ring gap; the loose long sleeve's (`draped_long_sleeves`) likewise.
 PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010, "draped_tshirt": 0.010,
-                   "draped_sleeves": 0.008, "draped_long_sleeves": 0.008}
+                   "draped_sleeves": 0.008, "draped_long_sleeves": 0.008,
+                   "draped_hoodie_sleeves": 0.008}
 COAT_CLEARANCE = 0.014
 TSHIRT_CLEARANCE = 0.012
 SLEEVE_CLEARANCE = 0.006
@@ -315,6 +316,15 @@ _SETTINGS[("draped_sleeves", "coarse")] = DrapeSettings(n_around=16, n_rings=5, 
 # (~1.2-1.6 cm apart) over their 33-43 cm from the ring to the hem; coarse, 16 x 10.
 _SETTINGS[("draped_long_sleeves", "full")] = dataclasses.replace(_SETTINGS["draped_sleeves", "full"], n_rings=28)
 _SETTINGS[("draped_long_sleeves", "coarse")] = dataclasses.replace(_SETTINGS["draped_sleeves", "coarse"], n_rings=10)
+# The hoodie's sleeves (`draped_hoodie_sleeves`): the long sleeves' cut, particles and contact in the hood's fleece
+# (half as heavy again, a tenfold stiffer membrane, bending a hundredfold stiffer than the jersey's), and a contact
+# four times the jersey sleeves' (2e5): at their 5e4 the heavier, stiffer tube sank 1-3 mm into the forearm of the
+# test bodies at both levels (tests/test_sleeves.py's coarse drape keeps every particle half its radius off). The
+# particle radius stays the sleeves' (the hood's 14 mm is for lying over the shell's back, not round an arm).
+_FLEECE = {k: _HOOD_FABRIC[k] for k in ("density", "tri_ke", "tri_ka", "edge_ke")}
+for _level in ("full", "coarse"):
+    _SETTINGS[("draped_hoodie_sleeves", _level)] = dataclasses.replace(_SETTINGS["draped_long_sleeves", _level],
+                                                                       contact_ke=2.0e5, **_FLEECE)
 
 
 # The loose long sleeve (`draped_longsleeve`) is the loose t-shirt's body of cloth under the longsleeve's shell:

@@ -14,9 +14,9 @@ towards a garment's open edges so a hem closes onto the skin (no visible gap bet
 collars).
 
 In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first
-(the draped coat, jacket, dress, loose t-shirt and loose long sleeve: two each, a shell over the cloth, "coat",
-"bodice", "tee" or "longtop", then the draped cloth; the draped hoodie: the shell "hoodie", a longsleeve, and its
-draped hood; `garment_parts`).
+(the draped coat, jacket, dress, loose t-shirt and loose long sleeve: a shell over the cloth, "coat", "bodice", "tee"
+or "longtop", then the draped cloth, then the loose tops' draped sleeves; the draped hoodie: the shell "hoodie", a
+longsleeve cut short at the shoulders, its draped hood and its draped sleeves; `garment_parts`).
 """
 from __future__ import annotations
 
@@ -53,7 +53,8 @@ BASE_OFFSET = {
     "jacket": 0.017,
     "coat": 0.017,  # the draped coat's and jacket's shoulders, yoke and sleeves (a jacket's cut down to the chest)
     "bodice": 0.006,  # the draped dress's top: a t-shirt's cut with cap sleeves and a scoop neck, down to the chest
-    "hoodie": 0.006,  # the hoodie's body and sleeves: the longsleeve's shell (its hood is draped: drape.py)
+    "hoodie": 0.006,  # the hoodie's body: the longsleeve's shell, its sleeves cut short under the draped sleeves
+    # (its hood and sleeves are draped: drape.py, sleeves.py)
     "tee": 0.006,  # the loose t-shirt's shoulders, sleeves and chest: the t-shirt's cut down to the chest (its sleeves
     # cut short under the draped sleeves, sleeves.py, where the t-shirt wears them)
     "longtop": 0.006,  # the loose long sleeve's: the longsleeve's cut down to the chest (its sleeves cut short under
@@ -133,9 +134,9 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None,
     labels only pick which function applies to a vertex (an arm takes the sleeve's, never the trunk's), so their
     ragged borders never become an edge. `hem` (bind-space height; the "coat", "bodice", "tee" and "longtop" shells
     only, whose hem is where the draped cloth under them is pinned: `drape.shell_hem`). Shells in CUT_AS take the
-    neckline and sleeves of the kind named there. `sleeves` ({"L": metres, "R": metres}; the "tee" and "longtop" under
-    the loose tops' draped sleeves): each sleeve ends that far along its upper arm's axis (`sleeves.sleeve_axis`, from
-    the upperarm01 joint) instead of at its cut's length."""
+    neckline and sleeves of the kind named there. `sleeves` ({"L": metres, "R": metres}; the "tee", "longtop" and
+    "hoodie" under the draped sleeves): each sleeve ends that far along its upper arm's axis
+    (`sleeves.sleeve_axis`, from the upperarm01 joint) instead of at its cut's length."""
     v = feats.rest_vertices
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     z_neck = _z(feats, "neck01")
@@ -193,11 +194,12 @@ SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe
 # sleeves) and the draped panels below it, the dress a shell (its bodice) and the draped skirt below it, the loose
 # t-shirt and long sleeve a shell ("tee", "longtop": shoulders, sleeves, chest) and a draped body below it
 # (drape.SHELL_KINDS_OVER), the draped hoodie the longsleeve's shell ("hoodie") and its draped hood; all in the
-# garment's fabric. The loose tops' sleeves are draped too ("draped_sleeves", "draped_long_sleeves": sleeves.py), but
+# garment's fabric. The loose tops' and the hoodie's sleeves are draped too ("draped_sleeves", "draped_long_sleeves",
+# "draped_hoodie_sleeves": sleeves.py; nothing is worn over a hoodie, recipe_draws._hoodie), but
 # not under an open jacket or coat (SLEEVES_UNDER_NOT): its shell sleeves lie over the arms at 17 mm, which the cloth
 # would come through.
 GARMENT_PARTS = {**{kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()},
-                 "draped_hoodie": ("hoodie", "draped_hoodie"),
+                 "draped_hoodie": ("hoodie", "draped_hoodie", "draped_hoodie_sleeves"),
                  "draped_tshirt": ("tee", "draped_tshirt", "draped_sleeves"),
                  "draped_longsleeve": ("longtop", "draped_longsleeve", "draped_long_sleeves")}
 SLEEVES_UNDER_NOT = ("draped_jacket", "draped_coat")
@@ -705,6 +707,10 @@ def build_garments(
             draped[g.kind] = early.pop(g.kind, None) or drape_garment(g.kind, phenotype, st, over=over)
             sleeves_kind = _draped_sleeves(g.kind, kinds)
             st_sleeves = None if sleeves_kind is None else drape_settings(sleeves_kind, drape)
+            ends = None
+            if sleeves_kind is not None:
+                # The shell's sleeves end SHELL_OVERLAP under the draped sleeves' pinned rings, inside the cloth.
+                ends = {s: t + SHELL_OVERLAP for s, t in sleeve_tops(phenotype, st_sleeves.n_around).items()}
             if g.kind in SHELL_KINDS_OVER:
                 # Only the coat's shell can be lifted past its own cloth: over a loose top `under` raises it by the
                 # top's cloth, which hangs at the height of the panels' ring. The other shells sit at their TUCK
@@ -712,14 +718,10 @@ def build_garments(
                 shell = SHELL_KINDS_OVER[g.kind]
                 cover = ((run_anny(phenotype)["vertices"], draped[g.kind].vertices, draped[g.kind].faces)
                          if shell == "coat" else None)
-                ends = None
-                if sleeves_kind is not None:
-                    # The shell's sleeves end SHELL_OVERLAP under the draped sleeves' pinned rings, inside the cloth.
-                    ends = {s: t + SHELL_OVERLAP for s, t in sleeve_tops(phenotype, st_sleeves.n_around).items()}
                 out.append(_shell(shell, feats, under, topology, hem=shell_hem(g.kind, phenotype, st), cover=cover,
                                   sleeves=ends))
             elif g.kind == "draped_hoodie":
-                out.append(_shell("hoodie", feats, under, topology))
+                out.append(_shell("hoodie", feats, under, topology, sleeves=ends))
             part = draped_part(g.kind, phenotype, feats, under, st, over, draped[g.kind])
             if g.kind in LIFT_KINDS:
                 # The skin inside the cloth as posing leaves it at rest: pushed out (`push_out`, as pose_character

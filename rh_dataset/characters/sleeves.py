@@ -1,13 +1,14 @@
 """The loose tops' sleeves, cut as two cloth tubes that newton drapes (drape.py's `draped_sleeves`: the loose
-t-shirt's short sleeves; `draped_long_sleeves`: the loose long sleeve's, down to the wrist).
+t-shirt's short sleeves; `draped_long_sleeves`: the loose long sleeve's, down to the wrist; `draped_hoodie_sleeves`:
+the hoodie's, the long cut in the hood's fleece).
 
 In: a phenotype, the sleeves' `DrapeSettings` (drape.py) and their cut (`SleeveCut`: `SLEEVES`, `LONG_SLEEVES`;
 `SLEEVE_CUTS` by kind).
 Out: `sleeve_pattern`, the undraped cloth (two closed tubes around the arms in anny's A-pose, each pinned at its top
 ring), which `drape.drape_garment` simulates and caches like any draped kind; `sleeve_tops`, where each pinned ring
-lies along its upper arm (the same for both cuts), which the shells "tee" and "longtop" (garments.py) are cut to end
-just under (`SHELL_OVERLAP`), as their hems end under the cloth body's ring; `sleeves_render_mesh`, the tubes'
-render mesh with UVs in metres of the cut.
+lies along its upper arm (the same for both cuts), which the shells "tee", "longtop" and "hoodie" (garments.py) are cut
+to end just under (`SHELL_OVERLAP`), as their hems end under the cloth body's ring; `sleeves_render_mesh`, the
+tubes' render mesh with UVs in metres of the cut.
 
 Why cloth: the shell's sleeve follows the arm at 6 mm, where a loose top's sleeve stands off the arm, hangs open
 below it and shades it. The long sleeve's tube bends with the elbow, which anny's A-pose already bends by ~42
@@ -62,7 +63,8 @@ SLEEVES = SleeveCut()
 # straight shoulder-to-wrist distance, which the bent axis's length exceeds by ~6 %), no flare, narrowing by at most
 # 1 mm a centimetre towards the wrist, where the forearm is some 2 cm thinner than the upper arm.
 LONG_SLEEVES = SleeveCut(hem=0.93, flare=0.0, elbow=True, taper=0.1, band_below=0.02)
-SLEEVE_CUTS = {"draped_sleeves": SLEEVES, "draped_long_sleeves": LONG_SLEEVES}
+# The hoodie's sleeves are the long sleeve's cut, draped in the hood's fleece (drape.py).
+SLEEVE_CUTS = {"draped_sleeves": SLEEVES, "draped_long_sleeves": LONG_SLEEVES, "draped_hoodie_sleeves": LONG_SLEEVES}
 
 
 def _unit(x: np.ndarray) -> np.ndarray:
