@@ -318,8 +318,8 @@ _SETTINGS[("draped_long_sleeves", "full")] = dataclasses.replace(_SETTINGS["drap
 _SETTINGS[("draped_long_sleeves", "coarse")] = dataclasses.replace(_SETTINGS["draped_sleeves", "coarse"], n_rings=10)
 # The hoodie's sleeves (`draped_hoodie_sleeves`): the long sleeves' cut, particles and contact in the hood's fleece
 # (half as heavy again, a tenfold stiffer membrane, bending a hundredfold stiffer than the jersey's), and a contact
-# four times the jersey sleeves' (2e5): at their 5e4 the heavier, stiffer tube sank 1-3 mm into the forearm of the
-# test bodies at both levels (tests/test_sleeves.py's coarse drape keeps every particle half its radius off). The
+# four times the jersey sleeves' (2e5): at their 5e4 the heavier, stiffer tube's coarse drape put a particle 2.8 mm
+# into the slim test body's forearm (tests/test_sleeves.py's coarse drape keeps every particle half its radius off). The
 # particle radius stays the sleeves' (the hood's 14 mm is for lying over the shell's back, not round an arm).
 _FLEECE = {k: _HOOD_FABRIC[k] for k in ("density", "tri_ke", "tri_ka", "edge_ke")}
 for _level in ("full", "coarse"):
