@@ -38,7 +38,7 @@ import numpy as np
 from .body import body_topology, run_anny, vertex_normals
 from .drape import (DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, cloth_model, cloth_solver,
                     collider_faces, drape_garment, draped_over, push_clearance, push_out, skin_points)
-from .geometry import edge_counts, query_mesh
+from .geometry import edge_counts, query_mesh, smoothstep
 
 __all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "POSE_FABRIC", "pose_fabric", "ClothPoseSettings", "BodyMotion",
            "body_motion", "simulate_into_pose", "skin_into_pose", "simulated_parts", "self_crossings", "hem_split",
@@ -152,11 +152,6 @@ class BodyMotion:
     collider: np.ndarray
 
 
-def _ease(t: np.ndarray) -> np.ndarray:
-    """Smoothstep: the body starts and stops at rest (zero velocity), so the cloth is not jerked."""
-    return t * t * (3.0 - 2.0 * t)
-
-
 def body_motion(phenotype: Mapping[str, float], bone_deltas: Mapping[str, np.ndarray] | None,
                 keyframes: int = ClothPoseSettings.keyframes) -> BodyMotion:
     """Rest pose -> the frame's pose: at eased time s each bone's delta is the rotation by s times its rotation
@@ -185,7 +180,7 @@ def body_motion(phenotype: Mapping[str, float], bone_deltas: Mapping[str, np.nda
     used, compact = np.unique(faces, return_inverse=True)
     times = np.linspace(0.0, 1.0, int(keyframes))
     poses, collider = [], []
-    for s in _ease(times):
+    for s in smoothstep(times):  # the body starts and stops at rest (zero velocity), so the cloth is not jerked
         D = np.tile(np.eye(4), (len(target), 1, 1))
         D[:, :3, :3] = Rotation.from_rotvec(rotvec * s).as_matrix()
         D[:, :3, 3] = target[:, :3, 3] * s

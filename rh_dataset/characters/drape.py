@@ -43,7 +43,7 @@ from rh_common.imageio import atomic_path
 
 from .body import PHENOTYPE_LABELS, body_topology, run_anny
 from .body_features import body_features
-from .geometry import edge_counts, hull_anchors, metre_uvs, query_mesh, seamed_grid
+from .geometry import edge_counts, hull_anchors, metre_uvs, query_mesh, seamed_grid, smoothstep
 from .sleeves import SLEEVE_CUTS, sleeve_pattern, sleeves_render_mesh
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
@@ -564,7 +564,7 @@ def _hood_pattern(phenotype: dict[str, float], st: DrapeSettings, cut: HoodCut =
     feats = body_features(phenotype)
     gap = st.clearance + 0.002
     t = np.linspace(0.0, 1.0, nr)[:, None]
-    front = cut.front - cut.widen * _smoothstep_np((t - 0.1) / 0.35)  # (nr, 1): each row's ends, off the front
+    front = cut.front - cut.widen * smoothstep((t - 0.1) / 0.35)  # (nr, 1): each row's ends, off the front
     ang = front + np.arange(na)[None, :] / (na - 1) * (2.0 * np.pi - 2.0 * front)  # (nr, na), 0 = -Y towards +X
     # The ring: on the longsleeve's neckline lowered by `drop` (its level set, cut along the body's edges and placed
     # on the A-pose body), where rays from the neck's centre leave its convex hull seen from above, then `gap` out
@@ -587,7 +587,7 @@ def _hood_pattern(phenotype: dict[str, float], st: DrapeSettings, cut: HoodCut =
     ring = closest + gap * normal
     ring_r = np.linalg.norm(ring[:, :2] - centre[:2], axis=1)
     head_r = 1.0 / np.sqrt((np.sin(ang) / cut.width) ** 2 + (np.cos(ang) / cut.depth) ** 2)
-    swell = _smoothstep_np(t / 0.4)
+    swell = smoothstep(t / 0.4)
     crown = np.where(t > 0.4, np.sqrt(np.clip(1.0 - ((t - 0.4) / 0.62) ** 2, 0.0, 1.0)), 1.0)
     rho = ((1.0 - swell) * ring_r[None, :] + swell * head_r) * crown
     # Hood up, about the neckline ring's centre: (across, back, up); row 0 the ring itself.
@@ -596,7 +596,7 @@ def _hood_pattern(phenotype: dict[str, float], st: DrapeSettings, cut: HoodCut =
     x[0], y[0] = ring[:, 0] - centre[0], ring[:, 1] - centre[1]
     # Laid back about the line across the back of the ring (y = y_back, z = 0), row by row.
     y_back = float(y[0].max())
-    g = cut.tilt * _smoothstep_np(t / 0.35)
+    g = cut.tilt * smoothstep(t / 0.35)
     yb = (y - y_back) * np.cos(g) + z * np.sin(g) + y_back
     zb = -(y - y_back) * np.sin(g) + z * np.cos(g)
     up = np.stack([x, y, z], -1)  # the hood-up shape: its UVs
@@ -618,11 +618,6 @@ def _hood_pattern(phenotype: dict[str, float], st: DrapeSettings, cut: HoodCut =
     pinned = np.zeros(len(verts), dtype=bool)
     pinned[:na] = True
     return verts, faces.astype(np.int32), np.clip(uvs, 0.0, 1.0).astype(np.float32), pinned, mpu
-
-
-def _smoothstep_np(x):
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
 
 
 def _crotch_height(mesh, centre: np.ndarray, z_from: float) -> float:
@@ -760,7 +755,7 @@ def _trouser_pattern(phenotype: dict[str, float], st: DrapeSettings, prof: Drape
             # The leg's circle, moved out from the leg's middle as far as keeps it off the midplane; radii from
             # the middle (inside the circle) to it, at the ring's angles.
             off = np.array([side * max(side * c[0], r_leg + MIDPLANE_GAP) - c[0], 0.0])
-            w = float(_smoothstep_scalar((z_split - z) / 0.1))
+            w = float(smoothstep((z_split - z) / 0.1))
             a = (1.0 - w) * phi + w * psi
             dirs = np.c_[np.sin(a), -np.cos(a)]
             proj = dirs @ off
@@ -793,11 +788,6 @@ def _trouser_pattern(phenotype: dict[str, float], st: DrapeSettings, prof: Drape
     pinned = np.zeros(len(verts), dtype=bool)
     pinned[:na] = True
     return verts, faces, np.clip(uvs, 0, 1).astype(np.float32), pinned, mpu, pieces
-
-
-def _smoothstep_scalar(x: float) -> float:
-    x = min(max(float(x), 0.0), 1.0)
-    return x * x * (3.0 - 2.0 * x)
 
 
 def cloth_model(cloths, body_v, body_f, st: DrapeSettings, fabrics=None):
@@ -1174,8 +1164,7 @@ def bind_loose(garment: DrapedGarment, phenotype: dict[str, float], max_bones: i
     dense = _closest_weights(mesh, pts)
     labels = body_topology().bone_labels
     z_hip = 0.5 * sum(float(run["bone_poses"][labels.index(b), 2, 3]) for b in ("upperleg01.L", "upperleg01.R"))
-    x = np.clip((z_hip + LOOSE_FADE - LOOSE_BELOW - pts[:, 2]) / LOOSE_FADE, 0.0, 1.0)
-    rate = x * x * (3.0 - 2.0 * x)  # smoothstep: no kink in the weights where the diffusion starts
+    rate = smoothstep((z_hip + LOOSE_FADE - LOOSE_BELOW - pts[:, 2]) / LOOSE_FADE)  # no kink where diffusion starts
     if garment.kind in LOOSE_EVERYWHERE:
         rate[:] = 1.0
     rate[np.asarray(garment.pinned, bool)] = 0.0

@@ -35,7 +35,7 @@ from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP
                     DrapeSettings, SkinBinding, drape_garment, draped_over, draped_part, drape_settings, push_clearance,
                     push_out, shell_hem, shells_under)
 from .cloth_pose import LIFT_KINDS, skin_inside
-from .geometry import boundary_distance, closed_tube, hull_anchors, split_faces
+from .geometry import boundary_distance, closed_tube, hull_anchors, smoothstep, split_faces
 from .sleeves import SLEEVE_CUTS, sleeve_axis, sleeve_tops
 from .recipe import Garment
 
@@ -116,11 +116,6 @@ class PartGeometry:
     inside_skin: np.ndarray | None = None
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
-
-
 def _z(feats: BodyFeatures, bone: str) -> float:
     return float(feats.bone_heads[bone][2])
 
@@ -149,7 +144,7 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None,
     if kind in ("tshirt", "longsleeve", "jacket", "coat", "bodice"):
         # A scoop at the front centre: the neckline drops in front of the neck, not behind it (smoothsteps, so
         # the collar's curve has no corners).
-        front = _smoothstep(-(y - y_neck) / 0.07) * _smoothstep(1.0 - np.abs(x) / 0.1)
+        front = smoothstep(-(y - y_neck) / 0.07) * smoothstep(1.0 - np.abs(x) / 0.1)
         drop = {"tshirt": 0.04, "longsleeve": 0.03, "jacket": 0.06, "coat": 0.06, "bodice": 0.08}[kind]
         collar = z - (z_neck - 0.012 - drop * front)
         if hem_given and hem is None:
@@ -283,7 +278,7 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     face_ids = np.flatnonzero((level[topo.faces] < 0).any(axis=1))
     split = split_faces(face_ids, topology, level=level)
     dist = boundary_distance(split, feats.rest_vertices)
-    off = BASE_OFFSET[kind] * (TAPER_MIN + (1.0 - TAPER_MIN) * _smoothstep(dist / TAPER_WIDTH))
+    off = BASE_OFFSET[kind] * (TAPER_MIN + (1.0 - TAPER_MIN) * smoothstep(dist / TAPER_WIDTH))
     nearest = np.where(split.cut_t > 0.5, split.cut_vertex, split.body_vertex)  # each vertex's nearer body vertex
     if kind in TUCK:
         # Tucked under the draped cloth: at most TUCK off the skin up to 5 mm above its pinned ring (SHELL_OVERLAP
@@ -291,13 +286,13 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
         # the full offset 2 cm above that. The 5 mm: bind space is the A-pose frame turned by ~1.5 degrees about X as
         # well as raised, so at the back a bind-space height is a few millimetres off the ring's.
         z = split.points(feats.rest_vertices)[:, 2]
-        rise = _smoothstep((z - hem - SHELL_OVERLAP - 0.005) / 0.02)
+        rise = smoothstep((z - hem - SHELL_OVERLAP - 0.005) / 0.02)
         if kind in RING_LIFT:
             # The coat's: at most TUCK at its hem, rising to its own offset at the panels' ring (SHELL_OVERLAP
             # higher), and its trunk lifted to that over the hem's taper up to 5 mm above the ring, fading 2 cm
             # higher; `_under_cover` then holds it LAYER_GAP under the panels at rest. Sleeves (their cuffs hang at
             # the ring's height in the A-pose) keep their taper.
-            cap = TUCK[kind] + (BASE_OFFSET[kind] - TUCK[kind]) * _smoothstep((z - hem) / SHELL_OVERLAP)
+            cap = TUCK[kind] + (BASE_OFFSET[kind] - TUCK[kind]) * smoothstep((z - hem) / SHELL_OVERLAP)
             lifted = feats.in_groups("torso")[nearest]
             off = np.minimum(off, cap)
             off = np.where(lifted, np.maximum(off, cap * (1.0 - rise)), off)
@@ -308,7 +303,7 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     need = np.where(under > 0, under + LAYER_GAP, 0.0)
     need = (1.0 - t) * need[split.body_vertex] + t * need[split.cut_vertex]
     if kind in RING_LIFT:
-        need = need * _smoothstep((z - hem) / UNDER_FADE)
+        need = need * smoothstep((z - hem) / UNDER_FADE)
     off = np.maximum(off, need)
     if cover is not None:
         capped = np.minimum(off, _under_cover(split, off, *cover, topology))
@@ -443,7 +438,7 @@ def _shoe_shape(feats: BodyFeatures, side: str, n_sections: int = 24, n_around: 
     heel_c = ring[0].mean(0) - ax * 0.006
     heel_c[2] = bottom + 0.4 * (ring[0, :, 2].max() - bottom)
     frac = np.linspace(0.0, 1.0, n_sections)
-    pull = _smoothstep((frac - 0.85) / 0.15) * 0.25
+    pull = smoothstep((frac - 0.85) / 0.15) * 0.25
     ring = ring + pull[:, None, None] * (tip_c - ring)
     return ring, heel_c, tip_c, z_floor
 

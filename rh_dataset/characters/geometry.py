@@ -7,7 +7,7 @@ as loops and their roughness (`boundary_loops`, `edge_roughness`), ray distances
 trimesh for closest-point and ray queries whose search tree is built in bulk (`query_mesh`),
 blend weights that make a point follow the posed body (`hull_anchors`, `smoothing_weights`, `bind_points` ->
 `Binding`), compacted meshes (`drop_unreferenced`), the texel -> (face, barycentrics) map of anny's UV layout
-(`uv_raster`) and capped tubes (`closed_tube`).
+(`uv_raster`), capped tubes (`closed_tube`) and the smoothstep every cut and fade blends with (`smoothstep`).
 Body features (bone groups, masks) are `body_features`'s.
 """
 from __future__ import annotations
@@ -27,6 +27,7 @@ from .body import body_topology
 from .body_features import BodyFeatures
 
 __all__ = [
+    "smoothstep",
     "edge_counts",
     "SplitMesh",
     "split_faces",
@@ -72,6 +73,13 @@ class SplitMesh:
 
 
 CUT_T_MIN = 1e-3  # a cut point never sits closer than this fraction of its edge to a vertex (no zero-area faces)
+
+
+def smoothstep(x):
+    """3x^2 - 2x^3 of x clipped to [0, 1] (an array, or a float64 scalar for a scalar): 0 below 0, 1 above 1, with
+    zero slope at both ends, so a blend or fade over it has no corner."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
 
 
 def split_faces(face_ids: np.ndarray, topology: str = ANNY_TOPOLOGY, level: np.ndarray | None = None) -> SplitMesh:

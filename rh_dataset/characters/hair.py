@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body_features import BodyFeatures
-from .geometry import bind_points, surface_clearance
+from .geometry import bind_points, smoothstep, surface_clearance
 from .scalp import Scalp, directions, hang_envelope, sample_envelope, scalp
 
 __all__ = ["StrandStyle", "STRAND_STYLES", "StrandGeometry", "build_hair", "STEP"]
@@ -88,11 +88,6 @@ class StrandGeometry:
         return int(self.rest.shape[0])
 
 
-def _smoothstep(x):
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
-
-
 def _roots(sc: Scalp, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """n root angles (theta, elev) uniform in solid angle above the hairline (rejection from the sphere)."""
     th, el = [], []
@@ -118,7 +113,7 @@ def _comb(style: str, rel: np.ndarray, theta: np.ndarray, side: np.ndarray, targ
         return target - rel
     if style in ("buzz", "short"):
         return np.stack([0.35 * side, np.full(n, 0.7), np.full(n, -0.6)], 1)
-    front = _smoothstep((np.radians(80.0) - np.abs(theta)) / np.radians(35.0))
+    front = smoothstep((np.radians(80.0) - np.abs(theta)) / np.radians(35.0))
     return np.stack([side * (0.3 + 1.3 * front), 0.25 + 0.5 * front, -1.0 + 0.95 * front], 1)
 
 
@@ -217,7 +212,7 @@ def _grow(style: str, st: StrandStyle, sc: Scalp, feats: BodyFeatures, under: np
             d /= np.linalg.norm(d, axis=1, keepdims=True)
             tn, en = _angles(d)
             a_on = arc[on] + STEP
-            h = 0.0015 + lift_top[on] * _smoothstep(a_on / 0.05)
+            h = 0.0015 + lift_top[on] * smoothstep(a_on / 0.05)
             p[on] = (sc.radius_at(tn, en) + h)[:, None] * d
             idx = np.flatnonzero(on)
             if st.hangs:
@@ -242,12 +237,12 @@ def _grow(style: str, st: StrandStyle, sc: Scalp, feats: BodyFeatures, under: np
             aa = np.abs(ab)
             blocked = (aa > _ARM_SECTOR[0]) & (aa < _ARM_SECTOR[1])
             to = np.sign(ab) * np.where(aa < 90.0, _ARM_SECTOR[0], _ARM_SECTOR[1])
-            pull = blocked * _smoothstep((z_sh + 0.1 - (z + c[2])) / 0.1)
+            pull = blocked * smoothstep((z_sh + 0.1 - (z + c[2])) / 0.1)
             az = ab + (to - ab) * pull
             rho = np.maximum(rho_base[hang], sample_envelope(env, zs, az % 360.0, z + c[2]) + 0.6 * lift_top[hang])
             rho_base[hang] = rho
             if st.wave > 0:  # waves: outward only, growing in over 5 cm
-                ramp = _smoothstep((z_start[hang] - z) / 0.05)
+                ramp = smoothstep((z_start[hang] - z) / 0.05)
                 rho_w = rho + st.wave * ramp * 0.5 * (1 + np.sin(2 * np.pi * z / st.wave_period + phase[hang]))
                 az = az + np.degrees(st.wave * ramp * np.cos(2 * np.pi * z / st.wave_period + phase[hang]) / rho)
             else:
@@ -291,7 +286,7 @@ def _resample(lines: list[np.ndarray], k: int) -> np.ndarray:
 
 def _clump_and_frizz(pts: np.ndarray, st: StrandStyle, rng: np.random.Generator, centre: np.ndarray) -> np.ndarray:
     s, k = pts.shape[:2]
-    w = _smoothstep(np.linspace(-0.2, 1.0, k) / 1.0)[None, :, None]  # roots untouched, tips most
+    w = smoothstep(np.linspace(-0.2, 1.0, k) / 1.0)[None, :, None]  # roots untouched, tips most
     if st.clump > 0:
         n_guides = max(s // 25, 1)
         guides = rng.choice(s, n_guides, replace=False)

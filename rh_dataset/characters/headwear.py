@@ -33,7 +33,7 @@ from scipy import ndimage
 
 from .body_features import BodyFeatures
 from .drape import SkinBinding, bind_to_skeleton, push_out
-from .geometry import drop_unreferenced
+from .geometry import drop_unreferenced, smoothstep
 from .recipe import Headwear
 from .scalp import Scalp, directions, hang_envelope, sample_envelope, scalp
 
@@ -71,11 +71,6 @@ class HeadwearGeometry:
     metres_per_uv: float
     skinning: SkinBinding
     cover: HairCover | None
-
-
-def _smoothstep(x):
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
 
 
 def _thetas(n: int = _NT) -> np.ndarray:
@@ -137,7 +132,7 @@ def _cap(feats: BodyFeatures, sc: Scalp):
     t = np.linspace(0.0, 1.0, m, endpoint=False)
     ee = e_b[None, :] + (np.pi / 2 - e_b[None, :]) * t[:, None]
     tt = np.broadcast_to(th[None, :], ee.shape)
-    gap = CAP_GAP + 0.004 * _smoothstep(2.0 * t)[:, None]  # roomier towards the top
+    gap = CAP_GAP + 0.004 * smoothstep(2.0 * t)[:, None]  # roomier towards the top
     r = sc.radius_at(tt, ee) + gap
     crown = sc.centre + r[..., None] * directions(tt, ee)
     # The edge turned under: a row 3 mm inside the crown, 4 mm up.
@@ -281,7 +276,7 @@ def _scarf(feats: BodyFeatures, sc: Scalp, under: np.ndarray):
     # Pull the fabric round the opening onto the skin (a scarf's edge hugs the face and wraps under the chin).
     d_side = np.radians(np.abs(tv) - half) * 0.09
     d_z = np.maximum.reduce([z_chin - verts[:, 2], verts[:, 2] - z_brow, np.zeros(len(verts))])
-    w = _smoothstep(1.0 - np.hypot(d_side, d_z) / 0.035) * (np.abs(tv) < 110.0)
+    w = smoothstep(1.0 - np.hypot(d_side, d_z) / 0.035) * (np.abs(tv) < 110.0)
     near = np.flatnonzero(w > 0)
     from .body import body_topology
 
@@ -369,7 +364,7 @@ def press_hair(points: np.ndarray, covers: list[HairCover], sc: Scalp) -> tuple[
         skull = sc.radius_at(th, el)
         h = np.maximum(r - skull, 0.0)
         pressed = cov.room * (1.0 - np.exp(-h / cov.room))
-        w = _smoothstep((el - band) * skull / 0.025 + 1.0)  # 1 above the band, 0 from 2.5 cm below it
+        w = smoothstep((el - band) * skull / 0.025 + 1.0)  # 1 above the band, 0 from 2.5 cm below it
         new_r = skull + w * pressed + (1.0 - w) * h
         inside = r > skull  # points already under the skull surface are left alone
         flat = np.where(inside[:, None], sc.centre + new_r[:, None] * u, flat)

@@ -23,6 +23,7 @@ import numpy as np
 from scipy import ndimage
 
 from .body_features import BodyFeatures
+from .geometry import smoothstep
 
 __all__ = ["solid_noise", "skin_detail", "knit_ribs", "texel_weights", "FRECKLE_CELL_M", "VEIN_CELL_M",
            "KNIT_PERIOD_M", "DETAIL_FACTOR_RANGE"]
@@ -60,18 +61,13 @@ def texel_weights(vertex_mask: np.ndarray, face: np.ndarray, bary: np.ndarray, f
     return np.einsum("hwk,hwk->hw", m, bary.astype(np.float32))
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
-
-
 def _face_frame(feats: BodyFeatures, pos: np.ndarray):
     """Per-texel offsets from the eyes' midpoint: lateral |dx|, height dz, and whether the texel faces forward."""
     el, er = feats.bone_heads["eye.L"], feats.bone_heads["eye.R"]
     mid = 0.5 * (el + er)
     dx = np.abs(pos[..., 0] - mid[0])
     dz = pos[..., 2] - mid[2]
-    front = _smoothstep((mid[1] + 0.02 - pos[..., 1]) / 0.02)  # in front of the eyes' plane (the face is at -Y)
+    front = smoothstep((mid[1] + 0.02 - pos[..., 1]) / 0.02)  # in front of the eyes' plane (the face is at -Y)
     return dx, dz, front
 
 
@@ -99,7 +95,7 @@ def skin_detail(freckles: float, blush: float, veins: float, feats: BodyFeatures
         spots = np.zeros((h, w), np.float32)
         spots[where] = solid_noise(rng_spots, pos[where], FRECKLE_CELL_M, order=3)
         # Threshold of the cubic-spline noise (std ~0.2): ~4% of texels above 0.36, ~25% above 0.13 (measured).
-        spot = _smoothstep((spots - (0.36 - 0.3 * density)) / 0.06) * _smoothstep(density / 0.2)
+        spot = smoothstep((spots - (0.36 - 0.3 * density)) / 0.06) * smoothstep(density / 0.2)
         f = 1.0 + (spot[..., None] * (_FRECKLE - 1.0))
         f = f * (1.0 + density[..., None] * (_FRECKLE_UNRESOLVED - 1.0))
         factor *= f

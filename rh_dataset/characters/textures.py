@@ -20,7 +20,7 @@ from rh_common.colourspace import srgb_decode
 
 from .body import body_topology
 from .body_features import BodyFeatures, mask_image
-from .geometry import uv_raster
+from .geometry import smoothstep, uv_raster
 from .recipe import Garment, SkinTone, skin_albedo_linear
 from .surface_detail import knit_ribs, skin_detail, texel_weights
 
@@ -266,5 +266,4 @@ def eye_texture(iris_srgb: tuple[float, float, float], theta_iris: float, theta_
 
 
 def _smoothstep_np(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return (x * x * (3.0 - 2.0 * x)).astype(np.float32)
+    return smoothstep(x).astype(np.float32)
