@@ -119,6 +119,38 @@ def test_knit_ribs_have_the_stated_period():
     np.testing.assert_allclose(knit, np.clip(jersey * knit_ribs(coords)[..., None], 0.024, 0.8), atol=1e-6)
 
 
+def _square(res: int, side_m: float) -> np.ndarray:
+    """Texel-centre coordinates (res, res, 2) of a square `side_m` metres across."""
+    a = ((np.arange(res) + 0.5) / res * side_m).astype(np.float32)
+    return np.stack(np.meshgrid(a, a), -1)
+
+
+def test_printed_noise_is_laid_out_in_metres():
+    """The noise print's lattice is in metres: the same value at the same metric point whichever grid samples it,
+    features twice the size at twice the period, and a noise garment's print over the same 60 cm square the same at
+    two texture resolutions (as a part's own UV layout at two metres per UV would give it); colour2 covers `duty`."""
+    from rh_dataset.characters.textures import metric_noise
+
+    fine, coarse = _square(128, 0.6), _square(64, 0.6)
+    points = fine[1::2, 1::2]  # texel centres of a 64-grid shifted by a quarter texel
+    a = metric_noise(np.random.default_rng(3), points, 0.05)
+    b = metric_noise(np.random.default_rng(3), fine, 0.05)[1::2, 1::2]
+    np.testing.assert_array_equal(a, b)
+    line = _square(2048, 2.0)[:64]  # 64 rows, 2 m long
+
+    def crossings_per_metre(cell):
+        n = metric_noise(np.random.default_rng(5), line, cell)
+        return np.mean(np.sum(np.diff(np.sign(n - np.median(n)), axis=1) != 0, axis=1)) / 2.0
+
+    ratio = crossings_per_metre(0.04) / crossings_per_metre(0.08)
+    assert 1.6 < ratio < 2.5, ratio
+    g = Garment("tshirt", (0.05, 0.05, 0.05), (0.7, 0.7, 0.7), pattern="noise", period_m=0.08, duty=0.4)
+    hi = garment_texture(g, np.random.default_rng(1), 128, fine)[..., 0] > 0.2
+    lo = garment_texture(g, np.random.default_rng(1), 64, coarse)[..., 0] > 0.2
+    assert abs(hi.mean() - 0.4) < 0.05 and abs(lo.mean() - 0.4) < 0.05
+    assert (hi[::2, ::2] == lo).mean() > 0.9, (hi[::2, ::2] == lo).mean()
+
+
 # -----------------------------------------------------------------------------------------------------------------
 # Sheen: what the albedo ground truth is
 # -----------------------------------------------------------------------------------------------------------------

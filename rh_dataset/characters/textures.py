@@ -26,6 +26,7 @@ from .surface_detail import knit_ribs, skin_detail, texel_weights
 
 __all__ = [
     "value_noise",
+    "metric_noise",
     "texel_positions",
     "skin_texture",
     "brow_band",
@@ -50,6 +51,24 @@ def value_noise(rng: np.random.Generator, shape: tuple[int, int], cells: float |
     grid = rng.uniform(-1.0, 1.0, (gh, gw)).astype(np.float32)
     out = np.asarray(Image.fromarray(grid, mode="F").resize((w, h), Image.BICUBIC), dtype=np.float32)
     return out
+
+
+def metric_noise(rng: np.random.Generator, coords_m: np.ndarray, cell_m: float, table: int = 256) -> np.ndarray:
+    """Smooth value noise in about [-1, 1] over metric surface coordinates: random values on a square lattice of
+    `cell_m` metres (a `table` x `table` table, wrapped: 256 cells of the finest print's 1.1 cm are 2.9 m, more than
+    any garment spans), blended between the four lattice points round each texel by a smoothstep. So a print's
+    features are the same size in metres on every part, whatever its UV layout and texture resolution.
+    coords_m (H, W, 2) metres -> (H, W) float32."""
+    grid = rng.uniform(-1.0, 1.0, (table, table)).astype(np.float32)
+    x = np.asarray(coords_m[..., 0], np.float64) / cell_m
+    y = np.asarray(coords_m[..., 1], np.float64) / cell_m
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = smoothstep(x - x0), smoothstep(y - y0)
+    i0, j0 = x0.astype(np.int64) % table, y0.astype(np.int64) % table
+    i1, j1 = (i0 + 1) % table, (j0 + 1) % table
+    low = grid[j0, i0] * (1.0 - fx) + grid[j0, i1] * fx
+    high = grid[j1, i0] * (1.0 - fx) + grid[j1, i1] * fx
+    return (low * (1.0 - fy) + high * fy).astype(np.float32)
 
 
 def texel_positions(feats: BodyFeatures, resolution: int, topology: str = ANNY_TOPOLOGY) -> np.ndarray:
@@ -166,7 +185,7 @@ def garment_texture(
     """Albedo of a garment. `coords_m` (H, W, 2) float32 gives, per texel, metric surface coordinates
     (across, up): for body-layout garments the rest-pose x-ish arc and height z; for generated parts the UV times
     the part's metres per UV. Patterns: solid, stripes (around the body, or vertical), checks (gingham-like, the
-    crossing of two stripe sets), printed noise (two-colour blobs)."""
+    crossing of two stripe sets), printed noise (two-colour blobs about `period_m` across)."""
     res = int(resolution)
     c1 = _fabric_colour(garment.colour)
     c2 = _fabric_colour(garment.colour2)
@@ -182,7 +201,10 @@ def garment_texture(
         sz = ((z / p) % 1.0 < garment.duty).astype(np.float32)
         t = 0.5 * (sa + sz)  # crossing = full colour2, single band = half (woven gingham look)
     elif garment.pattern == "noise":
-        n = value_noise(rng, (res, res), max(4.0, res / 64.0)) + 0.5 * value_noise(rng, (res, res), res / 24.0)
+        # Blobs a period across with finer ones on their edges, in metres (`metric_noise`): drawn in texels, they
+        # came out at each part's own scale (the hoodie's draped sleeves' print finer than its shell's) and
+        # changed with the texture's resolution.
+        n = metric_noise(rng, coords_m, p) + 0.5 * metric_noise(rng, coords_m, p / 2.67)
         t = (n > np.quantile(n, 1.0 - garment.duty)).astype(np.float32)
     else:  # pragma: no cover - Garment validates the pattern
         raise ValueError(garment.pattern)
