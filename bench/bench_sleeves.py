@@ -1,28 +1,32 @@
-"""The loose tops' draped sleeves (`draped_sleeves`, `draped_long_sleeves`: rh_dataset/characters/sleeves.py) on the
-generator's own subjects: what they cost, and whether they stay clear of the arm, of themselves and of the shell
-sleeve under them.
+"""The draped sleeves (`draped_sleeves`, `draped_long_sleeves`, `draped_hoodie_sleeves`, `draped_coat_sleeves`:
+rh_dataset/characters/sleeves.py) on the generator's own subjects: what they cost, and whether they stay clear of the
+arm, of themselves and of the shell sleeve under them.
 
     python bench/bench_sleeves.py                          # seed 0's loose t-shirt wearers, rest + 2 test poses
     python bench/bench_sleeves.py --kind draped_long_sleeves   # the loose long sleeve's wearers
+    python bench/bench_sleeves.py --kind draped_hoodie_sleeves # the hoodie's
+    python bench/bench_sleeves.py --kind draped_coat_sleeves   # the open coat's (over a top's shell sleeves)
     python bench/bench_sleeves.py --subjects 3 --poses 1 --figure after.png --before before.png
 
 In: the sleeves' kind (--kind), the dataset seed, the subjects (default: every benchmark subject of protocols a and b
-at that seed wearing the loose top of that kind (the loose t-shirt, the loose long sleeve) with no open jacket or coat
-over it; built as rh-generate builds them, full drapes, the user's drape cache), how many test poses
-(`AnnySubjects.pose`, the test split's first --poses frames) besides the rest pose.
+at that seed wearing the garment of that kind (the loose t-shirt, the loose long sleeve, the hoodie, the open coat)
+with no open jacket or coat over it; built as rh-generate builds them, full drapes, the user's drape cache), how many
+test poses (`AnnySubjects.pose`, the test split's first --poses frames) besides the rest pose.
 Out, printed per subject: the sleeves' drape seconds (simulated afresh, the cache not read), their pinned rings'
 places along the upper arms (cm from the shoulder joint) and their hems'; then per pose (skinned, the `draft` and
 `standard` presets' cloth mode, and simulated: the sleeves are skinned in both):
   depth     the sleeves' deepest vertex under the skin (mm, > 0 inside; `drape.penetration`);
   cross     the sleeves' self-crossing edges (`cloth_pose.self_crossings`);
-  shell out the shell's ("tee", "longtop") sleeve vertices (on the upper arm or forearm) within 2 cm of the sleeves
-            lying over them (`cloth_pose.layer_depth` < 0),
+  shell out the shell's ("tee", "longtop", "hoodie", "coat") sleeve vertices (on the upper arm or forearm) within 2 cm
+            of the sleeves lying over them (`cloth_pose.layer_depth` < 0),
             the worst (mm) and how many a camera sees (8 horizontal views, `bench_cloth_pose.seen_around`): the shell's
             sleeve ends under the cloth's pinned ring and must stay inside the cloth;
   slot      the pinned rings' height over the shell under them (median and largest, mm): a wide slot shows as a dark
             line round the top of the sleeve;
   pose s    `pose_character`'s seconds (median of 3; skinned: beside it, the same character without the sleeves'
-            part, posed in turn).
+            part, posed in turn);
+  under out the shells of other garments (the top's sleeve under the open coat's) on the upper arm or forearm lying
+            over the sleeves (`layer_depth` < 0): how many vertices, the worst (mm) and how many a camera sees.
 --figure PATH: the first subject at rest and in its first test pose, front and from its left, shoulders at 2x
 (render_preview: 32 spp, Open Image Denoise, a look, not a dataset frame), one row; --before PNG: a row this script
 wrote in another checkout (there, shell sleeves), put above it. To run the rules of another commit, copy this script
@@ -48,17 +52,19 @@ def load() -> str:
 
 # The loose top each sleeves' kind belongs to, and the shell under its sleeves' rings.
 TOPS = {"draped_sleeves": ("draped_tshirt", "tee"), "draped_long_sleeves": ("draped_longsleeve", "longtop"),
-        "draped_hoodie_sleeves": ("draped_hoodie", "hoodie")}
+        "draped_hoodie_sleeves": ("draped_hoodie", "hoodie"), "draped_coat_sleeves": ("draped_coat", "coat")}
+OUTERWEAR = {"draped_jacket", "draped_coat"}
 
 
 def wearers(seed: int, kind: str = "draped_sleeves") -> list[int]:
-    """Seed `seed`'s benchmark subjects in the loose top whose sleeves are `kind`, with no open jacket or coat over it
+    """Seed `seed`'s benchmark subjects in the garment whose sleeves are `kind`, with no open jacket or coat over it
     (recipes only)."""
     from subject_diversity import benchmark_recipes
 
     return [s for s, r in enumerate(benchmark_recipes("protocol_a", seed))
             if TOPS[kind][0] in (kinds := [g.kind for g in r.garments])
-            and not {"draped_jacket", "draped_coat"} & set(kinds)]
+            and not (OUTERWEAR - {TOPS[kind][0]}) & set(kinds)
+            and (TOPS[kind][0] in OUTERWEAR or not OUTERWEAR & set(kinds))]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -84,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
     except ImportError:  # a checkout before the draped sleeves: only the figure and the timing
         drape_garment = None
     print(f"{'subject':>7s} {'pose':>12s} {'mode':>9s}   depth mm  cross   shell out: n  worst mm  seen   "
-          f"slot mm: median  max   pose s | without")
+          f"slot mm: median  max   pose s | without   under out: n  worst mm  seen")
     t0 = time.perf_counter()
     for s in subjects:
         subject = source.subject(s)
@@ -95,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
             t = time.perf_counter()
             drape_garment(kind, ch.phenotype, st, use_cache=False)
             secs = time.perf_counter() - t
-            tops = sleeve_tops(ch.phenotype, st.n_around)
+            tops = sleeve_tops(ch.phenotype, st.n_around, SLEEVE_CUTS[kind])
             # Each tube's length, ring centre to ring centre, from the pinned ring to the hem, plus the ring's place.
             v, _, _, _, _, pieces = sleeve_pattern(ch.phenotype, st.n_around, st.n_rings, SLEEVE_CUTS[kind])
             reach = {side: tops[side] + float(np.linalg.norm(np.diff(v[g].mean(1), axis=0), axis=1).sum())
@@ -107,8 +113,12 @@ def main(argv: list[str] | None = None) -> int:
         # The same character without its sleeves' part (the shell's sleeves as cut for them), timed beside it.
         without = (dataclasses.replace(ch, parts=[p for p in ch.parts if p.name != kind])
                    if kind in names else None)
-        on_arm = group_mask(ANNY_TOPOLOGY, "upperarm", "lowerarm")[ch.part(shell_name).body_vertex] \
-            if shell_name in names else None
+        arm_mask = group_mask(ANNY_TOPOLOGY, "upperarm", "lowerarm")
+        on_arm = arm_mask[ch.part(shell_name).body_vertex] if shell_name in names else None
+        # Shells of other garments on the arm (the top's sleeve under the coat's sleeves): they must stay inside.
+        inner = {p.name: arm_mask[p.body_vertex] for p in ch.parts
+                 if p.name not in (kind, shell_name, "body") and p.body_faces is not None
+                 and arm_mask[p.body_vertex].any()}
         for label, bones, root in rest_and_test_poses(source, subject, test, args.poses):
             for mode in ("skinned", "simulated"):
                 posed, secs, bare = None, [], []
@@ -138,9 +148,18 @@ def main(argv: list[str] | None = None) -> int:
                 h = -layer_depth(v[ring], tv, tee.faces, near=0.03)
                 h = h[np.isfinite(h)]
                 slot = (1e3 * float(np.median(h)), 1e3 * float(h.max())) if len(h) else (np.nan, np.nan)
+                n_in, worst_in, seen_in = 0, 0.0, 0
+                for name, mask in inner.items():
+                    iv = np.asarray(by[name].vertices, np.float64)
+                    di = np.where(mask, layer_depth(iv, v, sl.faces), np.nan)
+                    o = np.flatnonzero(np.nan_to_num(di, nan=1.0) < 0)
+                    n_in += len(o)
+                    worst_in = max(worst_in, -1e3 * float(di[o].min()) if len(o) else 0.0)
+                    seen_in += int(seen_around(iv[o], np.asarray(by[name].normals, np.float64)[o],
+                                               list(by.values())).sum())
                 print(f"{s:7d} {label:>12s} {mode:>9s}   {depth:8.2f} {cross:6d}   {len(out):12d} {worst:9.2f} "
                       f"{seen:5d}   {slot[0]:14.1f} {slot[1]:5.1f}   {np.median(secs):6.2f} | {plain}   "
-                      f"(load {load()})",
+                      f"{n_in:10d} {worst_in:9.2f} {seen_in:5d}   (load {load()})",
                       flush=True)
     print(f"{len(subjects)} subjects, {time.perf_counter() - t0:.0f} s (load {load()})")
     if args.figure is not None:

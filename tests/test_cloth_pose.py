@@ -262,7 +262,7 @@ def test_simulated_mode_simulates_every_kind_each_in_its_pose_fabric(monkeypatch
     from rh_dataset.characters.drape import DRAPED_KINDS, drape_settings
 
     # The draped sleeves are skinned in every mode (cloth_pose.py).
-    sleeves = {"draped_sleeves", "draped_long_sleeves", "draped_hoodie_sleeves"}
+    sleeves = {"draped_sleeves", "draped_long_sleeves", "draped_hoodie_sleeves", "draped_coat_sleeves"}
     assert set(DRAPED_KINDS) - set(SIMULATED_KINDS) == sleeves
     assert set(POSE_FABRIC) == {"draped_trousers", "draped_shorts", "draped_straight_trousers"}
     parts = [types.SimpleNamespace(name=n) for n in ("body", "shoes", "trousers", "tshirt")]

@@ -17,7 +17,7 @@ from rh_dataset.characters.drape import (DRAPE_LEVELS, SHELL_OVERLAP, binding_fa
                                          drape_settings, garment_pattern, penetration, push_clearance,
                                          shell_hem)
 from rh_dataset.characters.geometry import edge_counts
-from rh_dataset.characters.sleeves import SIDES, SLEEVES, sleeve_axis, sleeve_pattern, sleeve_tops
+from rh_dataset.characters.sleeves import SIDES, SLEEVE_CUTS, SLEEVES, sleeve_axis, sleeve_pattern, sleeve_tops
 from test_drape_coat import HEAVY, PHENO, _heads
 
 KIND = "draped_sleeves"
@@ -76,7 +76,7 @@ def test_sleeves_collide_with_the_arms_and_are_bound_to_them():
 
 
 @pytest.mark.parametrize("kind, fall", [(KIND, 0.005), ("draped_long_sleeves", 0.003),
-                                        ("draped_hoodie_sleeves", 0.003)])
+                                        ("draped_hoodie_sleeves", 0.003), ("draped_coat_sleeves", 0.003)])
 def test_coarse_drape_settles_off_the_arm_and_hangs(tmp_path, monkeypatch, kind, fall):
     """newton's coarse drape: no particle in the body (at least half the particle radius off it), the pinned rings
     where they were cut, and the tubes' hems lower than cut by `fall` (the cloth hangs round the arm under its
@@ -93,15 +93,17 @@ def test_coarse_drape_settles_off_the_arm_and_hangs(tmp_path, monkeypatch, kind,
 
 @pytest.mark.parametrize("shell, top, kind", [("tee", "draped_tshirt", KIND),
                                                ("longtop", "draped_longsleeve", "draped_long_sleeves"),
-                                               ("hoodie", "draped_hoodie", "draped_hoodie_sleeves")])
+                                               ("hoodie", "draped_hoodie", "draped_hoodie_sleeves"),
+                                               ("coat", "draped_coat", "draped_coat_sleeves")])
 def test_shell_sleeves_end_under_the_pinned_rings(shell, top, kind):
-    """Worn with the draped sleeves, the shell's ("tee", "longtop", "hoodie") sleeves end SHELL_OVERLAP along the arm
-    past the sleeves' pinned rings (inside the cloth); without them, at the t-shirt's length or down the forearm."""
+    """Worn with the draped sleeves, the shell's ("tee", "longtop", "hoodie", "coat") sleeves end SHELL_OVERLAP along
+    the arm past the sleeves' pinned rings (the coat's cut's own, farther down the arm; inside the cloth); without
+    them, at the t-shirt's length or down the forearm."""
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.garments import garment_level
 
     feats = body_features(PHENO)
-    tops = sleeve_tops(PHENO, drape_settings(kind).n_around)
+    tops = sleeve_tops(PHENO, drape_settings(kind).n_around, SLEEVE_CUTS[kind])
     ends = {s: t + SHELL_OVERLAP for s, t in tops.items()}
     hem = None if shell == "hoodie" else shell_hem(top, PHENO)  # the hoodie's hem is the longsleeve's
     level = garment_level(shell, feats, hem, sleeves=ends)
@@ -130,11 +132,15 @@ def test_parts_of_a_loose_tshirt():
     assert garment_parts("draped_tshirt", ["draped_tshirt", "draped_skirt"]) == ("tee", "draped_tshirt", KIND)
     assert garment_parts("draped_longsleeve") == ("longtop", "draped_longsleeve", "draped_long_sleeves")
     assert garment_parts("draped_hoodie") == ("hoodie", "draped_hoodie", "draped_hoodie_sleeves")
+    coat = ("coat", "draped_coat", "draped_coat_sleeves")  # the coat keeps its own sleeves, a top under it does not
+    assert garment_parts("draped_coat") == garment_parts("draped_coat", ["draped_tshirt", "draped_coat"]) == coat
+    assert garment_parts("draped_jacket", ["draped_jacket"]) == ("coat", "draped_jacket")
 
 
-def loose_top_wearer(cache_dir, top: str, colour):
-    """A character in a loose top of kind `top` (striped) over shell shorts, coarse drapes, draped into `cache_dir`
-    (the drape cache is pointed there for the build and put back after)."""
+def loose_top_wearer(cache_dir, top: str, colour, under: str | None = None):
+    """A character in a loose top of kind `top` (striped) over shell shorts (and a plain top of kind `under` under
+    it, if given), coarse drapes, draped into `cache_dir` (the drape cache is pointed there for the build and put
+    back after)."""
     import os
 
     from rh_dataset.characters import Garment, HairSpec, build_character, recipe_from_seed
@@ -143,7 +149,8 @@ def loose_top_wearer(cache_dir, top: str, colour):
     os.environ["RH_DRAPE_CACHE"] = str(cache_dir)
     try:
         garments = (Garment("shoes", (0.2, 0.2, 0.2)), Garment("shorts", (0.1, 0.1, 0.3)),
-                    Garment(top, colour, (0.9, 0.9, 0.8), "stripes", 0.03))
+                     *([Garment(under, (0.2, 0.5, 0.5))] if under else []),
+                     Garment(top, colour, (0.9, 0.9, 0.8), "stripes", 0.03))
         recipe = dataclasses.replace(recipe_from_seed(12, "benchmark", 0), garments=garments,
                                      hair=HairSpec("short", (0.3, 0.2, 0.1)))
         return build_character(recipe, 64, drape="coarse")
@@ -172,19 +179,29 @@ def hoodie_wearer(tmp_path_factory):
     return loose_top_wearer(tmp_path_factory.mktemp("drape"), "draped_hoodie", (0.5, 0.5, 0.2))
 
 
-# (wearer fixture, shell, the cloth before the sleeves (the loose tops' body, the hoodie's hood), sleeves, the most a
-# shell vertex may lie over the cloth: 3 mm for the short sleeves, 5 mm for the long, whose raised arm's armpit gave
-# 4.1 mm here)
-WEARERS = [("wearer", "tee", "draped_tshirt", KIND, 0.003),
-           ("long_wearer", "longtop", "draped_longsleeve", "draped_long_sleeves", 0.005),
-           ("hoodie_wearer", "hoodie", "draped_hoodie", "draped_hoodie_sleeves", 0.005)]
+@pytest.fixture(scope="module")
+def coat_wearer(tmp_path_factory):
+    """A character in an open coat over a shell long sleeve and shell shorts, coarse drapes (its own cache)."""
+    return loose_top_wearer(tmp_path_factory.mktemp("drape"), "draped_coat", (0.6, 0.3, 0.4), under="longsleeve")
 
 
-@pytest.mark.parametrize("fixture, shell, body_cloth, kind, over", WEARERS, ids=["short", "long", "hoodie"])
-def test_posed_sleeves_stay_off_the_body_with_the_shell_inside(request, fixture, shell, body_cloth, kind, over):
-    """Rest, a raised arm and a bent elbow, skinned and simulated (the sleeves are skinned in both; the same bits):
-    the sleeves keep off the skin (push_out: more than 1 mm), and no vertex of the shell's sleeves lies more than
-    `over` over the cloth."""
+# (wearer fixture, shell, the cloth before the sleeves (the loose tops' body, the hoodie's hood, the coat's panels),
+# sleeves, the most a shell vertex may lie over the cloth: 3 mm for the short sleeves, 5 mm for the long, whose raised
+# arm's armpit gave 4.1 mm here; the top under the sleeves, if any)
+WEARERS = [("wearer", "tee", "draped_tshirt", KIND, 0.003, None),
+           ("long_wearer", "longtop", "draped_longsleeve", "draped_long_sleeves", 0.005, None),
+           ("hoodie_wearer", "hoodie", "draped_hoodie", "draped_hoodie_sleeves", 0.005, None),
+           ("coat_wearer", "coat", "draped_coat", "draped_coat_sleeves", 0.005, "longsleeve")]
+UNDER_OVER_M = 0.005  # the most the top's sleeve under the coat's may lie over them (the skin wins in a crease)
+
+
+@pytest.mark.parametrize("fixture, shell, body_cloth, kind, over, under", WEARERS,
+                         ids=["short", "long", "hoodie", "coat"])
+def test_posed_sleeves_stay_off_the_body_with_the_shell_inside(request, fixture, shell, body_cloth, kind, over, under):
+    """Rest, a raised arm and a bent elbow, skinned and simulated (the sleeves are skinned in both; the same bits;
+    the coat's only skinned, its panels' simulation is slow): the sleeves keep off the skin (push_out: more than
+    1 mm), no vertex of the shell's sleeves lies more than `over` over the cloth, and none of the sleeves of the top
+    under them (the coat's) more than UNDER_OVER_M."""
     from rh_common.body_model import ANNY_TOPOLOGY
     from rh_dataset.characters import pose_character
     from rh_dataset.characters.body_features import group_mask
@@ -200,10 +217,15 @@ def test_posed_sleeves_stay_off_the_body_with_the_shell_inside(request, fixture,
     on_arm = group_mask(ANNY_TOPOLOGY, "upperarm", "lowerarm")[who.part(shell).body_vertex]
     for bones in (None, {"upperarm01.L": raise_arm}, {"lowerarm01.R": bend}):
         posed = {m.name: m for m in pose_character(who, bones) if hasattr(m, "faces")}
-        sim = {m.name: m for m in pose_character(who, bones, cloth="simulated") if hasattr(m, "faces")}
-        np.testing.assert_array_equal(posed[kind].vertices, sim[kind].vertices)
+        if under is None:
+            sim = {m.name: m for m in pose_character(who, bones, cloth="simulated") if hasattr(m, "faces")}
+            np.testing.assert_array_equal(posed[kind].vertices, sim[kind].vertices)
         sl, top, body = posed[kind], posed[shell], posed["body"]
         v = np.asarray(sl.vertices, np.float64)
         assert penetration(np.asarray(body.vertices, np.float64), body.faces, v).max() < -0.001
         d = layer_depth(np.asarray(top.vertices, np.float64)[on_arm], v, sl.faces)
         assert np.nan_to_num(d, nan=0.0).min() > -over
+        if under is not None:
+            in_arm = group_mask(ANNY_TOPOLOGY, "upperarm", "lowerarm")[who.part(under).body_vertex]
+            d = layer_depth(np.asarray(posed[under].vertices, np.float64)[in_arm], v, sl.faces)
+            assert np.nan_to_num(d, nan=0.0).min() > -UNDER_OVER_M, (bones, np.nanmin(d))

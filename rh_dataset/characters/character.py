@@ -653,6 +653,42 @@ def _shell_under_panels(character: Character, posed: list, cloth_under: dict, ve
         v[trunk] = w
         v[moved] = push_out(v[moved], verts, normals, faces)
         posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32))
+    sleeves = cloth_under.get("draped_coat_sleeves")
+    if sleeves is not None:
+        _top_under_coat_sleeves(character, posed, sleeves, verts, normals, faces)
+
+
+# The shells whose sleeves lie under the open coat's draped sleeves: the coat's own (its sleeves cut short, ending
+# inside the cloth's pinned rings) and a top's worn under it (the loose tops' shells keep their sleeves there:
+# garments.SLEEVES_UNDER_NOT).
+TOPS_UNDER_COAT_SLEEVES = ("coat",) + SHELL_TOPS + ("tee", "longtop")
+
+
+def _top_under_coat_sleeves(character: Character, posed: list, sleeves, verts, normals, faces) -> None:
+    """In place: the shell sleeves under the open coat's draped sleeves (`TOPS_UNDER_COAT_SLEEVES`: the coat's own
+    and the top's under it; their vertices on the arms, `drape.SLEEVE_GROUPS`) put back LAYER_GAP under them
+    (`sleeves`: their posed (vertices, faces)) where they came out through them, then out of the skin where that took
+    them in (the skin wins). The draped sleeves are skinned to the arm's bones alone and the shells are anchored to
+    the skin: at a bent elbow the skin's crease carried the top's sleeve up to 19 mm out through the cloth
+    (bench/bench_sleeves.py --kind draped_coat_sleeves), and with a raised arm the coat's 17 mm shell came 12.6 mm
+    out by the armpit (tests/test_sleeves.py)."""
+    for at, m in enumerate(posed):
+        if m.name not in TOPS_UNDER_COAT_SLEEVES:
+            continue
+        part = character.part(m.name)
+        nearer = (part.body_vertex if part.blend_vertices is None else
+                  part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)])
+        arm = np.flatnonzero(group_mask(ANNY_TOPOLOGY, *SLEEVE_GROUPS)[nearer])
+        if not len(arm):
+            continue
+        v = m.vertices.astype(np.float64)
+        w, moved = push_under(v[arm], *sleeves, LAYER_GAP)
+        if not len(moved):
+            continue
+        moved = arm[moved]
+        v[arm] = w
+        v[moved] = push_out(v[moved], verts, normals, faces)
+        posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32))
 
 
 def _bottoms_under_shell_top(posed: list, cloth_under: dict, verts, normals, faces) -> None:

@@ -58,7 +58,7 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
                 "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers", "draped_sleeves",
-                "draped_long_sleeves", "draped_hoodie_sleeves")
+                "draped_long_sleeves", "draped_hoodie_sleeves", "draped_coat_sleeves")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -74,7 +74,7 @@ PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin 
 # their pinned rings: 8 mm, their cut's ring gap; the loose long sleeve's (`draped_long_sleeves`) likewise.
 PUSH_CLEARANCES = {"draped_coat": 0.012, "draped_jacket": 0.012, "draped_hoodie": 0.010, "draped_tshirt": 0.010,
                    "draped_sleeves": 0.008, "draped_long_sleeves": 0.008,
-                   "draped_hoodie_sleeves": 0.008}
+                   "draped_hoodie_sleeves": 0.008, "draped_coat_sleeves": 0.012}
 COAT_CLEARANCE = 0.014
 TSHIRT_CLEARANCE = 0.012
 SLEEVE_CLEARANCE = 0.006
@@ -325,6 +325,12 @@ _FLEECE = {k: _HOOD_FABRIC[k] for k in ("density", "tri_ke", "tri_ka", "edge_ke"
 for _level in ("full", "coarse"):
     _SETTINGS[("draped_hoodie_sleeves", _level)] = dataclasses.replace(_SETTINGS["draped_long_sleeves", _level],
                                                                        contact_ke=2.0e5, **_FLEECE)
+# The open coat's sleeves (`draped_coat_sleeves`): the long sleeves' particles and fabric (the coat's panels are
+# simulated in the same default fabric), the coat's particle radius, so the drape keeps them over the top's shell
+# sleeve (6 mm off the arm) as the panels keep over the clothes under them; pushed out to the coat's 12 mm posed.
+for _level in ("full", "coarse"):
+    _SETTINGS[("draped_coat_sleeves", _level)] = dataclasses.replace(_SETTINGS["draped_long_sleeves", _level],
+                                                                     clearance=COAT_CLEARANCE)
 
 
 # The loose long sleeve (`draped_longsleeve`) is the loose t-shirt's body of cloth under the longsleeve's shell:

@@ -189,12 +189,14 @@ SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe
 # sleeves) and the draped panels below it, the dress a shell (its bodice) and the draped skirt below it, the loose
 # t-shirt and long sleeve a shell ("tee", "longtop": shoulders, sleeves, chest) and a draped body below it
 # (drape.SHELL_KINDS_OVER), the draped hoodie the longsleeve's shell ("hoodie") and its draped hood; all in the
-# garment's fabric. The loose tops' and the hoodie's sleeves are draped too ("draped_sleeves", "draped_long_sleeves",
-# "draped_hoodie_sleeves": sleeves.py; nothing is worn over a hoodie, recipe_draws._hoodie), but
-# not under an open jacket or coat (SLEEVES_UNDER_NOT): its shell sleeves lie over the arms at 17 mm, which the cloth
-# would come through.
+# garment's fabric. The loose tops', the hoodie's and the open coat's sleeves are draped too ("draped_sleeves",
+# "draped_long_sleeves", "draped_hoodie_sleeves", "draped_coat_sleeves": sleeves.py; nothing is worn over a hoodie,
+# recipe_draws._hoodie), but a top's not under an open jacket or coat (SLEEVES_UNDER_NOT): the jacket's shell sleeves
+# lie over the arms at 17 mm, which the cloth would come through, and the coat's draped sleeves are draped over the
+# arm alone (a top's shell sleeve under them is 6 mm thin, a draped one would stand 8-20 mm off the arm).
 GARMENT_PARTS = {**{kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()},
                  "draped_hoodie": ("hoodie", "draped_hoodie", "draped_hoodie_sleeves"),
+                 "draped_coat": ("coat", "draped_coat", "draped_coat_sleeves"),
                  "draped_tshirt": ("tee", "draped_tshirt", "draped_sleeves"),
                  "draped_longsleeve": ("longtop", "draped_longsleeve", "draped_long_sleeves")}
 SLEEVES_UNDER_NOT = ("draped_jacket", "draped_coat")
@@ -203,9 +205,9 @@ SLEEVES_UNDER_NOT = ("draped_jacket", "draped_coat")
 def garment_parts(kind: str, worn: Sequence[str] = ()) -> tuple[str, ...]:
     """The names of the parts (`PartGeometry.name`) `build_garments` makes of a recipe garment of this kind, worn
     with the garments `worn` (a recipe's garment kinds: the loose tops' draped sleeves are left out under an open
-    jacket or a coat)."""
+    jacket or a coat, whose own are kept)."""
     parts = GARMENT_PARTS.get(kind, (kind,))
-    if any(k in SLEEVES_UNDER_NOT for k in worn):
+    if kind not in SLEEVES_UNDER_NOT and any(k in SLEEVES_UNDER_NOT for k in worn):
         parts = tuple(p for p in parts if p not in SLEEVE_CUTS)
     return parts
 
@@ -705,7 +707,8 @@ def build_garments(
             ends = None
             if sleeves_kind is not None:
                 # The shell's sleeves end SHELL_OVERLAP under the draped sleeves' pinned rings, inside the cloth.
-                ends = {s: t + SHELL_OVERLAP for s, t in sleeve_tops(phenotype, st_sleeves.n_around).items()}
+                tops = sleeve_tops(phenotype, st_sleeves.n_around, SLEEVE_CUTS[sleeves_kind])
+                ends = {s: t + SHELL_OVERLAP for s, t in tops.items()}
             if g.kind in SHELL_KINDS_OVER:
                 # Only the coat's shell can be lifted past its own cloth: over a loose top `under` raises it by the
                 # top's cloth, which hangs at the height of the panels' ring. The other shells sit at their TUCK

@@ -1,13 +1,14 @@
 """The loose tops' sleeves, cut as two cloth tubes that newton drapes (drape.py's `draped_sleeves`: the loose
 t-shirt's short sleeves; `draped_long_sleeves`: the loose long sleeve's, down to the wrist; `draped_hoodie_sleeves`:
-the hoodie's, the long cut in the hood's fleece).
+the hoodie's, the long cut in the hood's fleece; `draped_coat_sleeves`: the open coat's, the long cut kept farther off
+the arm, over the top's sleeve).
 
 In: a phenotype, the sleeves' `DrapeSettings` (drape.py) and their cut (`SleeveCut`: `SLEEVES`, `LONG_SLEEVES`;
 `SLEEVE_CUTS` by kind).
 Out: `sleeve_pattern`, the undraped cloth (two closed tubes around the arms in anny's A-pose, each pinned at its top
 ring), which `drape.drape_garment` simulates and caches like any draped kind; `sleeve_tops`, where each pinned ring
-lies along its upper arm (the same for both cuts), which the shells "tee", "longtop" and "hoodie" (garments.py) are cut
-to end just under (`SHELL_OVERLAP`), as their hems end under the cloth body's ring; `sleeves_render_mesh`, the
+lies along its upper arm (for a cut's `ring_gap`), which the shells "tee", "longtop", "hoodie" and "coat" (garments.py)
+are cut to end just under (`SHELL_OVERLAP`), as their hems end under the cloth body's ring; `sleeves_render_mesh`, the
 tubes' render mesh with UVs in metres of the cut.
 
 Why cloth: the shell's sleeve follows the arm at 6 mm, where a loose top's sleeve stands off the arm, hangs open
@@ -23,7 +24,7 @@ import functools
 
 import numpy as np
 
-__all__ = ["SleeveCut", "SLEEVES", "LONG_SLEEVES", "SLEEVE_CUTS", "SIDES", "sleeve_axis", "sleeve_tops",
+__all__ = ["SleeveCut", "SLEEVES", "LONG_SLEEVES", "COAT_SLEEVES", "SLEEVE_CUTS", "SIDES", "sleeve_axis", "sleeve_tops",
            "sleeve_pattern", "sleeves_render_mesh"]
 
 SIDES = ("L", "R")
@@ -64,7 +65,13 @@ SLEEVES = SleeveCut()
 # 1 mm a centimetre towards the wrist, where the forearm is some 2 cm thinner than the upper arm.
 LONG_SLEEVES = SleeveCut(hem=0.93, flare=0.0, elbow=True, taper=0.1, band_below=0.02)
 # The hoodie's sleeves are the long sleeve's cut, draped in the hood's fleece (drape.py).
-SLEEVE_CUTS = {"draped_sleeves": SLEEVES, "draped_long_sleeves": LONG_SLEEVES, "draped_hoodie_sleeves": LONG_SLEEVES}
+# The open coat's: the long sleeve's cut worn over another top's shell sleeve (6 mm over the arm), so the rings and
+# tube keep COAT_GAP off the arm (the coat's particle radius, drape.COAT_CLEARANCE, plus 2 mm, as the other cuts keep
+# theirs): the pinned ring sits farther down the arm, where it clears the trunk by that much.
+COAT_GAP = 0.016
+COAT_SLEEVES = dataclasses.replace(LONG_SLEEVES, ring_gap=COAT_GAP, gap=COAT_GAP)
+SLEEVE_CUTS = {"draped_sleeves": SLEEVES, "draped_long_sleeves": LONG_SLEEVES, "draped_hoodie_sleeves": LONG_SLEEVES,
+               "draped_coat_sleeves": COAT_SLEEVES}
 
 
 def _unit(x: np.ndarray) -> np.ndarray:
