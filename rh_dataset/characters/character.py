@@ -640,19 +640,9 @@ def _shell_under_panels(character: Character, posed: list, cloth_under: dict, ve
         at = next((i for i, m in enumerate(posed) if m.name == name), None)
         if at is None:
             continue
-        part = character.part(name)
-        nearer = (part.body_vertex if part.blend_vertices is None else
-                  part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)])
         held = (group_mask(ANNY_TOPOLOGY, "torso") if name == "coat" else ~group_mask(ANNY_TOPOLOGY, *SLEEVE_GROUPS))
-        trunk = np.flatnonzero(held[nearer])
-        v = posed[at].vertices.astype(np.float64)
-        w, moved = push_under(v[trunk], *panels, LAYER_GAP * (1 if name == "coat" else 2))
-        if not len(moved):
-            continue
-        moved = trunk[moved]
-        v[trunk] = w
-        v[moved] = push_out(v[moved], verts, normals, faces)
-        posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32))
+        _tuck_shell(posed, at, character.part(name), held, panels, LAYER_GAP * (1 if name == "coat" else 2),
+                    verts, normals, faces)
     sleeves = cloth_under.get("draped_coat_sleeves")
     if sleeves is not None:
         _top_under_coat_sleeves(character, posed, sleeves, verts, normals, faces)
@@ -672,23 +662,28 @@ def _top_under_coat_sleeves(character: Character, posed: list, sleeves, verts, n
     the skin: at a bent elbow the skin's crease carried the top's sleeve up to 19 mm out through the cloth
     (bench/bench_sleeves.py --kind draped_coat_sleeves), and with a raised arm the coat's 17 mm shell came 12.6 mm
     out by the armpit (tests/test_sleeves.py)."""
+    arm = group_mask(ANNY_TOPOLOGY, *SLEEVE_GROUPS)
     for at, m in enumerate(posed):
-        if m.name not in TOPS_UNDER_COAT_SLEEVES:
-            continue
-        part = character.part(m.name)
-        nearer = (part.body_vertex if part.blend_vertices is None else
-                  part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)])
-        arm = np.flatnonzero(group_mask(ANNY_TOPOLOGY, *SLEEVE_GROUPS)[nearer])
-        if not len(arm):
-            continue
-        v = m.vertices.astype(np.float64)
-        w, moved = push_under(v[arm], *sleeves, LAYER_GAP)
-        if not len(moved):
-            continue
-        moved = arm[moved]
-        v[arm] = w
-        v[moved] = push_out(v[moved], verts, normals, faces)
-        posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32))
+        if m.name in TOPS_UNDER_COAT_SLEEVES:
+            _tuck_shell(posed, at, character.part(m.name), arm, sleeves, LAYER_GAP, verts, normals, faces)
+
+
+def _tuck_shell(posed: list, at: int, part: CharacterPart, held: np.ndarray, cloth, gap: float, verts, normals,
+                faces) -> None:
+    """In place: the vertices of `posed[at]` (the shell `part`) whose nearer body vertex is `held` (a mask over the
+    body's vertices) put `gap` under `cloth` ((vertices, faces) posed) where they came out through it
+    (`cloth_pose.push_under`), then out of the skin where that took them in (the skin wins)."""
+    nearer = (part.body_vertex if part.blend_vertices is None else
+              part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)])
+    sel = np.flatnonzero(held[nearer])
+    v = posed[at].vertices.astype(np.float64)
+    w, moved = push_under(v[sel], *cloth, gap)
+    if not len(moved):
+        return
+    moved = sel[moved]
+    v[sel] = w
+    v[moved] = push_out(v[moved], verts, normals, faces)
+    posed[at] = dataclasses.replace(posed[at], vertices=_ro(v, np.float32))
 
 
 def _bottoms_under_shell_top(posed: list, cloth_under: dict, verts, normals, faces) -> None:
