@@ -119,6 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.body import body_topology, run_anny
     from rh_dataset.characters.cloth_pose import self_crossings
     from rh_dataset.characters.drape import DRAPED_KINDS, penetration
+    from rh_dataset.characters.sleeves import SLEEVE_CUTS
     from rh_dataset.characters.preview import render_preview
     from rh_dataset.poses import sample_poses
     from rh_dataset.poses.pose import rotation_about_z
@@ -138,7 +139,8 @@ def main(argv: list[str] | None = None) -> int:
         t = time.perf_counter()
         character = build_character(recipe, 512, drape=args.drape)
         t_build = time.perf_counter() - t
-        kind = next(p.name for p in character.parts[::-1] if p.name in DRAPED_KINDS)  # the outermost
+        # The outermost draped part but the sleeves (bench_sleeves.py measures those): the coat's panels, the hood.
+        kind = next(p.name for p in character.parts[::-1] if p.name in DRAPED_KINDS and p.name not in SLEEVE_CUTS)
         tiles, depth, crossings = [], [], []
         for bones, root in (({}, None), (dict(pose.bones), pose.root_transform)):
             run = run_anny(recipe.phenotype, bones)
