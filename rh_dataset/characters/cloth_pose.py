@@ -68,9 +68,9 @@ CLOTH_MODES = ("skinned", "simulated")
 # standard's 42.3 dB noise: simulated at reference.
 # The loose shorts are the wide trousers cut above the knee, the straight-leg trousers their legs without the flare:
 # simulated, lifted and posed in their fabric likewise.
-# The draped sleeves (`draped_sleeves`, `draped_long_sleeves`, `draped_hoodie_sleeves`) are skinned in every mode:
-# the per-frame simulation's body leaves the arms out (`body_motion`, `collider_faces`), so simulated they would fall
-# through the arms they hang round.
+# The draped sleeves (`sleeves.SLEEVE_CUTS`: the loose tops', the hoodie's, the open coat's) are skinned in every
+# mode: the per-frame simulation's body leaves the arms out (`body_motion`, `collider_faces`), so simulated they would
+# fall through the arms they hang round.
 SIMULATED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
                    "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers")
 # What a kind's per-frame simulation changes in the `DrapeSettings` it was draped with. The wide-leg trousers: the

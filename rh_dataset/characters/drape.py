@@ -6,7 +6,8 @@ or straight-leg trousers or loose shorts, an open coat's or an open jacket's pan
 t-shirt's or long sleeve's body (a tube hanging from under the arms to the hips; its shoulders and sleeves are the
 shell "tee" or "longtop"), the loose t-shirt's short sleeves (`draped_sleeves`: two tubes round the upper arms, cut
 by sleeves.py), the loose long sleeve's (`draped_long_sleeves`: down to the wrists, bent at the elbows) and the
-hoodie's (`draped_hoodie_sleeves`: the same cut in the hood's fleece)); `PROFILES` cuts
+hoodie's and the open coat's (`draped_hoodie_sleeves`, `draped_coat_sleeves`: the same cut in the hood's fleece,
+and kept 16 mm off the arm)); `PROFILES` cuts
 the others from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
 `_trouser_pattern`; the coat's and the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their
 shoulders and sleeves are one shell, garments.py's "coat", whose hem `shell_hem` places, as it places the dress's
