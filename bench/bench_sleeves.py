@@ -5,13 +5,13 @@ arm, of themselves and of the shell sleeve under them.
     python bench/bench_sleeves.py                          # seed 0's loose t-shirt wearers, rest + 2 test poses
     python bench/bench_sleeves.py --kind draped_long_sleeves   # the loose long sleeve's wearers
     python bench/bench_sleeves.py --kind draped_hoodie_sleeves # the hoodie's
-    python bench/bench_sleeves.py --kind draped_coat_sleeves   # the open coat's (over a top's shell sleeves)
+    python bench/bench_sleeves.py --kind draped_coat_sleeves   # the open coat's and jacket's (over a top's shell)
     python bench/bench_sleeves.py --subjects 3 --poses 1 --figure after.png --before before.png
 
 In: the sleeves' kind (--kind), the dataset seed, the subjects (default: every benchmark subject of protocols a and b
-at that seed wearing the garment of that kind (the loose t-shirt, the loose long sleeve, the hoodie, the open coat)
-with no open jacket or coat over it; built as rh-generate builds them, full drapes, the user's drape cache), how many
-test poses (`AnnySubjects.pose`, the test split's first --poses frames) besides the rest pose.
+at that seed wearing a garment of that kind (the loose t-shirt, the loose long sleeve, the hoodie, the open coat or
+jacket) with no open jacket or coat over it; built as rh-generate builds them, full drapes, the user's drape cache),
+how many test poses (`AnnySubjects.pose`, the test split's first --poses frames) besides the rest pose.
 Out, printed per subject: the sleeves' drape seconds (simulated afresh, the cache not read), their pinned rings'
 places along the upper arms (cm from the shoulder joint) and their hems'; then per pose (skinned, the `draft` and
 `standard` presets' cloth mode, and simulated: the sleeves are skinned in both):
@@ -50,21 +50,23 @@ def load() -> str:
     return " ".join(open("/proc/loadavg").read().split()[:3])
 
 
-# The loose top each sleeves' kind belongs to, and the shell under its sleeves' rings.
-TOPS = {"draped_sleeves": ("draped_tshirt", "tee"), "draped_long_sleeves": ("draped_longsleeve", "longtop"),
-        "draped_hoodie_sleeves": ("draped_hoodie", "hoodie"), "draped_coat_sleeves": ("draped_coat", "coat")}
+# The garments each sleeves' kind belongs to, and the shell under its sleeves' rings (the open jacket is the coat cut
+# short and wears the coat's sleeves).
+TOPS = {"draped_sleeves": (("draped_tshirt",), "tee"), "draped_long_sleeves": (("draped_longsleeve",), "longtop"),
+        "draped_hoodie_sleeves": (("draped_hoodie",), "hoodie"),
+        "draped_coat_sleeves": (("draped_coat", "draped_jacket"), "coat")}
 OUTERWEAR = {"draped_jacket", "draped_coat"}
 
 
 def wearers(seed: int, kind: str = "draped_sleeves") -> list[int]:
-    """Seed `seed`'s benchmark subjects in the garment whose sleeves are `kind`, with no open jacket or coat over it
+    """Seed `seed`'s benchmark subjects in a garment whose sleeves are `kind`, with no open jacket or coat over it
     (recipes only)."""
     from subject_diversity import benchmark_recipes
 
+    garments = set(TOPS[kind][0])
     return [s for s, r in enumerate(benchmark_recipes("protocol_a", seed))
-            if TOPS[kind][0] in (kinds := [g.kind for g in r.garments])
-            and not (OUTERWEAR - {TOPS[kind][0]}) & set(kinds)
-            and (TOPS[kind][0] in OUTERWEAR or not OUTERWEAR & set(kinds))]
+            if garments & (kinds := {g.kind for g in r.garments})
+            and (garments <= OUTERWEAR or not OUTERWEAR & kinds)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -83,7 +85,8 @@ def main(argv: list[str] | None = None) -> int:
     source, test = test_source(args.seed)
     subjects = [int(x) for x in args.subjects.split(",") if x] if args.subjects else wearers(args.seed, kind)
     if not subjects:
-        raise SystemExit(f"no subject of seed {args.seed} wears a {TOPS[kind][0]} without a jacket or coat over it")
+        raise SystemExit(f"no subject of seed {args.seed} wears a {' or '.join(TOPS[kind][0])} "
+                         "without a jacket or coat over it")
     try:
         from rh_dataset.characters.drape import drape_garment, drape_settings
         from rh_dataset.characters.sleeves import SIDES, SLEEVE_CUTS, sleeve_pattern, sleeve_tops

@@ -47,12 +47,13 @@ def test_jacket_pattern_is_the_coats_cut_ending_between_hips_and_crotch(pheno, l
 
 
 def test_jacket_wears_the_coats_shell_with_fewer_rings():
-    """One shell for both (its hem depends on the ring, pinned alike: the same height), the coat's push clearance
-    and fabric, fewer rings at each level (it is about 40 % of the coat's length)."""
+    """One shell and one kind of draped sleeves for both (its hem depends on the ring, pinned alike: the same height),
+    the coat's push clearance and fabric, fewer rings at each level (it is about 40 % of the coat's length)."""
     from rh_dataset.characters.garments import garment_parts
 
     assert SHELL_KINDS_OVER[KIND] == SHELL_KINDS_OVER["draped_coat"] == "coat"
-    assert garment_parts(KIND) == ("coat", KIND)
+    assert garment_parts(KIND) == ("coat", KIND, "draped_coat_sleeves")
+    assert garment_parts("draped_coat")[2] == "draped_coat_sleeves"
     assert PUSH_CLEARANCES[KIND] == PUSH_CLEARANCES["draped_coat"]
     for level in DRAPE_LEVELS:
         st, coat = drape_settings(KIND, level), drape_settings("draped_coat", level)

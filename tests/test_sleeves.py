@@ -134,7 +134,9 @@ def test_parts_of_a_loose_tshirt():
     assert garment_parts("draped_hoodie") == ("hoodie", "draped_hoodie", "draped_hoodie_sleeves")
     coat = ("coat", "draped_coat", "draped_coat_sleeves")  # the coat keeps its own sleeves, a top under it does not
     assert garment_parts("draped_coat") == garment_parts("draped_coat", ["draped_tshirt", "draped_coat"]) == coat
-    assert garment_parts("draped_jacket", ["draped_jacket"]) == ("coat", "draped_jacket")
+    jacket = ("coat", "draped_jacket", "draped_coat_sleeves")  # the jacket is the coat cut short, in its sleeves
+    assert garment_parts("draped_jacket") == garment_parts("draped_jacket", ["draped_longsleeve", "draped_jacket"])
+    assert garment_parts("draped_jacket") == jacket
 
 
 def loose_top_wearer(cache_dir, top: str, colour, under: str | None = None):
@@ -185,23 +187,30 @@ def coat_wearer(tmp_path_factory):
     return loose_top_wearer(tmp_path_factory.mktemp("drape"), "draped_coat", (0.6, 0.3, 0.4), under="longsleeve")
 
 
+@pytest.fixture(scope="module")
+def jacket_wearer(tmp_path_factory):
+    """A character in an open jacket over a shell t-shirt and shell shorts, coarse drapes (its own cache)."""
+    return loose_top_wearer(tmp_path_factory.mktemp("drape"), "draped_jacket", (0.3, 0.3, 0.5), under="tshirt")
+
+
 # (wearer fixture, shell, the cloth before the sleeves (the loose tops' body, the hoodie's hood, the coat's panels),
 # sleeves, the most a shell vertex may lie over the cloth: 3 mm for the short sleeves, 5 mm for the long, whose raised
 # arm's armpit gave 4.1 mm here; the top under the sleeves, if any)
 WEARERS = [("wearer", "tee", "draped_tshirt", KIND, 0.003, None),
            ("long_wearer", "longtop", "draped_longsleeve", "draped_long_sleeves", 0.005, None),
            ("hoodie_wearer", "hoodie", "draped_hoodie", "draped_hoodie_sleeves", 0.005, None),
-           ("coat_wearer", "coat", "draped_coat", "draped_coat_sleeves", 0.005, "longsleeve")]
+           ("coat_wearer", "coat", "draped_coat", "draped_coat_sleeves", 0.005, "longsleeve"),
+           ("jacket_wearer", "coat", "draped_jacket", "draped_coat_sleeves", 0.005, "tshirt")]
 UNDER_OVER_M = 0.005  # the most the top's sleeve under the coat's may lie over them (the skin wins in a crease)
 
 
 @pytest.mark.parametrize("fixture, shell, body_cloth, kind, over, under", WEARERS,
-                         ids=["short", "long", "hoodie", "coat"])
+                         ids=["short", "long", "hoodie", "coat", "jacket"])
 def test_posed_sleeves_stay_off_the_body_with_the_shell_inside(request, fixture, shell, body_cloth, kind, over, under):
     """Rest, a raised arm and a bent elbow, skinned and simulated (the sleeves are skinned in both; the same bits;
-    the coat's only skinned, its panels' simulation is slow): the sleeves keep off the skin (push_out: more than
+    the coat's and jacket's only skinned, their panels' simulation is slow): the sleeves keep off the skin (push_out: more than
     1 mm), no vertex of the shell's sleeves lies more than `over` over the cloth, and none of the sleeves of the top
-    under them (the coat's) more than UNDER_OVER_M."""
+    under them (the coat's, the jacket's) more than UNDER_OVER_M."""
     from rh_common.body_model import ANNY_TOPOLOGY
     from rh_dataset.characters import pose_character
     from rh_dataset.characters.body_features import group_mask

@@ -185,19 +185,19 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None,
 
 
 SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe kinds (the coat's shell is a part)
-# Parts a recipe garment is built as, in build order: the draped coat and jacket are a shell (shoulders, yoke,
-# sleeves; the coat's cut short under its draped sleeves) and the draped panels below it, the dress a shell (its
-# bodice) and the draped skirt below it, the loose t-shirt and long sleeve a shell ("tee", "longtop": shoulders,
-# sleeves, chest) and a draped body below it (drape.SHELL_KINDS_OVER), the draped hoodie the longsleeve's shell
-# ("hoodie") and its draped hood; all in the garment's fabric. The loose tops', the hoodie's and the open coat's
-# sleeves are draped too ("draped_sleeves", "draped_long_sleeves", "draped_hoodie_sleeves", "draped_coat_sleeves":
-# sleeves.py; nothing is worn over a hoodie, recipe_draws._hoodie), but a top's not under an open jacket or coat
-# (SLEEVES_UNDER_NOT): the jacket's shell sleeves lie over the arms at 17 mm, which the cloth would come through, and
-# the coat's draped sleeves are draped over the arm alone, clear of a 6 mm shell sleeve under them (16 mm off the arm)
-# but not of another draped one.
+# Parts a recipe garment is built as, in build order: the draped coat and jacket are a shell (shoulders, yoke, and
+# sleeves cut short under their draped sleeves) and the draped panels below it, the dress a shell (its bodice) and
+# the draped skirt below it, the loose t-shirt and long sleeve a shell ("tee", "longtop": shoulders, sleeves, chest)
+# and a draped body below it (drape.SHELL_KINDS_OVER), the draped hoodie the longsleeve's shell ("hoodie") and its
+# draped hood; all in the garment's fabric. The loose tops', the hoodie's, the open coat's and jacket's sleeves are
+# draped too ("draped_sleeves", "draped_long_sleeves", "draped_hoodie_sleeves", "draped_coat_sleeves": sleeves.py;
+# the jacket is the coat cut short and wears the coat's; nothing is worn over a hoodie, recipe_draws._hoodie), but a
+# top's not under an open jacket or coat (SLEEVES_UNDER_NOT): their draped sleeves are draped over the arm alone,
+# clear of a 6 mm shell sleeve under them (16 mm off the arm) but not of another draped one.
 GARMENT_PARTS = {**{kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()},
                  "draped_hoodie": ("hoodie", "draped_hoodie", "draped_hoodie_sleeves"),
                  "draped_coat": ("coat", "draped_coat", "draped_coat_sleeves"),
+                 "draped_jacket": ("coat", "draped_jacket", "draped_coat_sleeves"),
                  "draped_tshirt": ("tee", "draped_tshirt", "draped_sleeves"),
                  "draped_longsleeve": ("longtop", "draped_longsleeve", "draped_long_sleeves")}
 SLEEVES_UNDER_NOT = ("draped_jacket", "draped_coat")
