@@ -305,6 +305,41 @@ def test_push_over_lifts_what_lies_under_the_inner_layer():
     assert push_over(np.zeros((0, 3)), sheet, quads, 0.004).shape == (0, 3)
 
 
+def test_layer_depth_finds_the_open_edge_as_a_test_of_every_edge_would():
+    """layer_depth's open-edge rule (NaN where the closest surface point lies on a hem) tests only the closest points
+    near an open edge's midpoint (`cloth_pose._surface`'s k-d tree): on a wavy, unevenly meshed sheet with a hole,
+    for points around and beyond its edges, it gives exactly the depths of the test against every open edge."""
+    from rh_dataset.characters.cloth_pose import RIM_TOLERANCE, layer_depth
+    from rh_dataset.characters.drape import _closest
+    from rh_dataset.characters.geometry import edge_counts
+
+    rng = np.random.default_rng(7)
+    n = 24
+    x = np.cumsum(rng.uniform(0.5, 1.5, n)) * 0.01  # uneven spacing: edges of 5-15 mm
+    y = np.cumsum(rng.uniform(0.5, 1.5, n)) * 0.01
+    gx, gy = np.meshgrid(x - x.mean(), y - y.mean(), indexing="ij")
+    v = np.stack([gx, gy, 0.01 * np.sin(20 * gx) * np.cos(15 * gy)], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
+    keep = ~((abs(i - 11) < 3) & (abs(j - 8) < 3)).ravel()  # a hole: a second, inner rim
+    a = (i * n + j).ravel()[keep]
+    f = np.concatenate([np.stack([a, a + n, a + n + 1], 1), np.stack([a, a + n + 1, a + 1], 1)])
+    lo, hi = v.min(0) - 0.03, v.max(0) + 0.03
+    pts = rng.uniform(lo, hi, (3000, 3))
+    got = layer_depth(pts, v, f, near=0.05)
+
+    depth, closest, _ = _closest(v, f, pts)
+    edges, counts = edge_counts(f)
+    rim = edges[counts == 1]
+    ra, rd = v[rim[:, 0]], v[rim[:, 1]] - v[rim[:, 0]]
+    c = closest[:, None, :]
+    t = np.clip(((c - ra) * rd).sum(-1) / np.maximum((rd * rd).sum(-1), 1e-18), 0.0, 1.0)
+    on_rim = np.linalg.norm(c - (ra + t[..., None] * rd), axis=-1).min(1) < RIM_TOLERANCE
+    far = np.linalg.norm(pts - closest, axis=1) > 0.05
+    want = np.where(far | on_rim, np.nan, depth)
+    assert 200 < on_rim.sum() < 2900 and np.isfinite(want).sum() > 100  # both kinds of point are tried
+    np.testing.assert_array_equal(got, want)
+
+
 def test_push_over_layers_goes_round_the_layers_where_two_cross():
     """push_over_layers: over one layer it is push_over, bit for bit. Over two sheets crossing at 45 degrees (the
     first outward +Z, the second outward (1, 0, -1)/sqrt(2), as a skirt and a top crossing where the thigh swings),
@@ -346,7 +381,8 @@ def test_push_over_layers_looks_again_only_at_what_it_moved():
     where it was is clear of every layer there, and the layers do not move. The same bits as pushing every point
     over every layer in every pass (the loop below, as push_over_layers was before 4 December, late), for 300
     random points around two sheets crossing at 45 degrees, with two passes and with up to ten."""
-    from rh_dataset.characters.cloth_pose import LAYER_TOLERANCE, _under_a_layer, push_over, push_over_layers
+    from rh_dataset.characters.cloth_pose import (LAYER_TOLERANCE, _surface, _under_a_layer, push_over,
+                                                  push_over_layers)
 
     quads = np.array([[0, 1, 2], [0, 2, 3]])
     first = (np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float), quads)
@@ -356,7 +392,7 @@ def test_push_over_layers_looks_again_only_at_what_it_moved():
     def every_point(p, layers, clearance, cycles, most):
         moved = np.ones(len(p), bool)
         for done in range(max(cycles, most)):
-            if done >= cycles and (not moved.any() or not _under_a_layer(p[moved], layers)):
+            if done >= cycles and (not moved.any() or not _under_a_layer(p[moved], [_surface(*x) for x in layers])):
                 break
             moved[:] = False
             for v, f in layers:

@@ -436,26 +436,61 @@ def layer_depth(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, nea
     point signed by the surface's interpolated normals. NaN for points farther than `near` from the surface, and
     for points whose closest surface point is on the surface's open edge (a hem, a cuff, a sheet's edge): beyond an
     edge the side a point is on says nothing about whether it is under the cloth."""
-    return _layer_closest(points, vertices, faces, near)[0]
+    return _layer_closest(points, _surface(vertices, faces), near)[0]
 
 
-def _layer_closest(points, vertices, faces, near: float, triangles: bool = False):
-    """`layer_depth`'s (depth, closest surface points (P, 3), unit interpolated normals there (P, 3)), and with
-    `triangles` the faces the closest points lie on (P,) as a fourth."""
-    from .drape import _closest
+RIM_TOLERANCE = 1e-6  # metres: a closest surface point this near an open edge is on it (`_layer_closest`)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Surface:
+    """A garment surface prepared once for `_layer_closest`'s queries: its vertices (float64), faces and vertex
+    normals (`body.vertex_normals`), the trimesh whose search tree answers them (`geometry.query_mesh`), and its open edges as segments (start `rim_a`,
+    start-to-end `rim_d`, (R, 3)) with a k-d tree of their midpoints and their longest half length. Why: the pushes
+    query the same surface two rounds, and `push_over_layers` the same layers for every cycle; building the tree
+    and finding the open edges (a sort of every edge) each time was ~a quarter of a loose subject's posing."""
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray
+    mesh: object
+    rim_a: np.ndarray
+    rim_d: np.ndarray
+    rim_tree: object
+    rim_reach: float
+
+
+def _surface(vertices: np.ndarray, faces: np.ndarray) -> _Surface:
+    """`_Surface` of (`vertices`, `faces`)."""
+    from scipy.spatial import cKDTree
 
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces)
-    depth, closest, normal, tri = _closest(v, f, points, triangles=True)
     edges, counts = edge_counts(f)
     rim = edges[counts == 1]
+    a, d = v[rim[:, 0]], v[rim[:, 1]] - v[rim[:, 0]]
+    tree = cKDTree(a + 0.5 * d) if len(rim) else None
+    reach = float(0.5 * np.linalg.norm(d, axis=1).max()) if len(rim) else 0.0
+    return _Surface(v, f, vertex_normals(v, f), query_mesh(v, f), a, d, tree, reach)
+
+
+def _layer_closest(points, surface: _Surface, near: float, triangles: bool = False):
+    """`layer_depth`'s (depth, closest surface points (P, 3), unit interpolated normals there (P, 3)) on `surface`
+    (`_surface`), and with `triangles` the faces the closest points lie on (P,) as a fourth."""
+    from .drape import _closest
+
+    v, a, d = surface.vertices, surface.rim_a, surface.rim_d
+    depth, closest, normal, tri = _closest(v, surface.faces, points, surface.normals, surface.mesh, triangles=True)
     on_rim = np.zeros(len(closest), bool)
-    if len(rim):
-        a, d = v[rim[:, 0]], v[rim[:, 1]] - v[rim[:, 0]]
-        for i in range(0, len(closest), 512):  # (points x rim edges) distances, in blocks
-            c = closest[i:i + 512, None, :]
+    if len(a):
+        # Only a closest point within the longest half edge (and the tolerance) of an open edge's midpoint can lie
+        # on one; those are tested against every open edge, each row as before, so the same bits.
+        gap = surface.rim_tree.query(closest, distance_upper_bound=surface.rim_reach + 2 * RIM_TOLERANCE)[0]
+        cand = np.flatnonzero(np.isfinite(gap))
+        for i in range(0, len(cand), 512):  # (points x open edges) distances, in blocks
+            rows = cand[i:i + 512]
+            c = closest[rows, None, :]
             t = np.clip(((c - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-18), 0.0, 1.0)
-            on_rim[i:i + 512] = (np.linalg.norm(c - (a + t[..., None] * d), axis=-1).min(1) < 1e-6)
+            on_rim[rows] = (np.linalg.norm(c - (a + t[..., None] * d), axis=-1).min(1) < RIM_TOLERANCE)
     far = np.linalg.norm(np.asarray(points, np.float64) - closest, axis=1) > near
     depth = np.where(far | on_rim, np.nan, depth)
     return (depth, closest, normal, tri) if triangles else (depth, closest, normal)
@@ -473,12 +508,18 @@ def push_over(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, clear
     skirt can land under the next). For a loose top over draped cloth (`drape.DRAPED_OVER`), after push_out: each
     layer is skinned on its own, and where a thigh swings, the skirt and the top over it can pass through each
     other."""
+    return _push_over(points, _surface(vertices, faces), clearance, near, rounds)
+
+
+def _push_over(points: np.ndarray, surface: _Surface, clearance: float, near: float = LAYER_REACH,
+               rounds: int = 2) -> np.ndarray:
+    """`push_over` on a prepared surface (`_surface`)."""
     p = np.array(points, dtype=np.float64)
     todo = np.arange(len(p))
     for _ in range(int(rounds)):
         if not len(todo):
             break
-        depth, closest, normal = _layer_closest(p[todo], vertices, faces, near)
+        depth, closest, normal = _layer_closest(p[todo], surface, near)
         bad = np.isfinite(depth) & (depth > -clearance + 1e-6)
         todo = todo[bad]
         p[todo] = closest[bad] + clearance * normal[bad]
@@ -498,10 +539,11 @@ def push_under(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, gap:
     # Only points within `near` of the garment's box can be under it (the shoulders above a coat's ring are not).
     todo = np.flatnonzero(np.all((p >= v.min(0) - near) & (p <= v.max(0) + near), axis=1))
     moved = []
+    surface = _surface(v, faces) if len(todo) else None
     for _ in range(int(rounds)):
         if not len(todo):
             break
-        depth, closest, normal = _layer_closest(p[todo], vertices, faces, near)
+        depth, closest, normal = _layer_closest(p[todo], surface, near)
         bad = np.isfinite(depth) & (depth < 0.0)
         todo = todo[bad]
         p[todo] = closest[bad] - gap * normal[bad]
@@ -532,26 +574,28 @@ def push_over_layers(points: np.ndarray, layers: list[tuple[np.ndarray, np.ndarr
         return push_over(p, *layers[0], clearance) if layers else p.copy()
     p = p.copy()
     moved = np.ones(len(p), bool)
+    surfaces = [_surface(v, f) for v, f in layers]
     for done in range(int(max(cycles, max_cycles))):
         # A point the last pass did not move was found clear of every layer where it still lies (the layers stay
         # where they are): no push can move it again, and it cannot be left under one. So each pass looks only at
         # the points the pass before moved (the first at all of them): the same bits as pushing every point every
         # pass (`push_over` treats each point on its own), for a fraction of the closest-point queries.
-        if done >= cycles and (not moved.any() or not _under_a_layer(p[moved], layers)):
+        if done >= cycles and (not moved.any() or not _under_a_layer(p[moved], surfaces)):
             break
         at = np.flatnonzero(moved)
         moved[:] = False
-        for vertices, faces in layers:
-            q = push_over(p[at], vertices, faces, clearance)
+        for surface in surfaces:
+            q = _push_over(p[at], surface, clearance)
             moved[at[np.any(q != p[at], axis=1)]] = True
             p[at] = q
     return p
 
 
-def _under_a_layer(points: np.ndarray, layers: list[tuple[np.ndarray, np.ndarray]]) -> bool:
-    """Does any point lie more than LAYER_TOLERANCE under one of `layers` (`layer_depth`, within LAYER_REACH)?"""
-    for vertices, faces in layers:
-        d = layer_depth(points, vertices, faces, LAYER_REACH)
+def _under_a_layer(points: np.ndarray, surfaces: list[_Surface]) -> bool:
+    """Does any point lie more than LAYER_TOLERANCE under one of the layers' `surfaces` (`layer_depth`, within
+    LAYER_REACH)?"""
+    for surface in surfaces:
+        d = _layer_closest(points, surface, LAYER_REACH)[0]
         if np.any(np.nan_to_num(d, nan=-1.0) > LAYER_TOLERANCE):
             return True
     return False
@@ -645,7 +689,7 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
         depth, closest, _ = _closest(v, f, skin)
         sel = np.flatnonzero((depth < 0.0) & (np.linalg.norm(skin - closest, axis=1) <= reach))
         if len(sel):
-            depth, _, normal, tri = _layer_closest(skin[sel], v, f, reach, triangles=True)
+            depth, _, normal, tri = _layer_closest(skin[sel], _surface(v, f), reach, triangles=True)
             keep = np.isfinite(depth) & (depth < 0.0)
             sel, depth, normal, tri = sel[keep], depth[keep], normal[keep], tri[keep]
         if not len(sel):
