@@ -16,7 +16,10 @@ Out, printed per subject: the sleeves' drape seconds (simulated afresh, the cach
 places along the upper arms (cm from the shoulder joint) and their hems'; then per pose (skinned, the `draft` and
 `standard` presets' cloth mode, and simulated: the sleeves are skinned in both):
   depth     the sleeves' deepest vertex under the skin (mm, > 0 inside; `drape.penetration`);
-  cross     the sleeves' self-crossing edges (`cloth_pose.self_crossings`);
+  cross     the sleeves' self-crossing edges (`cloth_pose.self_crossings`), and how many of their crossing points
+            (`cloth_pose.crossing_points`, one per edge and triangle it passes through) a camera sees from either
+            side of the triangle (8 horizontal views, `bench_cloth_pose.seen_around`: nothing between the point,
+            2 mm off the triangle, and the camera);
   shell out the shell's ("tee", "longtop", "hoodie", "coat") sleeve vertices (on the upper arm or forearm) within 2 cm
             of the sleeves lying over them (`cloth_pose.layer_depth` < 0),
             the worst (mm) and how many a camera sees (8 horizontal views, `bench_cloth_pose.seen_around`): the shell's
@@ -79,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.body_model import ANNY_TOPOLOGY
     from rh_dataset.characters import pose_character
     from rh_dataset.characters.body_features import group_mask
-    from rh_dataset.characters.cloth_pose import layer_depth, self_crossings
+    from rh_dataset.characters.cloth_pose import crossing_points, layer_depth, self_crossings
     from rh_dataset.characters.drape import penetration
 
     source, test = test_source(args.seed)
@@ -92,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         from rh_dataset.characters.sleeves import SIDES, SLEEVE_CUTS, sleeve_pattern, sleeve_tops
     except ImportError:  # a checkout before the draped sleeves: only the figure and the timing
         drape_garment = None
-    print(f"{'subject':>7s} {'pose':>12s} {'mode':>9s}   depth mm  cross   shell out: n  worst mm  seen   "
+    print(f"{'subject':>7s} {'pose':>12s} {'mode':>9s}   depth mm  cross  seen   shell out: n  worst mm  seen   "
           f"slot mm: median  max   pose s | without   under out: n  worst mm  seen")
     t0 = time.perf_counter()
     for s in subjects:
@@ -142,6 +145,9 @@ def main(argv: list[str] | None = None) -> int:
                 v = np.asarray(sl.vertices, np.float64)
                 depth = 1e3 * float(penetration(np.asarray(body.vertices, np.float64), body.faces, v).max())
                 cross = self_crossings(v, sl.faces)
+                cp, cn = crossing_points(v, sl.faces)
+                cross_seen = int((seen_around(cp, cn, list(by.values())) | seen_around(cp, -cn, list(by.values())))
+                                 .sum())
                 tv = np.asarray(tee.vertices, np.float64)
                 d = np.where(on_arm, layer_depth(tv, v, sl.faces), np.nan)  # the shell's sleeves, not its trunk
                 out = np.flatnonzero(np.nan_to_num(d, nan=1.0) < 0)
@@ -160,7 +166,8 @@ def main(argv: list[str] | None = None) -> int:
                     worst_in = max(worst_in, -1e3 * float(di[o].min()) if len(o) else 0.0)
                     seen_in += int(seen_around(iv[o], np.asarray(by[name].normals, np.float64)[o],
                                                list(by.values())).sum())
-                print(f"{s:7d} {label:>12s} {mode:>9s}   {depth:8.2f} {cross:6d}   {len(out):12d} {worst:9.2f} "
+                print(f"{s:7d} {label:>12s} {mode:>9s}   {depth:8.2f} {cross:6d} {cross_seen:5d}   {len(out):12d} "
+                      f"{worst:9.2f} "
                       f"{seen:5d}   {slot[0]:14.1f} {slot[1]:5.1f}   {np.median(secs):6.2f} | {plain}   "
                       f"{n_in:10d} {worst_in:9.2f} {seen_in:5d}   (load {load()})",
                       flush=True)

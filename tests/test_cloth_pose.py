@@ -197,6 +197,19 @@ def test_settings_and_self_crossings_are_checked():
     collapsed = np.concatenate([a, b])
     collapsed[5] = collapsed[4]
     assert self_crossings(collapsed, quads) == 4
+    # Where: A's vertical-edge hits lie on the line x = 0.1, z = 0 of A (normal +-Z), A's diagonal's on B's (normal
+    # +-X); each at the edge's own place along that line.
+    from rh_dataset.characters.cloth_pose import crossing_points
+
+    pts, normals = crossing_points(np.concatenate([a, b]), quads)
+    assert len(pts) == 4
+    on_a = np.abs(normals[:, 2]) > 0.99
+    np.testing.assert_allclose(pts[:, 0], 0.1, atol=1e-12)
+    np.testing.assert_allclose(pts[on_a, 2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.sort(pts[on_a, 1]), [-0.3, 0.2, 0.7], atol=1e-12)
+    np.testing.assert_allclose(pts[~on_a], [[0.1, 0.1, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(np.abs(normals[~on_a]), [[1.0, 0.0, 0.0]], atol=1e-12)
+    assert crossing_points(np.concatenate([a, b + (0, 0, 1.5)]), quads)[0].shape == (0, 3)
 
 
 def test_cloth_is_a_render_setting_preset_field_and_cli_flag():

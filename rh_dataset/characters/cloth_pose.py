@@ -42,7 +42,8 @@ from .geometry import edge_counts, query_mesh, smoothstep
 
 __all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "POSE_FABRIC", "pose_fabric", "ClothPoseSettings", "BodyMotion",
            "body_motion", "simulate_into_pose", "skin_into_pose", "simulated_parts", "self_crossings", "hem_split",
-           "layer_depth", "push_over", "covers", "LIFT_KINDS", "skin_inside", "lift_over_skin", "edges_through"]
+           "layer_depth", "push_over", "covers", "LIFT_KINDS", "skin_inside", "lift_over_skin", "edges_through",
+           "crossing_points"]
 
 CLOTH_MODES = ("skinned", "simulated")
 # The draped kinds the "simulated" mode simulates (the others would be skinned in every mode): today all of them.
@@ -376,13 +377,33 @@ def edges_through(vertices: np.ndarray, faces: np.ndarray, other_vertices: np.nd
     """How many edges of the mesh (`vertices`, `faces`) pass through a triangle of the other mesh (trimesh rays along
     each edge, hits strictly inside the edge); without another mesh, through one of its own triangles that shares
     no corner with the edge (`self_crossings`). Two surfaces that do not pass through each other: 0 both ways."""
+    ray = _edge_hits(vertices, faces, other_vertices, other_faces)[0]
+    return int(len(np.unique(ray)))
+
+
+def crossing_points(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where a cloth mesh passes through itself (`self_crossings`' hits): (points (K, 3), the unit normals (K, 3) of
+    the triangles pierced there), one per edge and triangle it passes through. For asking whether a camera sees a
+    crossing (bench/bench_sleeves.py's `cross seen`)."""
+    _, tri, loc, ov, of = _edge_hits(vertices, faces)
+    if not len(tri):
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    a, b, c = ov[of[tri, 0]], ov[of[tri, 1]], ov[of[tri, 2]]
+    n = np.cross(b - a, c - a)
+    return loc, n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-18)
+
+
+def _edge_hits(vertices, faces, other_vertices=None, other_faces=None):
+    """`edges_through`'s hits strictly inside the edges: (the edge of each hit (K,), the triangle hit (K,), where
+    (K, 3), and the other mesh's vertices (float64) and faces)."""
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces)
     own = other_vertices is None
     ov, of = (v, f) if own else (np.asarray(other_vertices, np.float64), np.asarray(other_faces))
+    none = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), ov, of)
     e = edge_counts(f)[0]
     if not len(e) or not len(of):
-        return 0
+        return none
     d = v[e[:, 1]] - v[e[:, 0]]
     e = e[np.linalg.norm(d, axis=1) > 0.0]  # an edge pushed to nothing (both ends onto one skin point) has no ray
     origin = v[e[:, 0]]
@@ -391,13 +412,14 @@ def edges_through(vertices: np.ndarray, faces: np.ndarray, other_vertices: np.nd
     d = d / length[:, None]
     tri, ray, loc = query_mesh(ov, of).ray.intersects_id(origin, d, multiple_hits=True, return_locations=True)
     if len(ray) == 0:
-        return 0
-    t = ((np.asarray(loc) - origin[ray]) * d[ray]).sum(1)
+        return none
+    loc = np.asarray(loc, np.float64)
+    t = ((loc - origin[ray]) * d[ray]).sum(1)
     inside = (t > 1e-9) & (t < length[ray] - 1e-9)
     if own:
         corners = of[tri]
         inside &= ~((corners == e[ray, :1]).any(1) | (corners == e[ray, 1:]).any(1))
-    return int(len(np.unique(ray[inside])))
+    return ray[inside], tri[inside], loc[inside], ov, of
 
 
 def hem_split(vertices: np.ndarray, n_around: int) -> tuple[float, float]:
@@ -445,10 +467,12 @@ RIM_TOLERANCE = 1e-6  # metres: a closest surface point this near an open edge i
 @dataclasses.dataclass(frozen=True)
 class _Surface:
     """A garment surface prepared once for `_layer_closest`'s queries: its vertices (float64), faces and vertex
-    normals (`body.vertex_normals`), the trimesh whose search tree answers them (`geometry.query_mesh`), and its open edges as segments (start `rim_a`,
-    start-to-end `rim_d`, (R, 3)) with a k-d tree of their midpoints and their longest half length. Why: the pushes
-    query the same surface two rounds, and `push_over_layers` the same layers for every cycle; building the tree
-    and finding the open edges (a sort of every edge) each time was ~a quarter of a loose subject's posing."""
+    normals (`body.vertex_normals`), the trimesh whose search tree answers them (`geometry.query_mesh`), and its
+    open edges as segments (start `rim_a`, start-to-end `rim_d`, (R, 3)) with a k-d tree of their midpoints and
+    their longest half length. Why: the pushes query the same surface two rounds, and `push_over_layers` the same
+    layers every cycle; building the tree and finding the open edges (a sort of every edge) each time, and measuring
+    every closest point against every open edge, cost 0.11-0.15 of a loose subject's posing (docs/TRADEOFFS.md, "The
+    layers' surfaces, prepared once")."""
     vertices: np.ndarray
     faces: np.ndarray
     normals: np.ndarray
