@@ -7,10 +7,11 @@
         --distinct-frames --interleave                          # before / after, frames in turn (a shared machine)
     python bench/bench_generate.py --presets standard --headwear none cap brimmed_hat headscarf glasses
     python bench/bench_generate.py --protocol c --split test --resolution 128 --presets draft  # one frame, 6 views
+    python bench/bench_generate.py --presets draft standard --repeats 3 --distinct-frames --subject 2  # loose
 
-Renders frame 0 of subject 0's test split of protocol a (a random pose under a random bundled HDRI, every test
-layer: beauty pass + AOV pass) with `rh_dataset.generate.render_frame_to_disk`, the function the local and Ray
-backends call, into a temporary folder (`--split` another split; a multi-view split's frame is every camera of it,
+Renders frame 0 of subject 0's (or --subject's) test split of protocol a (a random pose under a random bundled HDRI,
+every test layer: beauty pass + AOV pass) with `rh_dataset.generate.render_frame_to_disk`, the function the local and
+Ray backends call, into a temporary folder (`--split` another split; a multi-view split's frame is every camera of it,
 `protocol c`: the seconds are the frame's, all views together): the same camera fill, culling, per-split path depth
 and writer as a dataset. Prints a Markdown table of each stage's median seconds. The first render of each preset
 is a warm-up (JIT compilation, cached on disk afterwards) and is not timed (every row's warm-up comes before the
@@ -42,6 +43,9 @@ def main() -> None:
     p.add_argument("--presets", nargs="+", default=["draft", "standard", "reference"])
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--subject", type=int, default=0,
+                   help="the protocol's subject rendered (default 0; seed 0's 2 wears an open jacket over a loose long "
+                        "sleeve over a draped skirt, its posing several times subject 0's)")
     p.add_argument("--protocol", default="a")
     p.add_argument("--split", default="test")
     p.add_argument("--distinct-frames", action="store_true",
@@ -60,6 +64,8 @@ def main() -> None:
     p.add_argument("--headwear", nargs="*", default=[],
                    help="variants of subject 0's headwear, e.g. none cap brimmed_hat headscarf glasses cap+glasses")
     args = p.parse_args()
+    if args.subject < 0:
+        p.error(f"--subject: 0 or more, got {args.subject}")
 
     from rh_dataset.cli import render_settings
     from rh_dataset.generate import DatasetPlan, render_frame_to_disk, resolve_plan, subject_source
@@ -67,7 +73,8 @@ def main() -> None:
     from rh_dataset.variant import select_variant
 
     variant = select_variant(None)
-    spec = load_protocol(args.protocol).with_overrides(subjects=1, resolution=(args.resolution, args.resolution))
+    spec = load_protocol(args.protocol).with_overrides(subjects=args.subject + 1,
+                                                       resolution=(args.resolution, args.resolution))
     split = spec.split(args.split)
     n_views = len(split.cameras) if split.cameras is not None else 1
     with tempfile.TemporaryDirectory(prefix="bench_generate_") as tmp:
@@ -75,7 +82,7 @@ def main() -> None:
                                         seed=args.seed))
         source = subject_source(plan)
         t = time.perf_counter()
-        subject = source.subject(0)
+        subject = source.subject(args.subject)
         t_subject = time.perf_counter() - t
         pose = source.pose(subject, split, 0)
         shapes = source.meshes(subject, pose)
