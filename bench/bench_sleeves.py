@@ -146,8 +146,9 @@ def main(argv: list[str] | None = None) -> int:
                 depth = 1e3 * float(penetration(np.asarray(body.vertices, np.float64), body.faces, v).max())
                 cross = self_crossings(v, sl.faces)
                 cp, cn = crossing_points(v, sl.faces)
-                cross_seen = int((seen_around(cp, cn, list(by.values())) | seen_around(cp, -cn, list(by.values())))
-                                 .sum())
+                # Either side of the pierced triangle, in one scene: the points twice, the normals both ways.
+                both = seen_around(np.r_[cp, cp], np.r_[cn, -cn], list(by.values())).reshape(2, -1)
+                cross_seen = int(both.any(0).sum())
                 tv = np.asarray(tee.vertices, np.float64)
                 d = np.where(on_arm, layer_depth(tv, v, sl.faces), np.nan)  # the shell's sleeves, not its trunk
                 out = np.flatnonzero(np.nan_to_num(d, nan=1.0) < 0)

@@ -709,11 +709,13 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
     for _ in range(int(rounds)):
         if not len(skin):
             break
-        # The closest cloth points of all the skin, then the open-edge test (`layer_depth`'s) for the few near it.
-        depth, closest, _ = _closest(v, f, skin)
+        # The closest cloth points of all the skin, then the open-edge test (`layer_depth`'s) for the few near it,
+        # both on the one search tree.
+        surface = _surface(v, f)
+        depth, closest, _ = _closest(v, f, skin, surface.normals, surface.mesh)
         sel = np.flatnonzero((depth < 0.0) & (np.linalg.norm(skin - closest, axis=1) <= reach))
         if len(sel):
-            depth, _, normal, tri = _layer_closest(skin[sel], _surface(v, f), reach, triangles=True)
+            depth, _, normal, tri = _layer_closest(skin[sel], surface, reach, triangles=True)
             keep = np.isfinite(depth) & (depth < 0.0)
             sel, depth, normal, tri = sel[keep], depth[keep], normal[keep], tri[keep]
         if not len(sel):
