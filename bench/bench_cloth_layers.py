@@ -1,11 +1,14 @@
 """Draped cloth over draped cloth (drape.DRAPED_OVER: a loose t-shirt or long sleeve over a draped skirt or wide
-trousers; an open jacket or coat over a loose top, and the jacket over the skirt under that top): how far the outer
-layer lies under the cloth under it, at rest and posed, and what keeping it out costs.
+trousers; an open jacket or coat over a loose top, and the jacket over the skirt under that top; the hoodie's hood
+over its body): how far the outer layer lies under the cloth under it, at rest and posed, and what keeping it out
+costs.
 
     python bench/bench_cloth_layers.py                       # benchmark subjects 5 and 39 (seed 0), 3 test poses
     python bench/bench_cloth_layers.py --subjects 20,24 --poses 2 --drape coarse
     python bench/bench_cloth_layers.py --subjects 14,41,45   # open jackets and a coat over loose tops
     python bench/bench_cloth_layers.py --subjects 2,26       # open jackets over loose tops over draped skirts
+    python bench/bench_cloth_layers.py --subjects 13,28,38,42 --through   # the hoods over the hoodies' bodies
+    python bench/bench_cloth_layers.py --subjects 13,28,42 --top draped_hoodie_body --through   # and those over bottoms
     python bench/bench_cloth_layers.py --seed 2 --subjects 0 # a loose top over wide trousers (none at seed 0)
     python bench/bench_cloth_layers.py --pool --subjects 4,17,52 --poses 4 --modes skinned --two-passes
                                                              # tops and jackets over the lifted wide trousers
@@ -17,7 +20,8 @@ the numbers are those of the dataset's frames (with `--pool`, the benchmark pool
 `recipe_from_seed(derive_seed("benchmark", i, seed))`, as bench_cloth.draped_recipe draws them); each must wear
 draped cloth over draped cloth (the outermost such layer over draped cloth: the top over a skirt, or the jacket or
 coat over the top, and over a skirt under it; the cloth under it is draped as the generator drapes it, each over
-what it is worn over). Below, "the top" is that outer layer, measured against each draped cloth it is draped over.
+what it is worn over). Below, "the top" is that outer layer (or `--top`), measured against each draped cloth it is
+draped over.
 Per subject:
   drape     the top draped on the body alone (as before 3 December) and over the cloth under it (`over`, its
             collider and pattern): the seconds of each drape (a cold cache: the drape is timed) and the top's
@@ -36,7 +40,8 @@ Per subject:
             from 2 mm off the vertex along its normal meeting no posed mesh; bench_cloth_pose.seen_around): the
             inner cloth come out through the top between the top's vertices, which the push, moving only the top's
             vertices, cannot see. Posing puts it back under (character._tuck_inner_layers); `--no-tuck` poses
-            without that.
+            without that. Not a measure for the hoodie's hood (character.TUCK_UNDER_NOT): a bag laid back, its
+            sheet on the back faces the body's cloth, which then counts as over it.
 --figure PATH: the first subject in its test pose --figure-pose (default the first), skinned, rendered without the
 tuck (top row) and with it (bottom), front and right, the lap framed at 512 px (standard preset, 64 spp).
 The load average is printed with the times: the machine is shared.
@@ -108,6 +113,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--figure-pose", type=int, default=0, help="the test pose of --figure")
     ap.add_argument("--max-passes", type=int, default=None,
                     help="push_over_layers' max_cycles for the posed runs (default: LAYER_CYCLES_MAX)")
+    ap.add_argument("--top", default=None,
+                    help="the draped piece measured over the cloth under it (default: the outermost such piece; "
+                         "draped_hoodie_body: the hoodie's body over the bottom, under its hood)")
     ap.add_argument("--two-passes", action="store_true",
                     help="also push over the layers with two passes only (before LAYER_CYCLES_MAX) and compare")
     args = ap.parse_args(argv)
@@ -117,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     from bench_cloth import benchmark_recipe
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.cloth_pose import push_over_layers
-    from rh_dataset.characters.drape import DRAPED_OVER, drape_garment, drape_layers, drape_settings, draped_over
+    from rh_dataset.characters.drape import (DRAPED_OVER, drape_garment, drape_layers, drape_settings, draped_over,
+                                             draped_pieces)
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
@@ -134,14 +143,17 @@ def main(argv: list[str] | None = None) -> int:
     for s in (int(x) for x in args.subjects.split(",")):
         recipe = benchmark_recipe(s, args.seed, args.pool)
         kinds = [g.kind for g in recipe.garments]
-        top = next((k for k in reversed(kinds) if k in DRAPED_OVER and set(DRAPED_OVER[k]) & set(kinds)), None)
+        pieces = [p for k in kinds for p in draped_pieces(k)]  # the hoodie: its body, then its hood
+        top = next((k for k in reversed(pieces) if k in DRAPED_OVER and set(DRAPED_OVER[k]) & set(pieces)
+                    and args.top in (None, k)), None)
         if top is None:
-            ap.error(f"benchmark {'pool recipe' if args.pool else 'subject'} {s} wears no draped cloth over draped "
-                     f"cloth: {kinds}")
-        inners = [k for k in kinds if k in DRAPED_OVER[top]]  # innermost first
+            ap.error(f"benchmark {'pool recipe' if args.pool else 'subject'} {s} wears no draped cloth "
+                     f"{args.top or ''} over draped cloth: {kinds}")
+        inners = [k for k in pieces if k in DRAPED_OVER[top]]  # innermost first
         ph = recipe.phenotype
         print(f"\n{'pool recipe' if args.pool else 'subject'} {s}: {kinds}")
-        draped = drape_layers(inners, ph, args.drape)  # the cloth under the top, as build_garments drapes it
+        # The cloth under the top, as build_garments drapes it (each piece over what it is worn over).
+        draped = drape_layers(pieces[:pieces.index(top)], ph, args.drape)
         clothes = draped_over(top, draped)
 
         def unders(points, layers) -> str:

@@ -53,7 +53,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character, sample_recipe
-    from rh_dataset.characters.drape import DRAPE_LEVELS, DRAPED_OVER, drape_garment, draped_over, drape_settings
+    from rh_dataset.characters.drape import (DRAPE_LEVELS, drape_garment, drape_layers, draped_over, draped_pieces,
+                                             drape_settings)
     from rh_dataset.generate.seeding import rng_for
     from rh_dataset.poses import sample_poses
     from rh_dataset.spec import load_protocol
@@ -77,16 +78,18 @@ def main(argv: list[str] | None = None) -> int:
         print(f"Warp/newton kernels (one-step drape, compiled or loaded): {time.perf_counter() - t:.1f} s")
     for kind, s in first.items():
         for level in DRAPE_LEVELS if not args.posing_only else ():
-            st = drape_settings(kind, level)
             ph = recipes[s].phenotype
-            # The draped cloth under it that it is draped over (a loose top over a skirt), draped first, not timed.
-            over = draped_over(kind, {k: drape_garment(k, ph, drape_settings(k, level)) for k in worn[s]
-                                      if k in DRAPED_OVER.get(kind, ())})
+            # The draped cloth under it (a loose top's skirt), draped first as the build drapes it, not timed; then
+            # each of its draped pieces (the hoodie's body, then its hood over it), timed together.
+            draped = drape_layers(worn[s][:worn[s].index(kind)], ph, level)
+            sts = [drape_settings(p, level) for p in draped_pieces(kind)]
             t = time.perf_counter()
-            drape_garment(kind, ph, st, over=over)
+            for p, st in zip(draped_pieces(kind), sts):
+                draped[p] = drape_garment(p, ph, st, over=draped_over(p, draped))
             secs[kind, level] = time.perf_counter() - t
-            print(f"subject {s:2d} {kind:13s} {level:6s} {st.n_around}x{st.n_rings} particles, {st.steps} steps: "
-                  f"drape {secs[kind, level]:6.1f} s  (load {load()})", flush=True)
+            grid = " + ".join(f"{st.n_around}x{st.n_rings} particles, {st.steps} steps" for st in sts)
+            print(f"subject {s:2d} {kind:13s} {level:6s} {grid}: drape {secs[kind, level]:6.1f} s  (load {load()})",
+                  flush=True)
     pose = next(p for p in sample_poses(np.random.default_rng(7), load_anny(), 8) if p.label == "walk")
     for kind, s in first.items():
         r = recipes[s]

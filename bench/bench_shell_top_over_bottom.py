@@ -1,5 +1,5 @@
-"""A shell top (t-shirt, long sleeve, the hoodie's trunk) over a draped bottom (skirt, trousers, shorts) with no
-draped jacket or coat over both: does the bottom's cloth come out through the top when posed? Posing puts it back
+"""A shell top (t-shirt, long sleeve; the hoodie's trunk until 6 December, now draped cloth) over a draped bottom
+(skirt, trousers, shorts) with no draped jacket or coat over both: does the bottom's cloth come out through the top when posed? Posing puts it back
 under the top (character._bottoms_under_shell_top, drape.SHELL_TOPS); this bench measures the posed frames with and
 without that step.
 
@@ -47,7 +47,7 @@ def wearers(seed: int) -> list[int]:
 
     out = []
     for s, recipe in enumerate(benchmark_recipes("protocol_a", seed)):
-        kinds = {part for g in recipe.garments for part in garment_parts(g.kind)}  # the hoodie's shell: "hoodie"
+        kinds = {part for g in recipe.garments for part in garment_parts(g.kind)}
         if kinds & set(SHELL_TOPS) and kinds & set(BOTTOMS_UNDER) and not kinds & set(SHELLS_UNDER):
             out.append(s)
     return out

@@ -320,11 +320,14 @@ def test_coat_drape_is_bit_identical_hangs_and_stays_outside_the_body_and_the_la
     assert all(d < LAYER_BOUND_M and n <= LAYER_MAX_UNDER for d, n in m["under"].values()), m["under"]
 
 
-def shell_under_panels(kind: str, recipe, top: str | None = "longsleeve") -> tuple[int, np.ndarray, float]:
+def shell_under_panels(kind: str, recipe, top: str | None = "longsleeve",
+                       piece: str | None = None) -> tuple[int, np.ndarray, float]:
     """A benchmark build (`recipe`'s phenotype) wearing `kind` over trousers and `top` (None: no top, for a kind that
     is one), coarse drape, rest pose: (the number of its shell's (SHELL_KINDS_OVER) trunk vertices under the panels'
     pinned ring, but for an open front's edges;
-    their depths under the panels, NaN where not over them; the deepest panel particle in the body, m)."""
+    their depths under the panels, NaN where not over them; the deepest panel particle in the body, m). `piece`: the
+    draped piece of `kind` whose shell is measured (`drape.draped_pieces`: the hoodie's body), `kind` itself if
+    None."""
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body_features import body_features
     from rh_dataset.characters.cloth_pose import layer_depth
@@ -334,6 +337,7 @@ def shell_under_panels(kind: str, recipe, top: str | None = "longsleeve") -> tup
           *((Garment(top, (1, 1, 1)),) if top else ()), Garment(kind, (0.6, 0.4, 0.2)))
     recipe = dataclasses.replace(recipe, garments=gs, headwear=())
     ch = build_character(recipe, 32, drape="coarse")
+    kind = piece or kind
     g = drape_garment(kind, recipe.phenotype, drape_settings(kind, "coarse"))
     posed = {m.name: m for m in pose_character(ch, {})}
     shell = SHELL_KINDS_OVER[kind]

@@ -23,7 +23,7 @@ HEAVY = {"gender": 0.0, "age": 0.6, "muscle": 0.5, "weight": 0.95, "height": 0.5
 
 def test_the_dress_is_built_as_its_bodice_then_its_cloth():
     assert SHELL_KINDS_OVER == {"draped_coat": "coat", "draped_jacket": "coat", "draped_dress": "bodice",
-                                "draped_tshirt": "tee", "draped_longsleeve": "longtop"}
+                                "draped_tshirt": "tee", "draped_longsleeve": "longtop", "draped_hoodie_body": "hoodie"}
     assert garment_parts(KIND) == ("bodice", KIND) and garment_parts("draped_skirt") == ("draped_skirt",)
     with pytest.raises(ValueError, match="shell_hem"):
         shell_hem("draped_skirt", PHENO)

@@ -94,7 +94,7 @@ def test_hoodie_sleeves_are_the_long_cut_in_the_hoods_fleece():
     from rh_dataset.characters.sleeves import LONG_SLEEVES, SLEEVE_CUTS
 
     assert SLEEVE_CUTS["draped_hoodie_sleeves"] == LONG_SLEEVES
-    assert garment_parts("draped_hoodie") == ("hoodie", "draped_hoodie", "draped_hoodie_sleeves")
+    assert garment_parts("draped_hoodie") == ("hoodie", "draped_hoodie_body", "draped_hoodie", "draped_hoodie_sleeves")
     for level in DRAPE_LEVELS:
         jersey, fleece = drape_settings(KIND, level), drape_settings("draped_hoodie_sleeves", level)
         hood = drape_settings("draped_hoodie", level)

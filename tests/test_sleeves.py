@@ -93,7 +93,7 @@ def test_coarse_drape_settles_off_the_arm_and_hangs(tmp_path, monkeypatch, kind,
 
 @pytest.mark.parametrize("shell, top, kind", [("tee", "draped_tshirt", KIND),
                                                ("longtop", "draped_longsleeve", "draped_long_sleeves"),
-                                               ("hoodie", "draped_hoodie", "draped_hoodie_sleeves"),
+                                               ("hoodie", "draped_hoodie_body", "draped_hoodie_sleeves"),
                                                ("coat", "draped_coat", "draped_coat_sleeves")])
 def test_shell_sleeves_end_under_the_pinned_rings(shell, top, kind):
     """Worn with the draped sleeves, the shell's ("tee", "longtop", "hoodie", "coat") sleeves end SHELL_OVERLAP along
@@ -105,7 +105,7 @@ def test_shell_sleeves_end_under_the_pinned_rings(shell, top, kind):
     feats = body_features(PHENO)
     tops = sleeve_tops(PHENO, drape_settings(kind).n_around, SLEEVE_CUTS[kind])
     ends = {s: t + SHELL_OVERLAP for s, t in tops.items()}
-    hem = None if shell == "hoodie" else shell_hem(top, PHENO)  # the hoodie's hem is the longsleeve's
+    hem = shell_hem(top, PHENO)  # `top`: the draped piece the shell ends over (the hoodie's: its body)
     level = garment_level(shell, feats, hem, sleeves=ends)
     plain = garment_level(shell, feats, hem)
     v = feats.rest_vertices
@@ -131,7 +131,7 @@ def test_parts_of_a_loose_tshirt():
         assert garment_parts("draped_tshirt", ["draped_tshirt", outer]) == ("tee", "draped_tshirt")
     assert garment_parts("draped_tshirt", ["draped_tshirt", "draped_skirt"]) == ("tee", "draped_tshirt", KIND)
     assert garment_parts("draped_longsleeve") == ("longtop", "draped_longsleeve", "draped_long_sleeves")
-    assert garment_parts("draped_hoodie") == ("hoodie", "draped_hoodie", "draped_hoodie_sleeves")
+    assert garment_parts("draped_hoodie") == ("hoodie", "draped_hoodie_body", "draped_hoodie", "draped_hoodie_sleeves")
     coat = ("coat", "draped_coat", "draped_coat_sleeves")  # the coat keeps its own sleeves, a top under it does not
     assert garment_parts("draped_coat") == garment_parts("draped_coat", ["draped_tshirt", "draped_coat"]) == coat
     jacket = ("coat", "draped_jacket", "draped_coat_sleeves")  # the jacket is the coat cut short, in its sleeves

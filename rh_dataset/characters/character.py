@@ -586,6 +586,15 @@ def _unit(n: np.ndarray) -> np.ndarray:
     return n / np.linalg.norm(n, axis=1, keepdims=True)  # second pass: unit length to float32 precision
 
 
+# Draped layers nothing is tucked under (`_tuck_inner_layers`): the hoodie's hood, a bag laid back whose faces point
+# out of the bag, so the sheet lying on the back faces the body's cloth under it. `push_under` takes what lies on a
+# layer's outward side within LAYER_REACH for cloth come out through it: on seed 0's subjects 13 and 28 at rest
+# (6 December, bench/bench_cloth_layers.py --subjects 13,28 --through) 30-40 of the body's vertices under the hood's
+# back sheet, which it moved up to the hood, and the hood's nearest vertex over that cloth came from 12.9 mm to
+# 3.2 mm. `push_over_layers` (the hood over the body's cloth, by that cloth's outward normals) keeps the hood on top.
+TUCK_UNDER_NOT = ("draped_hoodie",)
+
+
 def _tuck_inner_layers(character: Character, posed: list, cloth_under: dict, verts, normals, faces) -> None:
     """In place: draped cloth under draped cloth put back under it where it came out through it. `push_over_layers`
     moves only the outer layer's vertices, and the cloth under it can still pass out between them: the wide
@@ -599,7 +608,7 @@ def _tuck_inner_layers(character: Character, posed: list, cloth_under: dict, ver
     about 1 s more posing (1.6-1.9 -> 2.6-3.0 s at load ~1; bench/bench_cloth_layers.py --through, with and without
     --no-tuck; ARCHITECTURE, "Cloth under the top out through it"). `posed` meshes (vertices and normals) and
     `cloth_under` entries are replaced where they moved; where nothing came through, nothing changes."""
-    outers = [p for p in character.parts if p.name in cloth_under and
+    outers = [p for p in character.parts if p.name in cloth_under and p.name not in TUCK_UNDER_NOT and
               any(k in cloth_under for k in DRAPED_OVER.get(p.name, ()))]
     before = {k: v for k, (v, _) in cloth_under.items()}
     for part in reversed(outers):

@@ -2,16 +2,16 @@
 
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
 or straight-leg trousers or loose shorts, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`,
-`_hood_pattern`: a bag pinned on the back of the neckline, laid back and let fall down the upper back), a loose
-t-shirt's or long sleeve's body (a tube hanging from under the arms to the hips; its shoulders and sleeves are the
-shell "tee" or "longtop"), the loose t-shirt's short sleeves (`draped_sleeves`: two tubes round the upper arms, cut
-by sleeves.py), the loose long sleeve's (`draped_long_sleeves`: down to the wrists, bent at the elbows) and the
-hoodie's and the open coat's (`draped_hoodie_sleeves`, `draped_coat_sleeves`: the same cut in the hood's fleece,
-and kept 16 mm off the arm)); `PROFILES` cuts
-the others from one pattern function, `garment_pattern`: the trousers' waist tube divides into two leg tubes,
-`_trouser_pattern`; the coat's and the jacket's tubes are cut open at the front, `DrapeProfile.opening`, and their
-shoulders and sleeves are one shell, garments.py's "coat", whose hem `shell_hem` places, as it places the dress's
-bodice) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
+`_hood_pattern`: a bag pinned on the back of the neckline, laid back and let fall down the upper back, over the
+hoodie's body), a loose t-shirt's, long sleeve's or hoodie's body (a tube hanging from under the arms to the hips;
+its shoulders and sleeves are the shell "tee", "longtop" or "hoodie"), the loose t-shirt's short sleeves
+(`draped_sleeves`: two tubes round the upper arms, cut by sleeves.py), the loose long sleeve's
+(`draped_long_sleeves`: down to the wrists, bent at the elbows) and the hoodie's and the open coat's
+(`draped_hoodie_sleeves`, `draped_coat_sleeves`: the same cut in the hood's fleece, and kept 16 mm off the arm));
+`PROFILES` cuts the others from one pattern function, `garment_pattern`: the trousers' waist tube divides into two
+leg tubes, `_trouser_pattern`; the coat's and the jacket's tubes are cut open at the front, `DrapeProfile.opening`,
+and their shoulders and sleeves are one shell, garments.py's "coat", whose hem `shell_hem` places, as it places the
+dress's bodice) and its `DrapeSettings` (per kind and drape level: `drape_settings`).
 Out: `DrapedGarment`, the garment's settled rest-pose surface (vertices, faces, UVs) after `DrapeSettings.steps`
 steps of newton's `SolverVBD` with gravity, cloth self-contact and the body mesh (arms and hands left out) as a
 static collider (with the draped cloth under it, `DRAPED_OVER`: a loose top's skirt or wide trousers, an open
@@ -48,7 +48,8 @@ from .geometry import edge_counts, hull_anchors, metre_uvs, query_mesh, seamed_g
 from .sleeves import SLEEVE_CUTS, sleeve_pattern, sleeves_render_mesh
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
-           "DRAPED_OVER", "draped_over", "SHELLS_UNDER", "SLEEVE_GROUPS", "shells_under", "SHELL_TOPS", "BOTTOMS_UNDER",
+           "DRAPED_OVER", "draped_over", "DRAPED_PIECES", "draped_pieces",
+           "SHELLS_UNDER", "SLEEVE_GROUPS", "shells_under", "SHELL_TOPS", "BOTTOMS_UNDER",
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
@@ -59,7 +60,7 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
 
 DRAPED_KINDS = ("draped_skirt", "draped_dress", "draped_trousers", "draped_coat", "draped_hoodie", "draped_jacket",
                 "draped_tshirt", "draped_longsleeve", "draped_shorts", "draped_straight_trousers", "draped_sleeves",
-                "draped_long_sleeves", "draped_hoodie_sleeves", "draped_coat_sleeves")
+                "draped_long_sleeves", "draped_hoodie_sleeves", "draped_coat_sleeves", "draped_hoodie_body")
 DRAPE_VERSION = 5  # bump when the simulation changes (the pattern's bytes are part of the cache key too)
 CACHE_ENV = "RH_DRAPE_CACHE"
 PUSH_CLEARANCE = 0.003  # metres the skinned cloth is kept above the posed skin (push_out)
@@ -237,7 +238,8 @@ SHELL_OVERLAP = 0.015  # metres a shell over draped cloth (SHELL_KINDS_OVER) rea
 
 @dataclasses.dataclass(frozen=True)
 class HoodCut:
-    """The cut of the hoodie's hood (`draped_hoodie`; its body and sleeves are the longsleeve's shell, garments.py).
+    """The cut of the hoodie's hood (`draped_hoodie`; its shoulders are the longsleeve's shell "hoodie", garments.py,
+    its body `draped_hoodie_body`, draped under the hood, and its sleeves `draped_hoodie_sleeves`).
     The hood is cut as it is worn up, in horizontal sections around the head: `DrapeSettings.n_rings` C-shaped
     rows of `n_around` particles, from the pinned neckline ring (row 0) to the crown (the last row), open at the front
     (the face opening: the two end columns and the crown's small last row are the cloth's free edge).
@@ -339,6 +341,15 @@ for _level in ("full", "coarse"):
 PROFILES["draped_longsleeve"] = PROFILES["draped_tshirt"]
 PUSH_CLEARANCES["draped_longsleeve"] = PUSH_CLEARANCES["draped_tshirt"]
 _SETTINGS.update({("draped_longsleeve", level): _SETTINGS["draped_tshirt", level] for level in DRAPE_LEVELS})
+# The hoodie's body (`draped_hoodie_body`, since 6 December; a shell cut like the longsleeve's before, which showed
+# the body's shape under a hood and sleeves of loose fleece): the loose t-shirt's cut, clearances and particles in
+# the hood's fleece, with the fleece sleeves' contact stiffness (2e5: the heavier cloth rests on the hips' slope
+# and on a draped bottom's waistband, where the jersey's 5e4 is the light cloth's).
+PROFILES["draped_hoodie_body"] = PROFILES["draped_tshirt"]
+PUSH_CLEARANCES["draped_hoodie_body"] = PUSH_CLEARANCES["draped_tshirt"]
+_SETTINGS.update({("draped_hoodie_body", level): dataclasses.replace(_SETTINGS["draped_tshirt", level],
+                                                                     contact_ke=2.0e5, **_FLEECE)
+                  for level in DRAPE_LEVELS})
 # The loose shorts: the wide trousers' settings with half their rings (the same ~2.7 cm spacing, coarse ~6 cm, over
 # their ~45 cm).
 _SETTINGS.update({("draped_shorts", level): dataclasses.replace(st, n_rings=st.n_rings // 2)
@@ -420,9 +431,9 @@ def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre
 # height, and the front is open as wide, FRONT_OPENING); the dress's bodice (without it the dress is strapless, its
 # top edge across the bust); the loose t-shirt's shoulders, sleeves and chest ("tee": the t-shirt's cut, its hem
 # under the ring; its sleeves end under the draped sleeves' rings, sleeves.py); the loose long sleeve's ("longtop":
-# the longsleeve's cut, its hem under the ring).
+# the longsleeve's cut, its hem under the ring); the hoodie's ("hoodie", likewise; its hood is draped over it).
 SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dress": "bodice", "draped_tshirt": "tee",
-                    "draped_longsleeve": "longtop"}
+                    "draped_longsleeve": "longtop", "draped_hoodie_body": "hoodie"}
 
 
 # Draped kinds hung over draped cloth worn under them: {draped kind: the draped kinds under it its drape collides
@@ -430,11 +441,18 @@ SHELL_KINDS_OVER = {"draped_coat": "coat", "draped_jacket": "coat", "draped_dres
 # trousers, the shorts): draped on the body alone, the top's cloth would settle through the skirt. The open jacket's
 # and the coat's panels hang over a loose top (recipe.OVER_LOOSE_TOP) and over the bottom under it
 # (recipe.JACKET_OVER_LOOSE_TOP, recipe.COAT_OVER_DRAPED). Their pattern is cut outside that cloth too
-# (`garment_pattern`'s `over`), and `drape_garment` adds the cloth to the collider.
+# (`garment_pattern`'s `over`), and `drape_garment` adds the cloth to the collider. The hoodie's body hangs over
+# the bottoms as the loose tops do, and its hood falls onto that body's cloth down the upper back, below the body's
+# pinned ring; the hood's pattern starts laid back above the shoulders, clear of it, so only its collider takes the
+# cloth.
 _BOTTOMS_UNDER = ("draped_skirt", "draped_trousers", "draped_shorts", "draped_straight_trousers")
 DRAPED_OVER = {"draped_tshirt": _BOTTOMS_UNDER, "draped_longsleeve": _BOTTOMS_UNDER,
+               "draped_hoodie_body": _BOTTOMS_UNDER, "draped_hoodie": ("draped_hoodie_body",),
                "draped_jacket": _BOTTOMS_UNDER + ("draped_tshirt", "draped_longsleeve"),
                "draped_coat": _BOTTOMS_UNDER + ("draped_tshirt", "draped_longsleeve")}
+# The draped kinds a recipe garment is draped as, in order (each over those before it that DRAPED_OVER names); any
+# other draped recipe kind is draped as itself. Its draped sleeves are draped over the arm alone (garments.py).
+DRAPED_PIECES = {"draped_hoodie": ("draped_hoodie_body", "draped_hoodie")}
 
 
 # Shells held under draped cloth: {draped kind: the shell parts}. Only where a draped bottom is worn
@@ -459,9 +477,9 @@ SLEEVE_GROUPS = ("upperarm", "lowerarm", "hand")
 # panels instead: SHELLS_UNDER): the top's hem hangs over the bottom's waistband, raised over its cloth at rest
 # (garments.build_garments' `under`), but posed, the bottom's skinned, pushed-out and lifted cloth came out through
 # it: seed 0's subject 23 bending, 16 of its shorts' vertices over its t-shirt, 12 of them seen. Posing puts them
-# back under the top (character._bottoms_under_shell_top; bench/bench_shell_top_over_bottom.py). Part names: the
-# hoodie's trunk is the long sleeve's shell (its hood, draped on the upper back, lies far above any bottom).
-SHELL_TOPS = ("tshirt", "longsleeve", "hoodie")
+# back under the top (character._bottoms_under_shell_top; bench/bench_shell_top_over_bottom.py). Part names; the
+# hoodie's shell ends at the chest since 6 December, over its draped body (DRAPED_OVER holds that over a bottom).
+SHELL_TOPS = ("tshirt", "longsleeve")
 BOTTOMS_UNDER = _BOTTOMS_UNDER
 
 
@@ -500,9 +518,9 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     hangs over (`DRAPED_OVER`); the rings are also kept outside their cross-section's hull, so that no particle starts
     under that cloth."""
     st = drape_settings(kind) if settings is None else settings
-    if over is not None and (kind == "draped_hoodie" or kind in SLEEVE_CUTS or PROFILES[kind].legs):
+    if over is not None and (kind in SLEEVE_CUTS or (kind in PROFILES and PROFILES[kind].legs)):
         raise ValueError(f"drape: {kind} is not draped over other cloth (DRAPED_OVER)")
-    if kind == "draped_hoodie":
+    if kind == "draped_hoodie":  # laid back above the shoulders: clear of the body's cloth it then falls onto
         return _hood_pattern(phenotype, st)
     if kind in SLEEVE_CUTS:
         return sleeve_pattern(phenotype, st.n_around, st.n_rings, SLEEVE_CUTS[kind])[:5]
@@ -1065,13 +1083,19 @@ def draped_over(kind: str, draped: Mapping[str, DrapedGarment]) -> tuple[DrapedG
     return tuple(draped[k] for k in DRAPED_OVER.get(kind, ()) if k in draped)
 
 
+def draped_pieces(kind: str) -> tuple[str, ...]:
+    """The draped kinds a recipe garment of `kind` is draped as, in order (`DRAPED_PIECES`; a draped kind itself,
+    nothing for a shell; its draped sleeves aside)."""
+    return DRAPED_PIECES.get(kind, (kind,) if kind in DRAPED_KINDS else ())
+
+
 def drape_layers(kinds: Sequence[str], phenotype: dict[str, float], level: str = "full") -> dict[str, DrapedGarment]:
-    """Each draped kind of `kinds` (a recipe's garments, innermost first) draped as `build_garments` drapes it: in
-    that order, each over those before it that `DRAPED_OVER` names, at drape `level` (the same cache entries)."""
+    """Each draped piece of `kinds` (a recipe's garments, innermost first; `draped_pieces`) draped as
+    `build_garments` drapes it: in that order, each over those before it that `DRAPED_OVER` names, at drape `level`
+    (the same cache entries)."""
     draped: dict[str, DrapedGarment] = {}
-    for k in kinds:
-        if k in DRAPED_KINDS:
-            draped[k] = drape_garment(k, phenotype, drape_settings(k, level), over=draped_over(k, draped))
+    for k in (p for kind in kinds for p in draped_pieces(kind)):
+        draped[k] = drape_garment(k, phenotype, drape_settings(k, level), over=draped_over(k, draped))
     return draped
 
 

@@ -16,7 +16,8 @@ collars).
 In: a recipe's garments and the phenotype's `BodyFeatures`. Out: one `PartGeometry` per garment, innermost first
 (the draped coat, jacket, dress, loose t-shirt and loose long sleeve: a shell over the cloth, "coat", "bodice", "tee"
 or "longtop", then the draped cloth, then the coat's and the loose tops' draped sleeves; the draped hoodie: the shell
-"hoodie", a longsleeve cut short at the shoulders, its draped hood and its draped sleeves; `garment_parts`).
+"hoodie", a longsleeve cut short at the shoulders and the chest, its draped body, its draped hood over that, and its
+draped sleeves; `garment_parts`).
 """
 from __future__ import annotations
 
@@ -32,8 +33,8 @@ from rh_common.body_model import ANNY_TOPOLOGY
 from .body import anchor_points, blended_normals, body_topology, run_anny, vertex_normals
 from .body_features import BodyFeatures
 from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP, SHELLS_UNDER, SLEEVE_GROUPS,
-                    DrapeSettings, SkinBinding, drape_garment, draped_over, draped_part, drape_settings, push_clearance,
-                    push_out, shell_hem, shells_under)
+                    DrapeSettings, SkinBinding, drape_garment, draped_over, draped_part, draped_pieces, drape_settings,
+                    push_clearance, push_out, shell_hem, shells_under)
 from .cloth_pose import LIFT_KINDS, skin_inside
 from .geometry import boundary_distance, closed_tube, hull_anchors, smoothstep, split_faces
 from .sleeves import SLEEVE_CUTS, sleeve_axis, sleeve_tops
@@ -53,8 +54,8 @@ BASE_OFFSET = {
     "jacket": 0.017,
     "coat": 0.017,  # the draped coat's and jacket's shoulders, yoke and sleeves (a jacket's cut down to the chest)
     "bodice": 0.006,  # the draped dress's top: a t-shirt's cut with cap sleeves and a scoop neck, down to the chest
-    "hoodie": 0.006,  # the hoodie's body: the longsleeve's shell, its sleeves cut short under the draped sleeves
-    # (its hood and sleeves are draped: drape.py, sleeves.py)
+    "hoodie": 0.006,  # the hoodie's shoulders: the longsleeve's cut down to the chest, its sleeves cut short under
+    # the draped sleeves (its body, hood and sleeves are draped: drape.py, sleeves.py)
     "tee": 0.006,  # the loose t-shirt's shoulders, sleeves and chest: the t-shirt's cut down to the chest (its sleeves
     # cut short under the draped sleeves, sleeves.py, where the t-shirt wears them)
     "longtop": 0.006,  # the loose long sleeve's: the longsleeve's cut down to the chest (its sleeves cut short under
@@ -71,7 +72,7 @@ COAT_LAPEL = 0.25
 # between a 4-6 mm shell and the ring showed as a dark line across the chest seen from above; the loose long
 # sleeve's shell over the same cloth likewise.
 TUCK = {"coat": 0.009, "bodice": 0.003, "tee": 0.0075}
-TUCK["longtop"] = TUCK["tee"]
+TUCK["longtop"] = TUCK["hoodie"] = TUCK["tee"]
 # Shells tucked to TUCK only at their hem and lifted over it to their own offset at the cloth's pinned ring: the
 # coat's, whose panels' ring stands ~16 mm off the skin (`drape.COAT_CLEARANCE` + 2 mm out of the hull). Tucked to
 # 9 mm from its hem up to 5 mm above the ring, the shell left the ring standing 6.5-7.0 mm (median) over it, a dark
@@ -127,10 +128,10 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None,
     along which `split_faces` cuts the body's triangles. Each edge is a level of a smooth function (height, a
     rounded scoop in front of the neck, distance along a limb's axis), so the cut is a smooth curve; bone-group
     labels only pick which function applies to a vertex (an arm takes the sleeve's, never the trunk's), so their
-    ragged borders never become an edge. `hem` (bind-space height; the "coat", "bodice", "tee" and "longtop" shells
-    only, whose hem is where the draped cloth under them is pinned: `drape.shell_hem`). Shells in CUT_AS take the
-    neckline and sleeves of the kind named there. `sleeves` ({"L": metres, "R": metres}; the "tee", "longtop" and
-    "hoodie" under the draped sleeves): each sleeve ends that far along its upper arm's axis
+    ragged borders never become an edge. `hem` (bind-space height; the "coat", "bodice", "tee", "longtop" and
+    "hoodie" shells only, whose hem is where the draped cloth under them is pinned: `drape.shell_hem`). Shells in
+    CUT_AS take the neckline and sleeves of the kind named there. `sleeves` ({"L": metres, "R": metres}; the "tee",
+    "longtop" and "hoodie" under the draped sleeves): each sleeve ends that far along its upper arm's axis
     (`sleeves.sleeve_axis`, from the upperarm01 joint) instead of at its cut's length."""
     v = feats.rest_vertices
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
@@ -188,14 +189,15 @@ SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe
 # Parts a recipe garment is built as, in build order: the draped coat and jacket are a shell (shoulders, yoke, and
 # sleeves cut short under their draped sleeves) and the draped panels below it, the dress a shell (its bodice) and
 # the draped skirt below it, the loose t-shirt and long sleeve a shell ("tee", "longtop": shoulders, sleeves, chest)
-# and a draped body below it (drape.SHELL_KINDS_OVER), the draped hoodie the longsleeve's shell ("hoodie") and its
-# draped hood; all in the garment's fabric. The loose tops', the hoodie's, the open coat's and jacket's sleeves are
+# and a draped body below it (drape.SHELL_KINDS_OVER), the draped hoodie the longsleeve's shell ("hoodie") down to
+# the chest, a draped body below it (the loose tops' cut in fleece) and its draped hood over that body (drape.py's
+# DRAPED_PIECES); all in the garment's fabric. The loose tops', the hoodie's, the open coat's and jacket's sleeves are
 # draped too ("draped_sleeves", "draped_long_sleeves", "draped_hoodie_sleeves", "draped_coat_sleeves": sleeves.py;
 # the jacket is the coat cut short and wears the coat's; nothing is worn over a hoodie, recipe_draws._hoodie), but a
 # top's not under an open jacket or coat (SLEEVES_UNDER_NOT): their draped sleeves are draped over the arm alone,
 # clear of a 6 mm shell sleeve under them (16 mm off the arm) but not of another draped one.
 GARMENT_PARTS = {**{kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()},
-                 "draped_hoodie": ("hoodie", "draped_hoodie", "draped_hoodie_sleeves"),
+                 "draped_hoodie": ("hoodie", "draped_hoodie_body", "draped_hoodie", "draped_hoodie_sleeves"),
                  "draped_coat": ("coat", "draped_coat", "draped_coat_sleeves"),
                  "draped_jacket": ("coat", "draped_jacket", "draped_coat_sleeves"),
                  "draped_tshirt": ("tee", "draped_tshirt", "draped_sleeves"),
@@ -670,6 +672,38 @@ def _skirt(feats: BodyFeatures, under: np.ndarray, n_rings: int = 14, n_around: 
     )
 
 
+def _draped_piece(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, phenotype: dict[str, float],
+                  drape: str, draped: dict, early: dict, ends: Mapping[str, float] | None) -> list[PartGeometry]:
+    """One draped piece of a garment (`drape.draped_pieces`) as `build_garments` makes it: the shell over its cloth
+    (`SHELL_KINDS_OVER`, its sleeves ending at `ends`), then the cloth, draped over the pieces in `draped` it hangs
+    over (or taken from `early`, where it was draped before its turn) and added to `draped`; `under` is raised."""
+    st = drape_settings(kind, drape)
+    over = draped_over(kind, draped)
+    draped[kind] = early.pop(kind, None) or drape_garment(kind, phenotype, st, over=over)
+    out = []
+    if kind in SHELL_KINDS_OVER:
+        # Only the coat's shell can be lifted past its own cloth: over a loose top `under` raises it by the
+        # top's cloth, which hangs at the height of the panels' ring. The other shells sit at their TUCK
+        # (under LAYER_GAP) below their cloth's ring, with nothing draped under them to lift them.
+        shell = SHELL_KINDS_OVER[kind]
+        cover = ((run_anny(phenotype)["vertices"], draped[kind].vertices, draped[kind].faces)
+                 if shell == "coat" else None)
+        out.append(_shell(shell, feats, under, topology, hem=shell_hem(kind, phenotype, st), cover=cover,
+                          sleeves=ends))
+    part = draped_part(kind, phenotype, feats, under, st, over, draped[kind])
+    if kind in LIFT_KINDS:
+        # The skin inside the cloth as posing leaves it at rest: pushed out (`push_out`, as pose_character
+        # pushes every frame). The drape itself dips up to ~2 mm into the body (the loaded waistband, the
+        # crotch); skin it dipped over lay outside it, so was never lifted, and came out through the
+        # posed cloth (bench_cloth_pose.py, the straight trousers' deep seated pose: 20 seen -> 1, skinned).
+        rest = run_anny(phenotype)["vertices"]
+        faces = body_topology().faces
+        normals = vertex_normals(rest, faces)
+        cloth = push_out(draped[kind].vertices, rest, normals, faces, push_clearance(kind))
+        part = dataclasses.replace(part, inside_skin=skin_inside(cloth, draped[kind].faces, rest, normals))
+    return out + [part]
+
+
 def build_garments(
     garments: tuple[Garment, ...],
     feats: BodyFeatures,
@@ -700,9 +734,6 @@ def build_garments(
         elif g.kind in DRAPED_KINDS:
             if phenotype is None:
                 raise ValueError(f"build_garments: {g.kind} needs the phenotype (it is draped on the body)")
-            st = drape_settings(g.kind, drape)
-            over = draped_over(g.kind, draped)
-            draped[g.kind] = early.pop(g.kind, None) or drape_garment(g.kind, phenotype, st, over=over)
             sleeves_kind = _draped_sleeves(g.kind, kinds)
             st_sleeves = None if sleeves_kind is None else drape_settings(sleeves_kind, drape)
             ends = None
@@ -710,29 +741,8 @@ def build_garments(
                 # The shell's sleeves end SHELL_OVERLAP under the draped sleeves' pinned rings, inside the cloth.
                 tops = sleeve_tops(phenotype, st_sleeves.n_around, SLEEVE_CUTS[sleeves_kind])
                 ends = {s: t + SHELL_OVERLAP for s, t in tops.items()}
-            if g.kind in SHELL_KINDS_OVER:
-                # Only the coat's shell can be lifted past its own cloth: over a loose top `under` raises it by the
-                # top's cloth, which hangs at the height of the panels' ring. The other shells sit at their TUCK
-                # (under LAYER_GAP) below their cloth's ring, with nothing draped under them to lift them.
-                shell = SHELL_KINDS_OVER[g.kind]
-                cover = ((run_anny(phenotype)["vertices"], draped[g.kind].vertices, draped[g.kind].faces)
-                         if shell == "coat" else None)
-                out.append(_shell(shell, feats, under, topology, hem=shell_hem(g.kind, phenotype, st), cover=cover,
-                                  sleeves=ends))
-            elif g.kind == "draped_hoodie":
-                out.append(_shell("hoodie", feats, under, topology, sleeves=ends))
-            part = draped_part(g.kind, phenotype, feats, under, st, over, draped[g.kind])
-            if g.kind in LIFT_KINDS:
-                # The skin inside the cloth as posing leaves it at rest: pushed out (`push_out`, as pose_character
-                # pushes every frame). The drape itself dips up to ~2 mm into the body (the loaded waistband, the
-                # crotch); skin it dipped over lay outside it, so was never lifted, and came out through the
-                # posed cloth (bench_cloth_pose.py, the straight trousers' deep seated pose: 20 seen -> 1, skinned).
-                rest = run_anny(phenotype)["vertices"]
-                faces = body_topology().faces
-                normals = vertex_normals(rest, faces)
-                cloth = push_out(draped[g.kind].vertices, rest, normals, faces, push_clearance(g.kind))
-                part = dataclasses.replace(part, inside_skin=skin_inside(cloth, draped[g.kind].faces, rest, normals))
-            out.append(part)
+            for kind in draped_pieces(g.kind):  # the hoodie: its body, then its hood over it
+                out.extend(_draped_piece(kind, feats, under, topology, phenotype, drape, draped, early, ends))
             if sleeves_kind is not None:
                 sleeves = drape_garment(sleeves_kind, phenotype, st_sleeves)
                 out.append(draped_part(sleeves_kind, phenotype, feats, under, st_sleeves, (), sleeves))

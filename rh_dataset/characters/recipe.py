@@ -45,19 +45,19 @@ __all__ = [
 RECIPE_FORMAT = "rh-character/1"  # headwear (optional key) kept the format: older recipes read back unchanged
 POOLS = ("benchmark", "pretrain")
 # draped_skirt, draped_dress, draped_trousers (wide-leg), draped_straight_trousers (their cut with straight legs),
-# draped_shorts (loose, the wide trousers' cut above the knee),
-# draped_coat (open, long), draped_jacket (open, to the hips):
-# loose garments draped by newton's cloth solver (drape.py). A dress is worn instead of a top and a bottom; the coat
-# or the open jacket is the outermost layer, instead of a (shell) jacket, over close-fitting shell bottoms
-# (UNDER_COAT), the open jacket also over a draped bottom (JACKET_OVER_LOOSE_TOP), the coat over the loose shorts
-# or straight trousers (COAT_OVER_DRAPED); their drape collides with the
-# body and with the loose top's cloth and the skirt under them (a shell top is held under them). draped_hoodie: a
-# top, the longsleeve's shell with a hood draped on the upper back, worn without any of OUTERWEAR (its hood collides
-# with the body, not with a jacket). draped_tshirt: a top, the t-shirt's shoulders and
-# sleeves over a body of cloth hanging loose from under the arms to the hips, worn under nothing or one of
-# OVER_LOOSE_TOP (whose drape collides with it), over one of UNDER_LOOSE_TOP (its drape collides with the body and
-# with a draped skirt or wide trousers under it); draped_longsleeve likewise, the longsleeve's shoulders and sleeves
-# over that cloth. `recipe_from_seed` draws them (recipe_draws.py); the shell `skirt` stays a recipe's choice.
+# draped_shorts (loose, the wide trousers' cut above the knee), draped_coat (open, long), draped_jacket (open, to the
+# hips): loose garments draped by newton's cloth solver (drape.py). A dress is worn instead of a top and a bottom; the
+# coat or the open jacket is the outermost layer, instead of a (shell) jacket, over close-fitting shell bottoms
+# (UNDER_COAT), the open jacket also over a draped bottom (JACKET_OVER_LOOSE_TOP), the coat over the loose shorts or
+# straight trousers (COAT_OVER_DRAPED); their drape collides with the body and with the loose top's cloth and the skirt
+# under them (a shell top is held under them). draped_hoodie: a top, the longsleeve's shoulders over a body of fleece
+# hanging loose from under the arms to the hips and a hood draped over it on the upper back, worn without any of
+# OUTERWEAR (its hood collides with the body and its own cloth, not with a jacket), over one of UNDER_LOOSE_TOP as a
+# loose top is. draped_tshirt: a top, the t-shirt's shoulders and sleeves over a body of cloth hanging loose from under
+# the arms to the hips, worn under nothing or one of OVER_LOOSE_TOP (whose drape collides with it), over one of
+# UNDER_LOOSE_TOP (its drape collides with the body and with a draped skirt or wide trousers under it);
+# draped_longsleeve likewise, the longsleeve's shoulders and sleeves over that cloth. `recipe_from_seed` draws them
+# (recipe_draws.py); the shell `skirt` stays a recipe's choice.
 GARMENT_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts", "skirt", "draped_skirt", "draped_dress",
                  "draped_trousers", "shoes", "draped_coat", "draped_hoodie", "draped_jacket", "draped_tshirt",
                  "draped_longsleeve", "draped_shorts", "draped_straight_trousers")
@@ -338,8 +338,9 @@ class CharacterRecipe:
             raise ValueError(f"garments: at most one of {OUTERWEAR}, a draped_coat or draped_jacket only over one of "
                              f"{UNDER_COAT} (a draped_jacket also over one of {JACKET_OVER_LOOSE_TOP}, a draped_coat "
                              f"over one of {COAT_OVER_DRAPED}), got {kinds}")
-        if "draped_hoodie" in kinds and outer:
-            raise ValueError(f"garments: a draped_hoodie is worn without any of {OUTERWEAR}, got {kinds}")
+        if "draped_hoodie" in kinds and (outer or not any(k in UNDER_LOOSE_TOP for k in kinds)):
+            raise ValueError(f"garments: a draped_hoodie is worn without any of {OUTERWEAR}, over one of "
+                             f"{UNDER_LOOSE_TOP}, got {kinds}")
         if any(k in LOOSE_TOPS for k in kinds) and (set(outer) - set(OVER_LOOSE_TOP)
                                                     or not any(k in UNDER_LOOSE_TOP for k in kinds)):
             raise ValueError(f"garments: a loose top {LOOSE_TOPS} is worn under none of {OUTERWEAR} but "
