@@ -40,8 +40,8 @@ Per subject:
             from 2 mm off the vertex along its normal meeting no posed mesh; bench_cloth_pose.seen_around): the
             inner cloth come out through the top between the top's vertices, which the push, moving only the top's
             vertices, cannot see. Posing puts it back under (character._tuck_inner_layers); `--no-tuck` poses
-            without that. Not a measure for the hoodie's hood (character.TUCK_UNDER_NOT): a bag laid back, its
-            sheet on the back faces the body's cloth, which then counts as over it.
+            without that. Not measured for the hoodie's hood (character.TUCK_UNDER_NOT): a bag laid back, its
+            sheet on the back faces the body's cloth, which would count as over it.
 --figure PATH: the first subject in its test pose --figure-pose (default the first), skinned, rendered without the
 tuck (top row) and with it (bottom), front and right, the lap framed at 512 px (standard preset, 64 spp).
 The load average is printed with the times: the machine is shared.
@@ -121,6 +121,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     import rh_dataset.characters.character as character_module
+    from rh_dataset.characters.character import TUCK_UNDER_NOT
     from rh_common.body_model import load_anny
     from bench_cloth import benchmark_recipe
     from rh_dataset.characters import build_character, pose_character
@@ -201,7 +202,9 @@ def main(argv: list[str] | None = None) -> int:
                         character_module.push_over_layers = push_over_layers
                     two = (f" | {unders(old[top].vertices, {k: (old[k].vertices, old[k].faces) for k in inners})}, "
                            f"{'same' if np.array_equal(old[top].vertices, posed[top].vertices) else 'differs'}")
-                if args.through:
+                if args.through and top in TUCK_UNDER_NOT:
+                    two += " | through: not measured (a bag laid back, character.TUCK_UNDER_NOT)"
+                elif args.through:
                     two += " | through (seen): " + ", ".join("{} {:d} ({:.1f} mm; {:d})".format(k, *over_top(
                         posed[k], posed[top], list(posed.values()))) for k in inners)
                 print(f"  {label:22s} {mode:9s}  {before} | {after} | {t_push:5.2f}{two} "
