@@ -68,7 +68,8 @@ CLOTH_MODES = ("skinned", "simulated")
 # way, 71 self-crossing edges skinned against 128 simulated (the seated laps), renders 33.6 dB apart against
 # standard's 42.3 dB noise: simulated at reference.
 # The hoodie's body (6 December) is the loose t-shirt's cut in the hood's fleece: simulated as the loose tops are,
-# in its own fabric (not measured on its own; `bench/bench_cloth_pose.py --kind draped_hoodie_body` would).
+# in its own fabric. Not measured skinned against simulated (bench_cloth_pose.py picks wearers of a recipe kind and
+# measures that part: `--kind draped_hoodie`, the hood); bench_cloth_layers.py's simulated frames keep the hood over it.
 # The loose shorts are the wide trousers cut above the knee, the straight-leg trousers their legs without the flare:
 # simulated, lifted and posed in their fabric likewise.
 # The draped sleeves (`sleeves.SLEEVE_CUTS`: the loose tops', the hoodie's, the open coat's) are skinned in every
