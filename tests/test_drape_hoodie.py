@@ -16,7 +16,7 @@ import pytest
 from rh_dataset.characters.body import body_topology, run_anny
 from rh_dataset.characters.drape import (DRAPE_LEVELS, DRAPED_OVER, HOOD, HOOD_CLEARANCE, PROFILES, SHELL_KINDS_OVER,
                                          drape_garment, drape_settings, draped_pieces, garment_pattern, penetration,
-                                         push_clearance, shell_hem)
+                                         push_clearance)
 from rh_dataset.characters.geometry import edge_counts
 
 KIND = "draped_hoodie"
@@ -112,8 +112,8 @@ def test_hoodie_is_the_loose_tops_cloth_in_fleece_under_the_longsleeves_shoulder
     tops' shell_hem and tucked as the tee's is), its body (the loose t-shirt's profile, pattern bit for bit and
     clearances, in the hood's fleece: density and stiffnesses, with the fleece sleeves' contact), the hood draped
     over that body, and the draped sleeves; the body hangs over the bottoms the loose tops hang over."""
-    from rh_dataset.characters.body_features import body_features
-    from rh_dataset.characters.garments import BASE_OFFSET, TUCK, garment_level, garment_parts
+    from rh_dataset.characters.garments import BASE_OFFSET, TUCK, garment_parts
+    from test_drape_tshirt import check_longsleeve_cut_to_the_ring
 
     assert garment_parts(KIND) == ("hoodie", BODY, KIND, "draped_hoodie_sleeves")
     assert draped_pieces(KIND) == (BODY, KIND) and draped_pieces("draped_tshirt") == ("draped_tshirt",)
@@ -131,15 +131,7 @@ def test_hoodie_is_the_loose_tops_cloth_in_fleece_under_the_longsleeves_shoulder
             == jersey
     a, b = garment_pattern(BODY, PHENO), garment_pattern("draped_tshirt", PHENO)
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
-    feats = body_features(PHENO)
-    hem = shell_hem(BODY, PHENO)
-    assert hem == shell_hem("draped_tshirt", PHENO)
-    shell, longsleeve = garment_level("hoodie", feats, hem), garment_level("longsleeve", feats)
-    v = feats.rest_vertices
-    arm = feats.in_groups("upperarm", "lowerarm", "hand")
-    np.testing.assert_array_equal(shell[arm] < 0, longsleeve[arm] < 0)
-    trunk = feats.in_groups("torso") & ~arm
-    assert (shell[trunk & (v[:, 2] < hem - 0.005)] > 0).all()
+    shell, longsleeve, v, hem = check_longsleeve_cut_to_the_ring("hoodie", BODY, PHENO)
     np.testing.assert_array_equal(shell[v[:, 2] > hem + 0.005] < 0, longsleeve[v[:, 2] > hem + 0.005] < 0)
 
 

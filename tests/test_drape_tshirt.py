@@ -242,6 +242,25 @@ def test_tshirt_shell_lies_inside_the_cloth_and_the_cloth_off_the_body_for_many_
 
 
 
+def check_longsleeve_cut_to_the_ring(shell: str, kind: str, pheno) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """A shell cut as the longsleeve down to the pinned ring of the draped `kind` under it ("longtop", "hoodie"):
+    its hem is the loose t-shirt's `shell_hem`, its arms are the longsleeve's, and no trunk vertex 5 mm or more under
+    the hem is covered. Returns (the shell's level, the longsleeve's, the rest vertices, the hem)."""
+    from rh_dataset.characters.body_features import body_features
+    from rh_dataset.characters.garments import garment_level
+
+    feats = body_features(pheno)
+    hem = shell_hem(kind, pheno)
+    assert hem == shell_hem(KIND, pheno)
+    level, longsleeve = garment_level(shell, feats, hem), garment_level("longsleeve", feats)
+    v = feats.rest_vertices
+    arm = feats.in_groups("upperarm", "lowerarm", "hand")
+    np.testing.assert_array_equal(level[arm] < 0, longsleeve[arm] < 0)
+    trunk = feats.in_groups("torso") & ~arm
+    assert (level[trunk & (v[:, 2] < hem - 0.005)] > 0).all()
+    return level, longsleeve, v, hem
+
+
 def test_longsleeve_is_the_tshirts_cloth_under_the_longsleeves_shell(monkeypatch):
     """The loose long sleeve: the loose t-shirt's profile, settings, push clearance and pattern (bit for bit), under the
     shell "longtop" (the longsleeve's sleeves and neckline, its trunk ending at the same shell_hem, lifted as the tee's
@@ -251,8 +270,7 @@ def test_longsleeve_is_the_tshirts_cloth_under_the_longsleeves_shell(monkeypatch
     benchmark: subjects 2 (over a draped skirt, under an open jacket), 11, 36, 39 (over a draped skirt), 41 and 48
     (under an open jacket) and 45 (under a coat). A loose long sleeve under the shell jacket or over the shell skirt is
     refused."""
-    from rh_dataset.characters.body_features import body_features
-    from rh_dataset.characters.garments import BASE_OFFSET, TUCK, garment_level, garment_parts
+    from rh_dataset.characters.garments import BASE_OFFSET, TUCK, garment_parts
     from rh_dataset.characters.recipe import UNDER_LOOSE_TOP, Garment
     from rh_dataset.characters.recipe_draws import LONGSLEEVE_P, LONGSLEEVE_STREAM
 
@@ -265,15 +283,7 @@ def test_longsleeve_is_the_tshirts_cloth_under_the_longsleeves_shell(monkeypatch
         a, b = garment_pattern(SLEEVES, PHENO, drape_settings(SLEEVES, level)), garment_pattern(KIND, PHENO)
         if level == "full":
             assert all(np.array_equal(x, y) for x, y in zip(a, b))
-    feats = body_features(PHENO)
-    hem = shell_hem(SLEEVES, PHENO)
-    assert hem == shell_hem(KIND, PHENO)
-    top, longsleeve = garment_level("longtop", feats, hem), garment_level("longsleeve", feats)
-    v = feats.rest_vertices
-    arm = feats.in_groups("upperarm", "lowerarm", "hand")
-    np.testing.assert_array_equal(top[arm] < 0, longsleeve[arm] < 0)
-    trunk = feats.in_groups("torso") & ~arm
-    assert (top[trunk & (v[:, 2] < hem - 0.005)] > 0).all()
+    check_longsleeve_cut_to_the_ring("longtop", SLEEVES, PHENO)
 
     seeds, rs, bench, plain = stream_draws(monkeypatch, "LONGSLEEVE_P")
     loose = np.array([r.garment(SLEEVES) is not None for r in rs])

@@ -38,7 +38,7 @@ from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP
 from .cloth_pose import LIFT_KINDS, skin_inside
 from .geometry import boundary_distance, closed_tube, hull_anchors, smoothstep, split_faces
 from .sleeves import SLEEVE_CUTS, sleeve_axis, sleeve_tops
-from .recipe import Garment
+from .recipe import GARMENT_KINDS, Garment
 
 __all__ = ["PartGeometry", "build_garments", "garment_level", "garment_parts", "SHELL_KINDS", "BASE_OFFSET",
            "LAYER_GAP", "GARMENT_PARTS", "COAT_LAPEL", "TUCK"]
@@ -196,7 +196,7 @@ SHELL_KINDS = ("tshirt", "longsleeve", "jacket", "trousers", "shorts")  # recipe
 # the jacket is the coat cut short and wears the coat's; nothing is worn over a hoodie, recipe_draws._hoodie), but a
 # top's not under an open jacket or coat (SLEEVES_UNDER_NOT): their draped sleeves are draped over the arm alone,
 # clear of a 6 mm shell sleeve under them (16 mm off the arm) but not of another draped one.
-GARMENT_PARTS = {**{kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items()},
+GARMENT_PARTS = {**{kind: (shell, kind) for kind, shell in SHELL_KINDS_OVER.items() if kind in GARMENT_KINDS},
                  "draped_hoodie": ("hoodie", "draped_hoodie_body", "draped_hoodie", "draped_hoodie_sleeves"),
                  "draped_coat": ("coat", "draped_coat", "draped_coat_sleeves"),
                  "draped_jacket": ("coat", "draped_jacket", "draped_coat_sleeves"),
