@@ -29,7 +29,8 @@ from rh_common.body_model import ANNY_TOPOLOGY
 from rh_common.colourspace import srgb_decode
 
 from .body import anchor_points, blended_normals, body_topology, run_anny, smoothed_normals, vertex_normals
-from .garments import BASE_OFFSET, LAYER_GAP, PartGeometry, build_garments, garment_parts, shoe_height_map
+from .garments import (BASE_OFFSET, BRIDGED, LAYER_GAP, LIFT_SMOOTH_ROUNDS, PartGeometry, build_garments, garment_parts,
+                       lift_directions, lift_turn, shoe_height_map)
 from .body_features import body_features, group_mask
 from .cloth_pose import (CLOTH_MODES, ClothPoseSettings, lift_over_skin, push_over_layers, push_under,
                          simulated_parts)
@@ -523,6 +524,8 @@ def pose_character(
                 v = _lifted_shell_points(part, lifted, v, verts, normals)
             if part.body_faces is not None:  # a shell: the body's own (interpolated) normals, as before it was cut
                 n = blended_normals(normals, part.blend_vertices, part.blend_weights)
+                if lifted is not None and part.name in BRIDGED:  # laid over the bust: its own surface's where lifted
+                    n = n + lifted[:, None] * (_welded_normals(v, part.faces) - n)
             else:
                 n = _welded_normals(v, part.faces)
         posed.append(
@@ -544,38 +547,24 @@ def pose_character(
     return posed
 
 
-# A shell lifted over draped cloth (`drape.layer_lift`: a top over the loose shorts' waistband, 2-3 cm off the skin
-# where the band bridges the hollow of the back) sits that far out along normals that converge in every groove of
-# the body (the spine, the top of the buttocks' cleft), and its triangles there turned over: dark facets in renders
-# (bench/bench_shell_folds.py). Where a shell vertex's offset rises more than LIFT_SMOOTH_FROM over its garment's
-# own (BASE_OFFSET), its offset direction turns, over the next LIFT_SMOOTH_WIDTH, to the posed body's normals averaged
-# LIFT_SMOOTH_ROUNDS times over each vertex's edge neighbours (`body.smoothed_normals`; some 3-5 cm on the trunk): the
-# lift no longer follows the grooves it bridges. Shells not lifted keep their points bit for bit, and so do shell
-# tops held under draped panels (`drape.SHELLS_UNDER`).
-LIFT_SMOOTH_FROM = 0.002
-LIFT_SMOOTH_WIDTH = 0.008
-LIFT_SMOOTH_ROUNDS = 8
-
-
 def _lift_weight(part: CharacterPart) -> np.ndarray | None:
-    """(V,) how far each shell vertex's offset direction turns to the smoothed normals (0..1), or None where none
-    does (not a shell, or no vertex lifted)."""
+    """(V,) how far each shell vertex's offset direction turns to the smoothed normals, and a shell laid over the
+    bust (garments.BRIDGED) its shading to its own surface (0..1; garments.lift_turn), or None where none does (not
+    a shell, or no vertex lifted)."""
     if part.body_faces is None or part.blend_vertices is None or part.name not in BASE_OFFSET:
         return None
-    rise = part.offset.astype(np.float64) - BASE_OFFSET[part.name] - LIFT_SMOOTH_FROM
-    if not (rise > 0).any():
-        return None
-    return np.clip(rise / LIFT_SMOOTH_WIDTH, 0.0, 1.0)
+    turn = lift_turn(part.name, part.offset)
+    return turn if (turn > 0).any() else None
 
 
 def _lifted_shell_points(part: CharacterPart, lifted: np.ndarray, points: np.ndarray, verts: np.ndarray,
                          normals: np.ndarray) -> np.ndarray:
     """The shell's posed points (`points`: along the body's own normals) with each lifted vertex's offset direction
-    turned by `lifted` to the smoothed normals."""
+    turned by `lifted` to the smoothed normals (garments.LIFT_SMOOTH_ROUNDS)."""
     sel = np.flatnonzero(lifted > 0)
     bv, bw = part.blend_vertices[sel], part.blend_weights[sel]
-    own, even = blended_normals(normals, bv, bw), blended_normals(smoothed_normals(normals, LIFT_SMOOTH_ROUNDS), bv, bw)
-    direction = _unit(own + lifted[sel, None] * (even - own))
+    even = blended_normals(smoothed_normals(normals, LIFT_SMOOTH_ROUNDS), bv, bw)
+    direction = lift_directions(blended_normals(normals, bv, bw), even, lifted[sel])
     out = points.copy()
     out[sel] = (verts[bv] * bw.astype(np.float64)[..., None]).sum(1) + part.offset[sel, None] * direction
     return out

@@ -3,8 +3,9 @@
 In: a phenotype, a draped garment kind (`DRAPED_KINDS`: a skirt, a dress's cloth (its bodice is a shell), wide-leg
 or straight-leg trousers or loose shorts, an open coat's or an open jacket's panels, a hoodie's hood (`HoodCut`,
 `_hood_pattern`: a bag pinned on the back of the neckline, laid back and let fall down the upper back, over the
-hoodie's body), a loose t-shirt's, long sleeve's or hoodie's body (a tube hanging from under the arms to the hips;
-its shoulders and sleeves are the shell "tee", "longtop" or "hoodie"), the loose t-shirt's short sleeves
+hoodie's body), a loose t-shirt's, long sleeve's or hoodie's body (a tube hanging from over the bust to the hips;
+its shoulders and sleeves are the shell "tee", "longtop" or "hoodie", laid where the fabric hangs over the bust:
+`hanging_surface`), the loose t-shirt's short sleeves
 (`draped_sleeves`: two tubes round the upper arms, cut by sleeves.py), the loose long sleeve's
 (`draped_long_sleeves`: down to the wrists, bent at the elbows) and the hoodie's and the open coat's
 (`draped_hoodie_sleeves`, `draped_coat_sleeves`: the same cut in the hood's fleece, and kept 16 mm off the arm));
@@ -54,7 +55,8 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
            "cloth_model", "cloth_solver", "binding_faces", "SLEEVE_CLEARANCE",
-           "shell_hem", "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
+           "shell_hem", "shell_hems", "ring_height", "hanging_surface", "HangingSurface", "BRIDGE_BAND",
+           "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
            "HoodCut", "HOOD_CLEARANCE", "FRONT_OPENING", "JACKET_HEM", "TSHIRT_CLEARANCE",
            "TSHIRT_HEM", "SHORTS_HEM", "SHORTS_MIN_LEG", "STRAIGHT_LEGS"]
 
@@ -158,7 +160,8 @@ class DrapeProfile:
     """The cut of a draped kind, in body landmarks: the pinned top ring at `top` ("waist": between the pelvis and
     spine04, where a skirt's waistband sits; "chest": halfway between spine02 and spine01, under the arms, lowered
     where the ring would touch the A-pose body, arms included (`_under_the_arms`): a dress's cloth is held
-    there), the cloth hanging straight down from there to `flare_from` ("top": at once; "hips": the hip joints),
+    there; "bust": the loose tops', raised from there to over the bust where the arms leave room, `_bust_height`,
+    the pattern as long as from "chest" plus the rise, so the hem stays where it was), the cloth hanging straight down from there to `flare_from` ("top": at once; "hips": the hip joints),
     then flaring at `DrapeSettings.flare` for `hem` times the drop from there to the knee (measured along the
     cloth): the skirt's hem ends about 10 cm above the knee; the dress, whose 70 cm of cloth hang from the chest and
     give way by ~15 cm under their weight (measured: the hem of a 0.9 pattern settled 17 cm lower, 9 cm under the
@@ -232,7 +235,7 @@ PROFILES = {"draped_skirt": DrapeProfile("waist", "top"), "draped_dress": DrapeP
             "draped_straight_trousers": DrapeProfile("waist", "top", 0.16, legs=STRAIGHT_LEGS),
             "draped_coat": DrapeProfile("chest", "hips", 1.2, opening=FRONT_OPENING),
             "draped_jacket": DrapeProfile("chest", "hips", JACKET_HEM, opening=FRONT_OPENING),
-            "draped_tshirt": DrapeProfile("chest", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP)}
+            "draped_tshirt": DrapeProfile("bust", "top", TSHIRT_HEM, ring_gap=TSHIRT_RING_GAP)}
 SHELL_OVERLAP = 0.015  # metres a shell over draped cloth (SHELL_KINDS_OVER) reaches below its pinned ring, inside it
 
 
@@ -394,13 +397,15 @@ def _cloth_radii(cloth: np.ndarray, z: float, centre: np.ndarray, ang: np.ndarra
     return _band_radii(cloth, np.flatnonzero(np.abs(cloth[:, 2] - z) < 0.015), centre, ang)
 
 
-def _under_the_arms(feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float) -> float:
-    """Height of a dress's top ring: from halfway between spine02 and spine01 (the chest, under the armpits) down
-    in 1 cm steps to spine03 at most, the first height where the ring (`gap` outside the trunk's cross-section)
-    keeps `gap` / 2 off the whole A-pose body (trimesh closest points, `penetration`), arms included: the arms are
-    no collider, and a ring through an inner upper arm pressed to the trunk would show as cloth cutting the arm."""
+def _under_the_arms(feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float,
+                    start: float | None = None) -> float:
+    """Height of a dress's top ring: from halfway between spine02 and spine01 (the chest, under the armpits; or
+    `start`) down in 1 cm steps to spine03 at most, the first height where the ring (`gap` outside the trunk's
+    cross-section) keeps `gap` / 2 off the whole A-pose body (trimesh closest points, `penetration`), arms included:
+    the arms are no collider, and a ring through an inner upper arm pressed to the trunk would show as cloth cutting
+    the arm."""
     faces = body_topology().faces
-    z = 0.5 * (float(heads["spine01"][2]) + float(heads["spine02"][2]))
+    z = 0.5 * (float(heads["spine01"][2]) + float(heads["spine02"][2])) if start is None else float(start)
     z_low = float(heads["spine03"][2])
     ang = np.arange(36) * (2.0 * np.pi / 36)
     while z > z_low:
@@ -418,11 +423,36 @@ def _ring_gap(prof: DrapeProfile, st: DrapeSettings) -> float:
 
 
 def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float) -> float:
-    """Height (A-pose frame) of a profile's pinned top ring: the waist (`DrapeProfile.top`), or the chest under the
-    arms (`_under_the_arms`)."""
+    """Height (A-pose frame) of a profile's pinned top ring: the waist (`DrapeProfile.top`), the chest under the
+    arms (`_under_the_arms`), or ("bust") that raised to over the bust (`_bust_height`)."""
     if prof.top == "waist":
         return 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01
-    return _under_the_arms(feats, body, heads, centre, gap)
+    chest = _under_the_arms(feats, body, heads, centre, gap)
+    return _bust_height(feats, body, heads, centre, gap, chest) if prof.top == "bust" else chest
+
+
+# Metres over the bust's apex a loose top's pinned ring is raised to where the arms leave room (`_bust_height`).
+OVER_APEX = 0.005
+
+
+def _bust_apex(feats, body: np.ndarray, centre: np.ndarray, chest: float) -> float:
+    """Height of the trunk's front-most point within 12 cm of the middle, from 4 cm under the chest ring `chest` to
+    12 cm over it: the bust's apex (or a man's chest's, or the belly's where it stands out further)."""
+    front = np.flatnonzero(feats.in_groups("torso") & (np.abs(body[:, 0] - centre[0]) < 0.12)
+                           & (body[:, 2] > chest - 0.04) & (body[:, 2] < chest + 0.12))
+    return float(body[front[np.argmin(body[front, 1])], 2])
+
+
+def _bust_height(feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float, chest: float) -> float:
+    """A loose top's pinned ring (`DrapeProfile.top` "bust"): OVER_APEX over the bust's apex (`_bust_apex`) where
+    that is over the chest ring `chest` and the ring there (or as far down towards it as the arms need,
+    `_under_the_arms`) keeps off the arms; else `chest`. Hung from under the bust, the cloth left the shell over it
+    following the skin under the bust and into the cleavage, and a line showed across the chest where the two met;
+    hung from over it, the cloth falls over the bust as fabric does (bench/bench_bust_seam.py)."""
+    apex = _bust_apex(feats, body, centre, chest)
+    if apex + OVER_APEX <= chest:
+        return chest
+    return max(chest, _under_the_arms(feats, body, heads, centre, gap, start=apex + OVER_APEX))
 
 
 # Draped kinds whose cloth hangs from under the arms and whose top is a shell (garments.py) tucked under the
@@ -498,13 +528,173 @@ def shell_hem(kind: str, phenotype: dict[str, float], settings: DrapeSettings | 
     in raised by 8-9 cm (spine02's offset, the same for every spine bone to a millimetre)."""
     if kind not in SHELL_KINDS_OVER:
         raise ValueError(f"shell_hem: kind must be one of {tuple(SHELL_KINDS_OVER)}, got {kind!r}")
+    feats = body_features(phenotype)
+    run = run_anny(phenotype)
+    spine02 = body_topology().bone_labels.index("spine02")
+    z = ring_height(kind, phenotype, settings)
+    return z + float(feats.bone_heads["spine02"][2] - run["bone_poses"][spine02, 2, 3]) - SHELL_OVERLAP
+
+
+def shell_hems(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> np.ndarray:
+    """(V,) per body vertex, the bind-space height at which the shell over a draped kind (`SHELL_KINDS_OVER`) is cut
+    so that its hem lies `SHELL_OVERLAP` under the cloth's pinned ring in the A-pose the cloth is draped in, all the
+    way round. `shell_hem`'s one height is that only where bind space is the A-pose raised: on seed 0's subject 28
+    (a heavy build) the trunk leans in bind space against the A-pose, and a shell cut there lay 2.3 cm under the ring
+    at the back and 1 mm over it at the front, where a slot opened between shell and ring."""
+    if kind not in SHELL_KINDS_OVER:
+        raise ValueError(f"shell_hems: kind must be one of {tuple(SHELL_KINDS_OVER)}, got {kind!r}")
+    feats = body_features(phenotype)
+    rest = run_anny(phenotype)["vertices"]
+    return feats.rest_vertices[:, 2] - rest[:, 2] + ring_height(kind, phenotype, settings) - SHELL_OVERLAP
+
+
+def ring_height(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:
+    """Height of a chest-hung draped kind's pinned ring in the A-pose frame the cloth is draped in (`PROFILES`)."""
     st = drape_settings(kind) if settings is None else settings
     feats = body_features(phenotype)
     run = run_anny(phenotype)
     heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
     prof = PROFILES[kind]
-    z = _top_height(prof, feats, run["vertices"], heads, np.asarray(heads["root"], np.float64), _ring_gap(prof, st))
-    return z + float(feats.bone_heads["spine02"][2] - heads["spine02"][2]) - SHELL_OVERLAP
+    return _top_height(prof, feats, run["vertices"], heads, np.asarray(heads["root"], np.float64), _ring_gap(prof, st))
+
+
+# A loose top's fabric spans the bust and the belly (`_hanging`): its cloth's pinned ring and, over it, its shell
+# (garments.BRIDGED) lie where that fabric would. {draped kind: (metres above the pinned ring the shell is laid on
+# that surface in full, metres more over which that fades)}. The tops' rings sit 1.2-3.3 cm under the bust's apex on
+# seed 0's women and over the belly's hollow on heavy builds (bench/bench_bust_seam.py); the shell above them
+# followed the skin into the cleavage and under the bust, the cloth under them stood out over the belly, and a dark
+# line showed across the chest where the two met (docs/draped_hoodie_body.png before 6 December, morning).
+BRIDGE_BAND = {"draped_tshirt": (0.06, 0.03), "draped_longsleeve": (0.06, 0.03), "draped_hoodie_body": (0.06, 0.03)}
+BRIDGE_STEP = 0.005  # metres between the heights the hanging surface is found at
+BRIDGE_BELOW = 0.2  # metres under the ring the trunk's profile is spanned from (the belly)
+BRIDGE_FRONT = (np.radians(60.0), np.radians(90.0))  # bridged in full this far round from the front, none past that
+# Metres the bridged shell keeps under its cloth's pinned ring up to BRIDGE_CAP_OVER over it (lifted, or its tuck,
+# garments.TUCK, lowered onto that): under a coarse drape's ring (36 particles round) a shell 1.8 mm under the ring's
+# circle came 0.1 mm out between two particles at the bust's side (tests/test_drape_tshirt.py).
+BRIDGE_SHELL_GAP = 0.003
+BRIDGE_CAP_OVER = 0.005
+
+
+def _hanging(feats, body: np.ndarray, centre: np.ndarray, ang: np.ndarray, z_ring: float, top: float,
+             zs: np.ndarray) -> np.ndarray:
+    """(len(zs), len(ang)) radii from `centre` (xy) of fabric hanging over the A-pose trunk `body` at heights `zs`,
+    no thicker than the trunk: at each angle, the trunk's profile (the convex hulls of its cross-sections,
+    `_hull_radii`, every BRIDGE_STEP from BRIDGE_BELOW under `z_ring` up to `top`) spanned from outside (its upper
+    convex envelope: fabric stretched from the bust to the belly), and at least the most that stands out above (up
+    to `top`: fabric hanging straight down from the bust)."""
+    zk = np.arange(z_ring - BRIDGE_BELOW, top + 0.5 * BRIDGE_STEP, BRIDGE_STEP)
+    h = np.stack([_hull_radii(feats, body, float(z), centre, ang) for z in zk])  # (K, A)
+    h = np.where(np.isfinite(h), h, 0.0)
+    out = np.empty((len(zs), len(ang)))
+    for q, z in enumerate(zs):
+        hi, lo = zk >= z, zk <= z
+        if not lo.any() or not hi.any():
+            out[q] = h[np.argmin(np.abs(zk - z))]
+            continue
+        zi, zj = zk[hi][:, None, None], zk[lo][None, :, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(zi > zj, (z - zj) / (zi - zj), 0.0)
+        span = (1.0 - t) * h[lo][None] + t * h[hi][:, None]  # (I, J, A): chords from above z to below it
+        out[q] = np.maximum(span.max(axis=(0, 1)), h[hi].max(0))
+    return out
+
+
+def _front_weight(ang: np.ndarray) -> np.ndarray:
+    """(N,) 1 within BRIDGE_FRONT[0] radians of the front (angle 0), 0 past BRIDGE_FRONT[1], smooth between."""
+    off_front = np.abs(np.mod(np.asarray(ang, np.float64) + np.pi, 2.0 * np.pi) - np.pi)
+    lo, hi = BRIDGE_FRONT
+    return 1.0 - smoothstep((off_front - lo) / (hi - lo))
+
+
+def _ring_radii(kind: str, feats, body: np.ndarray, z_ring: float, centre: np.ndarray, ang: np.ndarray,
+                ring_gap: float) -> np.ndarray:
+    """(len(ang),) radii of a pinned ring at `z_ring`: `ring_gap` outside the trunk's hull, and for a loose top
+    (`BRIDGE_BAND`) on its front that far outside the fabric hanging there (`_hanging`)."""
+    hull = _hull_radii(feats, body, z_ring, centre, ang)
+    if kind not in BRIDGE_BAND:
+        return hull + ring_gap
+    full, fade = BRIDGE_BAND[kind]
+    hang = _hanging(feats, body, centre, ang, z_ring, z_ring + full + fade, np.array([z_ring]))[0]
+    return hull + ring_gap + _front_weight(ang) * np.maximum(hang - hull, 0.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class HangingSurface:
+    """Where a loose top's shell (garments.BRIDGED) lies over its cloth's pinned ring (`hanging_surface`), in the
+    A-pose frame the cloth is draped in: `radius` (Z, A) metres from the axis (the pelvis's vertical through
+    `centre` (2,)) at heights `z0` + BRIDGE_STEP * (0..Z-1) and angles 2 pi (0..A-1) / A (0 = -Y, the front, then
+    towards +X); `z_ring`, and the band `full`, `fade` (BRIDGE_BAND) over it."""
+
+    radius: np.ndarray
+    z0: float
+    centre: np.ndarray
+    z_ring: float
+    full: float
+    fade: float
+
+    def _polar(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p = np.asarray(points, np.float64)
+        return np.mod(np.arctan2(p[:, 0] - self.centre[0], -(p[:, 1] - self.centre[1])), 2.0 * np.pi), p[:, 2]
+
+    def radius_at(self, points: np.ndarray) -> np.ndarray:
+        """(N,) the surface's radius at the angle and height of each point (N, 3), bilinear, clamped to the band."""
+        a, z = self._polar(points)
+        nz, na = self.radius.shape
+        fa = a / (2.0 * np.pi / na)
+        i0 = np.floor(fa).astype(np.int64) % na
+        i1, wa = (i0 + 1) % na, fa - np.floor(fa)
+        fz = np.clip((z - self.z0) / BRIDGE_STEP, 0.0, nz - 1.0)
+        j0 = np.minimum(np.floor(fz).astype(np.int64), nz - 2)
+        wz = fz - j0
+        r = self.radius
+        return ((1 - wz) * ((1 - wa) * r[j0, i0] + wa * r[j0, i1])
+                + wz * ((1 - wa) * r[j0 + 1, i0] + wa * r[j0 + 1, i1]))
+
+    def front_weight_at(self, points: np.ndarray) -> np.ndarray:
+        """(N,) 1 within BRIDGE_FRONT[0] of the front, 0 past BRIDGE_FRONT[1], smooth between."""
+        return _front_weight(self._polar(points)[0])
+
+    def weight_at(self, points: np.ndarray) -> np.ndarray:
+        """(N,) how much of the way onto the surface a shell point there is laid (0..1): in full within BRIDGE_FRONT[0]
+        of the front, from the shell's hem (SHELL_OVERLAP under the ring) up to `full` over the ring; none past
+        BRIDGE_FRONT[1], BRIDGE_UNDER under the hem, or `full` + `fade` over the ring; smooth between."""
+        a, z = self._polar(points)
+        return (_front_weight(a) * smoothstep((z - self.z_ring + SHELL_OVERLAP + BRIDGE_UNDER) / BRIDGE_UNDER)
+                * (1.0 - smoothstep((z - self.z_ring - self.full) / self.fade)))
+
+
+# Metres under the shell's hem (SHELL_OVERLAP under the pinned ring) over which its lift onto the hanging surface
+# fades out. Faded out over 5 mm under the ring, the shell's triangles (~2 cm) reached from a vertex in the
+# cleavage under the ring to one lifted over it, and at the middle of the chest the ring stood 12-14 mm over them
+# (seed 0's subject 28, bench/bench_bust_seam.py); under the ring the surface lies BRIDGE_SHELL_GAP under the ring.
+BRIDGE_UNDER = 0.005
+
+
+def hanging_surface(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> HangingSurface:
+    """The surface a loose top's shell (garments.BRIDGED) is laid on in the band over its cloth's pinned ring
+    (`BRIDGE_BAND`): the fabric hanging over the trunk (`_hanging`), `ring_gap` less BRIDGE_SHELL_GAP out from it, so
+    that it meets the ring (`_ring_radii`) BRIDGE_SHELL_GAP under it; up to BRIDGE_CAP_OVER over the ring at most
+    that far under the ring, so the shell's hem stays inside the cloth."""
+    if kind not in BRIDGE_BAND:
+        raise ValueError(f"hanging_surface: kind must be one of {tuple(BRIDGE_BAND)}, got {kind!r}")
+    st = drape_settings(kind) if settings is None else settings
+    prof = PROFILES[kind]
+    feats = body_features(phenotype)
+    run = run_anny(phenotype)
+    body = run["vertices"]
+    heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
+    centre = np.asarray(heads["root"], np.float64)
+    ring_gap = _ring_gap(prof, st)
+    z_ring = _top_height(prof, feats, body, heads, centre, ring_gap)
+    full, fade = BRIDGE_BAND[kind]
+    top = z_ring + full + fade
+    zs = z_ring + np.arange(-int(np.ceil((SHELL_OVERLAP + 0.015) / BRIDGE_STEP)),
+                            int(np.ceil((full + fade) / BRIDGE_STEP)) + 1) * BRIDGE_STEP
+    ang = np.arange(180) * (2.0 * np.pi / 180)
+    hang = _hanging(feats, body, centre, ang, z_ring, top, zs) + ring_gap - BRIDGE_SHELL_GAP
+    ring = _ring_radii(kind, feats, body, z_ring, centre, ang, ring_gap) - BRIDGE_SHELL_GAP
+    hang = np.where((zs <= z_ring + BRIDGE_CAP_OVER)[:, None], np.minimum(hang, ring[None, :]), hang)
+    return HangingSurface(hang, float(zs[0]), centre[:2].copy(), float(z_ring), full, fade)
 
 
 def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None,
@@ -538,11 +728,13 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     gap, ring_gap = st.clearance + 0.002, _ring_gap(prof, st)
     centre = np.asarray(heads["root"], dtype=np.float64)
     z_top = _top_height(prof, feats, body, heads, centre, ring_gap)
+    # A ring raised over the bust ("bust") keeps the chest ring's hem: the cloth it adds hangs over the bust.
+    z_cut = _under_the_arms(feats, body, heads, centre, ring_gap) if prof.top == "bust" else z_top
     z_flare = z_top if prof.flare_from == "top" else \
         0.5 * (float(heads["upperleg01.L"][2]) + float(heads["upperleg01.R"][2]))
     z_knee = 0.5 * (float(heads["lowerleg01.L"][2]) + float(heads["lowerleg01.R"][2]))
     straight = z_top - z_flare  # path length of the part hanging straight down
-    length = straight + prof.hem * (z_flare - z_knee)  # the flared part's slant length
+    length = straight + prof.hem * (z_flare - z_knee) + (1.0 - prof.hem) * (z_top - z_cut)  # the slant length
     ang = np.arange(na) * (2.0 * np.pi / na)
     if prof.opening:  # open at the front: na columns from one front edge round the back to the other
         half = 0.5 * prof.opening / float(_hull_radii(feats, body, z_top, centre, np.zeros(1))[0] + gap)
@@ -554,7 +746,7 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     flare_out = cone * np.sin(st.flare)
     # r_i = flare_out_i + m_i, m_i the running maximum of (body + gap - flare_out): the cone as drawn where the
     # body stays inside it, pushed out (and kept out further down) where the body reaches it.
-    m = _hull_radii(feats, body, float(zs[0]), centre, ang) + ring_gap
+    m = _ring_radii(kind, feats, body, float(zs[0]), centre, ang, ring_gap)
     rr = np.empty((nr, na))
     for i in range(nr):
         if i:

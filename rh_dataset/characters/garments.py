@@ -30,18 +30,19 @@ from scipy.sparse import csgraph
 
 from rh_common.body_model import ANNY_TOPOLOGY
 
-from .body import anchor_points, blended_normals, body_topology, run_anny, vertex_normals
+from .body import anchor_points, blended_normals, body_topology, run_anny, smoothed_normals, vertex_normals
 from .body_features import BodyFeatures
-from .drape import (DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP, SHELLS_UNDER, SLEEVE_GROUPS,
-                    DrapeSettings, SkinBinding, drape_garment, draped_over, draped_part, draped_pieces, drape_settings,
-                    push_clearance, push_out, shell_hem, shells_under)
+from .drape import (BRIDGE_BAND, BRIDGE_CAP_OVER, DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP,
+                    SHELLS_UNDER, SLEEVE_GROUPS, DrapeSettings, SkinBinding, drape_garment, draped_over, draped_part,
+                    draped_pieces, drape_settings, hanging_surface, push_clearance, push_out, shell_hem, shell_hems,
+                    shells_under)
 from .cloth_pose import LIFT_KINDS, skin_inside
 from .geometry import boundary_distance, closed_tube, hull_anchors, smoothstep, split_faces
 from .sleeves import SLEEVE_CUTS, sleeve_axis, sleeve_tops
 from .recipe import GARMENT_KINDS, Garment
 
 __all__ = ["PartGeometry", "build_garments", "garment_level", "garment_parts", "SHELL_KINDS", "BASE_OFFSET",
-           "LAYER_GAP", "GARMENT_PARTS", "COAT_LAPEL", "TUCK"]
+           "LAYER_GAP", "GARMENT_PARTS", "COAT_LAPEL", "TUCK", "lift_turn", "lift_directions"]
 
 # Cloth thickness above the skin, metres (outer garments thicker: a jacket stands off the body more than a tee).
 BASE_OFFSET = {
@@ -86,6 +87,27 @@ UNDER_FADE = 0.008
 # Shells cut as another kind but for their hem (`garment_level`): neckline and sleeves of the named kind.
 CUT_AS = {"hoodie": "longsleeve", "tee": "tshirt", "longtop": "longsleeve"}
 LAYER_GAP = 0.003  # minimum distance between two layers (well above ray-tracing epsilon at body scale)
+# A shell lifted over draped cloth (`drape.layer_lift`: a top over the loose shorts' waistband, 2-3 cm off the skin
+# where the band bridges the hollow of the back) sits that far out along normals that converge in every groove of
+# the body (the spine, the top of the buttocks' cleft), and its triangles there turned over: dark facets in renders
+# (bench/bench_shell_folds.py). Where a shell vertex's offset rises more than LIFT_SMOOTH_FROM over its garment's
+# own (BASE_OFFSET), its offset direction turns, over the next LIFT_SMOOTH_WIDTH, to the posed body's normals averaged
+# LIFT_SMOOTH_ROUNDS times over each vertex's edge neighbours (`body.smoothed_normals`; some 3-5 cm on the trunk): the
+# lift no longer follows the grooves it bridges (`lift_turn`, `lift_directions`; posing: character.py). On a shell
+# laid over the bust (BRIDGED) the same turn takes its shading from the skin's normals to the shell's own surface:
+# shaded as the skin, it showed the bust's underside and the cleavage it spans. (The other lifted shells keep the
+# skin's shading: their own surface's showed a few turned-over triangles in the hollow of the back,
+# tests/test_layer_lift.py.)
+LIFT_SMOOTH_FROM = 0.002
+LIFT_SMOOTH_WIDTH = 0.008
+LIFT_SMOOTH_ROUNDS = 8
+# Metres a bridged shell (`_bridged`) is lifted at most: a vertex whose offset direction is nearly vertical (the
+# underside of the bust) would reach the hanging surface only far along it.
+BRIDGE_MAX = 0.04
+# Halvings of `_bridged`'s search for each shell vertex's offset (from BRIDGE_MAX: 40 mm / 2^16 = 0.6 um).
+BRIDGE_ROUNDS = 16
+# Shells laid over the bust as their loose top's fabric hangs (`drape.hanging_surface`): {shell part: its draped kind}.
+BRIDGED = {shell: kind for kind, shell in SHELL_KINDS_OVER.items() if kind in BRIDGE_BAND}
 TAPER_WIDTH = 0.025  # metres over which the offset falls towards an open edge
 TAPER_MIN = 0.3  # fraction of the offset left at the very edge
 
@@ -121,7 +143,7 @@ def _z(feats: BodyFeatures, bone: str) -> float:
     return float(feats.bone_heads[bone][2])
 
 
-def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None,
+def garment_level(kind: str, feats: BodyFeatures, hem: float | np.ndarray | None = None,
                   sleeves: Mapping[str, float] | None = None) -> np.ndarray:
     """A smooth field (V,) float64 over the body vertices (rest pose of this phenotype), in metres, negative where
     a shell garment covers the body: its zero level set is the garment's open edges (neckline, hem, cuffs, waist),
@@ -154,7 +176,9 @@ def garment_level(kind: str, feats: BodyFeatures, hem: float | None = None,
             # The open front: a V, cut on the front half only (at the sides |x| is far wider than the V).
             half = 0.5 * FRONT_OPENING + COAT_LAPEL * np.maximum(z - hem, 0.0)
             collar = np.maximum(collar, np.where(y < y_neck, half - np.abs(x), -np.inf))
-        z_hem = float(hem) if hem_given else z_hip + {"tshirt": 0.0, "longsleeve": -0.005, "jacket": -0.02}[kind]
+        # The hem: one bind-space height, or one per body vertex (drape.shell_hems).
+        z_hem = (np.asarray(hem, np.float64) if hem_given
+                 else z_hip + {"tshirt": 0.0, "longsleeve": -0.005, "jacket": -0.02}[kind])
         sleeve = {"tshirt": 0.3, "longsleeve": 0.95, "jacket": 0.97, "coat": 0.97, "bodice": 0.12}[kind]
         # Hem: a horizontal cut through trunk and hips alike (upper-leg vertices included), above the crotch so a
         # top never turns into a bodysuit between the legs.
@@ -269,15 +293,76 @@ def _metres_per_uv(face_ids: np.ndarray, feats: BodyFeatures, topology: str) -> 
     return float(np.sqrt(a3 / max(a2, 1e-12)))
 
 
-def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem: float | None = None,
+def lift_turn(kind: str, offset: np.ndarray) -> np.ndarray:
+    """(V,) how far each vertex of a `kind` shell at `offset` (V,) metres turns its offset direction and shading to
+    the smoothed normals and its own surface (0..1; LIFT_SMOOTH_FROM)."""
+    rise = np.asarray(offset, np.float64) - BASE_OFFSET[kind] - LIFT_SMOOTH_FROM
+    return np.clip(rise / LIFT_SMOOTH_WIDTH, 0.0, 1.0)
+
+
+def lift_directions(own: np.ndarray, even: np.ndarray, turn: np.ndarray) -> np.ndarray:
+    """Unit offset directions (P, 3): the blended body normals `own` turned by `turn` (P,) to the smoothed ones
+    `even` (both (P, 3), `body.blended_normals` of the normals and of `smoothed_normals`, LIFT_SMOOTH_ROUNDS)."""
+    d = own + np.asarray(turn, np.float64)[:, None] * (even - own)
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _bridged(kind: str, split, off: np.ndarray, feats: BodyFeatures, topology: str,
+             phenotype: dict[str, float]) -> np.ndarray:
+    """A loose top's shell (`BRIDGED`) lifted, on the front of its trunk over its cloth's pinned ring, onto the surface
+    its fabric would hang on (`drape.hanging_surface`): across the cleavage, down from the bust and out over the belly
+    to the ring. Each vertex's offset is where its point, along the direction posing gives it at that offset
+    (`lift_directions`), in the rest A-pose the cloth is cut in, meets that surface where it is (bisection,
+    BRIDGE_ROUNDS), at most BRIDGE_MAX over its own; its weight there (`HangingSurface.weight_at`, at the skin) of the
+    way. Only lifted, but up to BRIDGE_CAP_OVER over the ring, where the surface lies under the ring: a tuck
+    (TUCK) standing out of it there is lowered onto it (by its weight round the trunk alone)."""
+    rest = run_anny(phenotype)["vertices"]
+    normals = vertex_normals(rest, body_topology(topology).faces)
+    bv = np.stack([split.body_vertex, split.cut_vertex], 1)
+    bw = np.stack([1.0 - split.cut_t, split.cut_t], 1)
+    skin = anchor_points(rest, normals, bv, bw, np.zeros(len(bv)))
+    surface = hanging_surface(BRIDGED[kind], phenotype)
+    weight = surface.weight_at(skin)
+    nearest = np.where(split.cut_t > 0.5, split.cut_vertex, split.body_vertex)
+    low = (skin[:, 2] <= surface.z_ring + BRIDGE_CAP_OVER) & (surface.front_weight_at(skin) > 0)
+    sel = np.flatnonzero(((weight > 0) | low) & feats.in_groups("torso")[nearest])
+    own = blended_normals(normals, bv[sel], bw[sel])
+    even = blended_normals(smoothed_normals(normals, LIFT_SMOOTH_ROUNDS, topology), bv[sel], bw[sel])
+    p = skin[sel]
+
+    def out_of(o: np.ndarray) -> np.ndarray:  # metres the point at offset o stands out of the surface there
+        q = p + o[:, None] * lift_directions(own, even, lift_turn(kind, o))
+        return np.hypot(q[:, 0] - surface.centre[0], q[:, 1] - surface.centre[1]) - surface.radius_at(q)
+
+    base = off[sel].astype(np.float64)
+    inside = out_of(base) < 0.0
+    # Out of the surface already: under the ring's height (where the surface lies BRIDGE_SHELL_GAP under the ring),
+    # lowered onto it, so the shell's tuck stays under the cloth where the ring is pinned over the bust's apex.
+    cap = ~inside & low[sel]
+    lo = np.where(inside, base, 0.0)
+    hi = np.where(inside, base + BRIDGE_MAX, base)
+    for _ in range(BRIDGE_ROUNDS):
+        mid = 0.5 * (lo + hi)
+        below = out_of(mid) < 0.0
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    found = np.where(inside | cap, 0.5 * (lo + hi), base)  # a lift's hi stays at BRIDGE_MAX where never out
+    w = np.where(cap, surface.front_weight_at(p), weight[sel])
+    out = off.copy()
+    out[sel] = base + w * (found - base)
+    return out
+
+
+def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem: float | np.ndarray | None = None,
            cover: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-           sleeves: Mapping[str, float] | None = None) -> PartGeometry:
+           sleeves: Mapping[str, float] | None = None, phenotype: dict[str, float] | None = None) -> PartGeometry:
     """A shell cut from the body along `garment_level`'s zero level (`hem`: the coat's). Every vertex is a blend of
     the two ends of a body edge (weight 1 on one end except on the cut), offset along the blended normal: the taper
     runs over the surface distance from the cut, and layering compares with the layers below interpolated the same
     way. `cover` (the coat's shell, and a shell top's trunk under the open jacket or coat: drape.SHELLS_UNDER): (the
     body's vertices in anny's rest A-pose, and the vertices and faces of the draped cloth over the shell in that
-    pose): the shell stays under that cloth (`_under_cover`). `sleeves`: as `garment_level`'s."""
+    pose): the shell stays under that cloth (`_under_cover`). `sleeves`: as `garment_level`'s. `phenotype`: a
+    `BRIDGED` shell's, which is then laid over the bust (`_bridged`)."""
     level = _clean_level(garment_level(kind, feats, hem, sleeves), topology)
     topo = body_topology(topology)
     face_ids = np.flatnonzero((level[topo.faces] < 0).any(axis=1))
@@ -291,6 +376,8 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
         # the full offset 2 cm above that. The 5 mm: bind space is the A-pose frame turned by ~1.5 degrees about X as
         # well as raised, so at the back a bind-space height is a few millimetres off the ring's.
         z = split.points(feats.rest_vertices)[:, 2]
+        if np.ndim(hem):  # per body vertex (drape.shell_hems): along the cut edges as the points are
+            hem = split.points(np.asarray(hem, np.float64)[:, None])[:, 0]
         rise = smoothstep((z - hem - SHELL_OVERLAP - 0.005) / 0.02)
         if kind in RING_LIFT:
             # The coat's: at most TUCK at its hem, rising to its own offset at the panels' ring (SHELL_OVERLAP
@@ -310,6 +397,8 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     if kind in RING_LIFT:
         need = need * smoothstep((z - hem) / UNDER_FADE)
     off = np.maximum(off, need)
+    if kind in BRIDGED and phenotype is not None:
+        off = _bridged(kind, split, off, feats, topology, phenotype)
     if cover is not None:
         capped = np.minimum(off, _under_cover(split, off, *cover, topology))
         # The coat's whole shell; a shell top but its sleeves (drape.SHELLS_UNDER: they lie under the coat's).
@@ -688,8 +777,8 @@ def _draped_piece(kind: str, feats: BodyFeatures, under: np.ndarray, topology: s
         shell = SHELL_KINDS_OVER[kind]
         cover = ((run_anny(phenotype)["vertices"], draped[kind].vertices, draped[kind].faces)
                  if shell == "coat" else None)
-        out.append(_shell(shell, feats, under, topology, hem=shell_hem(kind, phenotype, st), cover=cover,
-                          sleeves=ends))
+        hem = shell_hems(kind, phenotype, st) if shell in BRIDGED else shell_hem(kind, phenotype, st)
+        out.append(_shell(shell, feats, under, topology, hem=hem, cover=cover, sleeves=ends, phenotype=phenotype))
     part = draped_part(kind, phenotype, feats, under, st, over, draped[kind])
     if kind in LIFT_KINDS:
         # The skin inside the cloth as posing leaves it at rest: pushed out (`push_out`, as pose_character
