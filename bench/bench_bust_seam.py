@@ -26,8 +26,8 @@ j))`), skinned and, with N > 0, simulated (`pose_character`'s cloth modes):
 the skin, its hem at one bind-space height: `bridge`); the subject's drape is then another (the ring moved), so a
 cold cache drapes it twice.
 --figure PATH: each subject's chest in the rest pose and its first test pose (rh-generate's standard preset for the
-test split, 64 spp, Blender's studio light), cropped round the ring at 2x: a row per subject, bridged at left, then
-(with --before) before.
+test split, 64 spp, Blender's studio light, the body framed at FIGURE_PX), cropped round the ring: a row per subject;
+with --before, each pose bridged then before.
 """
 from __future__ import annotations
 
@@ -42,6 +42,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+FIGURE_PX = 1024  # the figure's renders (the whole body framed), cropped round the ring
 LOOSE_TOPS = {"draped_tshirt": ("tee", "draped_tshirt"), "draped_longsleeve": ("longtop", "draped_longsleeve"),
               "draped_hoodie": ("hoodie", "draped_hoodie_body")}
 
@@ -213,21 +214,26 @@ def figure(out: Path, items: list, n_variants: int) -> None:
             for b in ({}, bones):
                 posed = pose_character(ch, b)
                 lo, hi = body_bounds(posed)
-                cam = frame_body(lo, hi, 512, 512, 30.0, fill=0.94)
+                cam = frame_body(lo, hi, FIGURE_PX, FIGURE_PX, 30.0, fill=0.94)
                 img = render_frame(posed, env, cam, settings, ["image"], seed=s).layers["image"]
                 cv = next(m for m in posed if m.name == cloth).vertices.astype(np.float64)
                 ring = cam.project(cv[g.pinned] if len(cv) == len(g.pinned) else cv[:int(g.pinned.sum())])
                 (x0, y0), (x1, y1) = ring.min(0), ring.max(0)
-                cx, cy, w = 0.5 * (x0 + x1), 0.5 * (y0 + y1), 1.1 * (x1 - x0)
-                crop = img[int(cy - 0.45 * w):int(cy + 0.3 * w), int(cx - 0.5 * w):int(cx + 0.5 * w)]
-                tiles.append(np.repeat(np.repeat(quantize8(srgb_encode(np.clip(crop * 1.3, 0.0, None))), 2, 0), 2, 1))
+                cx, cy, w = 0.5 * (x0 + x1), 0.5 * (y0 + y1), 1.5 * (x1 - x0)
+                crop = img[max(int(cy - 0.55 * w), 0):int(cy + 0.3 * w), max(int(cx - 0.5 * w), 0):int(cx + 0.5 * w)]
+                tiles.append(quantize8(srgb_encode(np.clip(crop * 1.3, 0.0, None))))
     h = min(t.shape[0] for t in tiles)
     w = min(t.shape[1] for t in tiles)
     per_row = 2 * n_variants
-    rows = [np.concatenate([t[:h, :w] for t in tiles[i:i + per_row]], 1) for i in range(0, len(tiles), per_row)]
+    rows = []
+    for i in range(0, len(tiles), per_row):
+        row = tiles[i:i + per_row]
+        if n_variants > 1:  # bridged rest, before rest, bridged pose, before pose
+            row = [row[0], row[2], row[1], row[3]]
+        rows.append(np.concatenate([t[:h, :w] for t in row], 1))
     write_png(out, np.concatenate(rows, 0))
-    print(f"wrote {out}: rows = subjects; columns = rest, first test pose"
-          + (" (bridged), then the same before" if n_variants > 1 else ""))
+    print(f"wrote {out}: rows = subjects; columns = rest"
+          + (" bridged | before, first test pose bridged | before" if n_variants > 1 else ", first test pose"))
 
 
 if __name__ == "__main__":

@@ -560,10 +560,11 @@ def ring_height(kind: str, phenotype: dict[str, float], settings: DrapeSettings 
 
 # A loose top's fabric spans the bust and the belly (`_hanging`): its cloth's pinned ring and, over it, its shell
 # (garments.BRIDGED) lie where that fabric would. {draped kind: (metres above the pinned ring the shell is laid on
-# that surface in full, metres more over which that fades)}. The tops' rings sit 1.2-3.3 cm under the bust's apex on
-# seed 0's women and over the belly's hollow on heavy builds (bench/bench_bust_seam.py); the shell above them
-# followed the skin into the cleavage and under the bust, the cloth under them stood out over the belly, and a dark
-# line showed across the chest where the two met (docs/draped_hoodie_body.png before 6 December, morning).
+# that surface in full, metres more over which that fades)}. Under the arms the tops' rings sat 1.3-4.8 cm under the
+# bust's (or chest's) apex on 20 of seed 0's 24 wearers, over the belly's hollow on heavy builds
+# (bench/bench_bust_seam.py); the shell above them followed the skin into the cleavage and under the bust, the cloth
+# under them stood out over the belly, and a dark line showed across the chest where the two met
+# (docs/draped_hoodie_body.png before 6 December, morning).
 BRIDGE_BAND = {"draped_tshirt": (0.06, 0.03), "draped_longsleeve": (0.06, 0.03), "draped_hoodie_body": (0.06, 0.03)}
 BRIDGE_STEP = 0.005  # metres between the heights the hanging surface is found at
 BRIDGE_BELOW = 0.2  # metres under the ring the trunk's profile is spanned from (the belly)
