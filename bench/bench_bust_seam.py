@@ -9,8 +9,9 @@ ring, for the generator's own subjects, with the bust bridged (`drape.BRIDGE_BAN
 Subjects are rh-generate's (`sample_recipe(rng_for(seed, "character", s))`, benchmark pool). Per subject, from the
 A-pose body the cloth is draped on (nothing built): the bust's apex over the ring under the arms (`drape._bust_apex`:
 the front-most trunk point within 12 cm of the middle, from 4 cm under that ring to 12 cm over it), how far the ring
-is raised over the bust (`drape._bust_height`), and how far the trunk's hull stands out over the ring's radius, front
-middle, below it (the belly, within `drape.BRIDGE_BELOW`) and above it (the bust, within 15 cm).
+is raised over the bust (`drape._bust_height`; not under an open jacket or a coat, `drape.piece_settings`), and how
+far the trunk's hull stands out over the ring's radius, front middle, below it (the belly, within
+`drape.BRIDGE_BELOW`) and above it (the bust, within 15 cm).
 
 With --poses N (or --figure) each subject is built as rh-generate builds it (the user's drape cache; a cold one drapes
 each top, ~30-60 s), then in the rest pose and its first N test poses (`sample_pose(rng_for(seed, "pose", s, "test",
@@ -71,8 +72,9 @@ def bridge(on: bool):
         character_module._build_cached.cache_clear()
 
 
-def profile(phenotype: dict, kind: str) -> str:
-    """The ring against the bust and the belly in the A-pose (module docstring), one line."""
+def profile(phenotype: dict, kind: str, worn: list[str]) -> str:
+    """The ring against the bust and the belly in the A-pose (module docstring), one line; `worn`: the recipe's
+    garment kinds (under an open jacket or a coat the top is not hung over the bust: `drape.piece_settings`)."""
     from rh_dataset.characters import drape as D
     from rh_dataset.characters.body import body_topology, run_anny
     from rh_dataset.characters.body_features import body_features
@@ -84,7 +86,8 @@ def profile(phenotype: dict, kind: str) -> str:
     gap = D._ring_gap(D.PROFILES[kind], D.drape_settings(kind))
     chest = D._under_the_arms(feats, body, heads, centre, gap)
     apex = D._bust_apex(feats, body, centre, chest)
-    z = D.ring_height(kind, phenotype)
+    st = D.piece_settings(kind, "full", worn)
+    z = D.ring_height(kind, phenotype, st)
 
     def hull(h: float) -> float:
         return float(D._hull_radii(feats, body, float(h), centre, np.zeros(1))[0])
@@ -93,7 +96,7 @@ def profile(phenotype: dict, kind: str) -> str:
     above = max(hull(h) for h in np.arange(z, z + 0.15, 0.005)) - at
     below = max(hull(h) for h in np.arange(z - D.BRIDGE_BELOW, z, 0.005)) - at
     return (f"bust's apex {100 * (apex - chest):+5.1f} cm over the chest ring, "
-            f"ring raised {100 * (z - chest):3.1f} cm; "
+            f"ring raised {100 * (z - chest):3.1f} cm{'' if st.over_bust else ' (under a jacket or coat)'}; "
             f"the trunk's hull over the ring's, front middle: {1e3 * above:5.1f} mm above it, {1e3 * below:5.1f} mm "
             f"below it")
 
@@ -160,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     for s, (recipe, top) in recipes.items():
         shell, cloth = LOOSE_TOPS[top]
         ph = recipe.phenotype
-        print(f"subject {s:2d} {top:18s} {profile(ph, cloth)}", flush=True)
+        print(f"subject {s:2d} {top:18s} {profile(ph, cloth, [g.kind for g in recipe.garments])}", flush=True)
         if args.poses < 0 and args.figure is None:
             continue
         t0 = time.perf_counter()

@@ -135,8 +135,8 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.body import body_topology, run_anny
     from rh_dataset.characters.drape import (DRAPED_KINDS, SHELL_KINDS_OVER, bind_loose, drape_garment,
-                                             drape_settings, draped_over, penetration, push_clearance, push_out,
-                                             skin_points)
+                                             drape_settings, draped_over, penetration, piece_settings,
+                                             push_clearance, push_out, skin_points)
     from rh_dataset.poses import sample_poses
 
     kind = args.kind
@@ -157,7 +157,8 @@ def main(argv: list[str] | None = None) -> int:
         if k == kind:
             break
         if k in DRAPED_KINDS:
-            under[k] = drape_garment(k, ph, drape_settings(k), over=draped_over(k, under))
+            under[k] = drape_garment(k, ph, piece_settings(k, "full", [g.kind for g in recipe.garments]),
+                                     over=draped_over(k, under))
     over = draped_over(kind, under)
     if over:
         print(f"draped over: {[c.kind for c in over]}")

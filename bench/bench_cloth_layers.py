@@ -126,8 +126,8 @@ def main(argv: list[str] | None = None) -> int:
     from bench_cloth import benchmark_recipe
     from rh_dataset.characters import build_character, pose_character
     from rh_dataset.characters.cloth_pose import push_over_layers
-    from rh_dataset.characters.drape import (DRAPED_OVER, drape_garment, drape_layers, drape_settings, draped_over,
-                                             draped_pieces)
+    from rh_dataset.characters.drape import (DRAPED_OVER, drape_garment, drape_layers, draped_over, draped_pieces,
+                                             piece_settings)
     from rh_dataset.generate import rng_for
     from rh_dataset.poses import sample_pose
 
@@ -154,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
         ph = recipe.phenotype
         print(f"\n{'pool recipe' if args.pool else 'subject'} {s}: {kinds}")
         # The cloth under the top, as build_garments drapes it (each piece over what it is worn over).
-        draped = drape_layers(pieces[:pieces.index(top)], ph, args.drape)
+        draped = drape_layers(pieces[:pieces.index(top)], ph, args.drape, worn=kinds)
         clothes = draped_over(top, draped)
 
         def unders(points, layers) -> str:
@@ -162,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
 
         for over in ((), clothes):
             t = time.perf_counter()
-            g = drape_garment(top, ph, drape_settings(top, args.drape), over=over)
+            g = drape_garment(top, ph, piece_settings(top, args.drape, kinds), over=over)
             secs = time.perf_counter() - t
             print(f"  drape of the {top} {'over the ' + ', '.join(inners) if over else 'on the body alone'}: "
                   f"{secs:.1f} s; at rest, vertices > 1 mm under (worst mm): "

@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character, sample_recipe
     from rh_dataset.characters.drape import (DRAPE_LEVELS, drape_garment, drape_layers, draped_over, draped_pieces,
-                                             drape_settings)
+                                             drape_settings, piece_settings)
     from rh_dataset.generate.seeding import rng_for
     from rh_dataset.poses import sample_poses
     from rh_dataset.spec import load_protocol
@@ -81,8 +81,8 @@ def main(argv: list[str] | None = None) -> int:
             ph = recipes[s].phenotype
             # The draped cloth under it (a loose top's skirt), draped first as the build drapes it, not timed; then
             # each of its draped pieces (the hoodie's body, then its hood over it), timed together.
-            draped = drape_layers(worn[s][:worn[s].index(kind)], ph, level)
-            sts = [drape_settings(p, level) for p in draped_pieces(kind)]
+            draped = drape_layers(worn[s][:worn[s].index(kind)], ph, level, worn=worn[s])
+            sts = [piece_settings(p, level, worn[s]) for p in draped_pieces(kind)]
             t = time.perf_counter()
             for p, st in zip(draped_pieces(kind), sts):
                 draped[p] = drape_garment(p, ph, st, over=draped_over(p, draped))

@@ -255,7 +255,7 @@ def test_jacket_is_draped_and_posed_over_the_loose_top_under_it(subject, kinds, 
     recipe = _benchmark(subject + 1)[subject]
     assert [g.kind for g in recipe.garments] == kinds
     ph = recipe.phenotype
-    draped = drape_layers(inner, ph, "coarse")
+    draped = drape_layers(inner, ph, "coarse", worn=kinds)  # the top under the jacket: from under the arms
     st = drape_settings(KIND, "coarse")
     alone, over = drape_garment(KIND, ph, st), drape_garment(KIND, ph, st, over=draped_over(KIND, draped))
 

@@ -56,6 +56,7 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
            "cloth_model", "cloth_solver", "binding_faces", "SLEEVE_CLEARANCE",
            "shell_hem", "shell_hems", "ring_height", "hanging_surface", "HangingSurface", "BRIDGE_BAND",
+           "piece_settings", "BUST_UNDER_NOT",
            "SHELL_KINDS_OVER", "SHELL_OVERLAP", "COAT_CLEARANCE", "HOOD",
            "HoodCut", "HOOD_CLEARANCE", "FRONT_OPENING", "JACKET_HEM", "TSHIRT_CLEARANCE",
            "TSHIRT_HEM", "SHORTS_HEM", "SHORTS_MIN_LEG", "STRAIGHT_LEGS"]
@@ -117,6 +118,10 @@ class DrapeSettings:
     flare: float = 0.6  # radians: the pattern's cone half-angle (a circle skirt is pi/2)
     n_around: int = 72
     n_rings: int = 24
+    # A loose top (BRIDGE_BAND) hung over the bust (its ring over the apex, its front spanning bust and belly, its
+    # shell laid there: "Over the bust"), or, under an open jacket or a coat (`piece_settings`), from under the arms as
+    # their panels are. Left out of the drape cache key where True (a key without it reads back as before).
+    over_bust: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
@@ -161,7 +166,9 @@ class DrapeProfile:
     spine04, where a skirt's waistband sits; "chest": halfway between spine02 and spine01, under the arms, lowered
     where the ring would touch the A-pose body, arms included (`_under_the_arms`): a dress's cloth is held
     there; "bust": the loose tops', raised from there to over the bust where the arms leave room, `_bust_height`,
-    the pattern as long as from "chest" plus the rise, so the hem stays where it was), the cloth hanging straight down from there to `flare_from` ("top": at once; "hips": the hip joints),
+    the pattern as long as from "chest" plus the rise, so the hem stays where it was; but from "chest" under an
+    open jacket or a coat: `DrapeSettings.over_bust`), the cloth hanging straight down from there to `flare_from`
+    ("top": at once; "hips": the hip joints),
     then flaring at `DrapeSettings.flare` for `hem` times the drop from there to the knee (measured along the
     cloth): the skirt's hem ends about 10 cm above the knee; the dress, whose 70 cm of cloth hang from the chest and
     give way by ~15 cm under their weight (measured: the hem of a 0.9 pattern settled 17 cm lower, 9 cm under the
@@ -422,13 +429,15 @@ def _ring_gap(prof: DrapeProfile, st: DrapeSettings) -> float:
     return prof.ring_gap or st.clearance + 0.002
 
 
-def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float) -> float:
+def _top_height(prof: DrapeProfile, feats, body: np.ndarray, heads: dict, centre: np.ndarray, gap: float,
+                over_bust: bool = True) -> float:
     """Height (A-pose frame) of a profile's pinned top ring: the waist (`DrapeProfile.top`), the chest under the
-    arms (`_under_the_arms`), or ("bust") that raised to over the bust (`_bust_height`)."""
+    arms (`_under_the_arms`), or ("bust", where `over_bust`: `DrapeSettings.over_bust`) that raised to over the bust
+    (`_bust_height`)."""
     if prof.top == "waist":
         return 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01
     chest = _under_the_arms(feats, body, heads, centre, gap)
-    return _bust_height(feats, body, heads, centre, gap, chest) if prof.top == "bust" else chest
+    return _bust_height(feats, body, heads, centre, gap, chest) if prof.top == "bust" and over_bust else chest
 
 
 # Metres over the bust's apex a loose top's pinned ring is raised to where the arms leave room (`_bust_height`).
@@ -483,6 +492,9 @@ DRAPED_OVER = {"draped_tshirt": _BOTTOMS_UNDER, "draped_longsleeve": _BOTTOMS_UN
 # The draped kinds a recipe garment is draped as, in order (each over those before it that DRAPED_OVER names); any
 # other draped recipe kind is draped as itself. Its draped sleeves are draped over the arm alone (garments.py).
 DRAPED_PIECES = {"draped_hoodie": ("draped_hoodie_body", "draped_hoodie")}
+# Draped kinds a loose top is not hung over the bust under (`piece_settings`): the open jacket and the coat, whose
+# panels are pinned under the arms and draped over the top's cloth.
+BUST_UNDER_NOT = ("draped_jacket", "draped_coat")
 
 
 # Shells held under draped cloth: {draped kind: the shell parts}. Only where a draped bottom is worn
@@ -555,7 +567,8 @@ def ring_height(kind: str, phenotype: dict[str, float], settings: DrapeSettings 
     run = run_anny(phenotype)
     heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
     prof = PROFILES[kind]
-    return _top_height(prof, feats, run["vertices"], heads, np.asarray(heads["root"], np.float64), _ring_gap(prof, st))
+    return _top_height(prof, feats, run["vertices"], heads, np.asarray(heads["root"], np.float64), _ring_gap(prof, st),
+                       st.over_bust)
 
 
 # A loose top's fabric spans the bust and the belly (`_hanging`): its cloth's pinned ring and, over it, its shell
@@ -608,11 +621,11 @@ def _front_weight(ang: np.ndarray) -> np.ndarray:
 
 
 def _ring_radii(kind: str, feats, body: np.ndarray, z_ring: float, centre: np.ndarray, ang: np.ndarray,
-                ring_gap: float) -> np.ndarray:
+                ring_gap: float, over_bust: bool = True) -> np.ndarray:
     """(len(ang),) radii of a pinned ring at `z_ring`: `ring_gap` outside the trunk's hull, and for a loose top
-    (`BRIDGE_BAND`) on its front that far outside the fabric hanging there (`_hanging`)."""
+    (`BRIDGE_BAND`, `over_bust`) on its front that far outside the fabric hanging there (`_hanging`)."""
     hull = _hull_radii(feats, body, z_ring, centre, ang)
-    if kind not in BRIDGE_BAND:
+    if kind not in BRIDGE_BAND or not over_bust:
         return hull + ring_gap
     full, fade = BRIDGE_BAND[kind]
     hang = _hanging(feats, body, centre, ang, z_ring, z_ring + full + fade, np.array([z_ring]))[0]
@@ -679,6 +692,8 @@ def hanging_surface(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     if kind not in BRIDGE_BAND:
         raise ValueError(f"hanging_surface: kind must be one of {tuple(BRIDGE_BAND)}, got {kind!r}")
     st = drape_settings(kind) if settings is None else settings
+    if not st.over_bust:
+        raise ValueError(f"hanging_surface: {kind} is hung from under the arms here (DrapeSettings.over_bust False)")
     prof = PROFILES[kind]
     feats = body_features(phenotype)
     run = run_anny(phenotype)
@@ -728,7 +743,7 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     na, nr = int(st.n_around), int(st.n_rings)
     gap, ring_gap = st.clearance + 0.002, _ring_gap(prof, st)
     centre = np.asarray(heads["root"], dtype=np.float64)
-    z_top = _top_height(prof, feats, body, heads, centre, ring_gap)
+    z_top = _top_height(prof, feats, body, heads, centre, ring_gap, st.over_bust)
     # A ring raised over the bust ("bust") keeps the chest ring's hem: the cloth it adds hangs over the bust.
     z_cut = _under_the_arms(feats, body, heads, centre, ring_gap) if prof.top == "bust" else z_top
     z_flare = z_top if prof.flare_from == "top" else \
@@ -747,7 +762,7 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     flare_out = cone * np.sin(st.flare)
     # r_i = flare_out_i + m_i, m_i the running maximum of (body + gap - flare_out): the cone as drawn where the
     # body stays inside it, pushed out (and kept out further down) where the body reaches it.
-    m = _ring_radii(kind, feats, body, float(zs[0]), centre, ang, ring_gap)
+    m = _ring_radii(kind, feats, body, float(zs[0]), centre, ang, ring_gap, st.over_bust)
     rr = np.empty((nr, na))
     for i in range(nr):
         if i:
@@ -1214,7 +1229,8 @@ def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, patter
     from importlib.metadata import version
 
     key = {"v": DRAPE_VERSION, "kind": kind, "phenotype": {k: float(phenotype[k]) for k in PHENOTYPE_LABELS},
-           "settings": dataclasses.asdict(st), "newton": version("newton"), "warp": version("warp-lang"),
+           "settings": {k: v for k, v in dataclasses.asdict(st).items() if k != "over_bust" or not v},
+           "newton": version("newton"), "warp": version("warp-lang"),
            "topology": ANNY_TOPOLOGY,
            # The pattern itself, points, triangles and pins: a change to how it is cut or sewn (the same points
            # joined otherwise, as the hood's flipped faces were) cannot read back a drape of the old one.
@@ -1282,13 +1298,27 @@ def draped_pieces(kind: str) -> tuple[str, ...]:
     return DRAPED_PIECES.get(kind, (kind,) if kind in DRAPED_KINDS else ())
 
 
-def drape_layers(kinds: Sequence[str], phenotype: dict[str, float], level: str = "full") -> dict[str, DrapedGarment]:
+def piece_settings(kind: str, level: str, worn: Sequence[str]) -> DrapeSettings:
+    """A draped piece's simulation worn with `worn` (a recipe's garment kinds): `drape_settings`, but a loose top
+    (`BRIDGE_BAND`) under an open jacket or a coat (`BUST_UNDER_NOT`) hung from under the arms (`over_bust` False):
+    raised over the bust, its cloth stood up to 29 mm out over the panels' ring, pinned under the arms
+    (tests/test_drape_jacket.py)."""
+    st = drape_settings(kind, level)
+    if kind in BRIDGE_BAND and any(k in BUST_UNDER_NOT for k in worn):
+        return dataclasses.replace(st, over_bust=False)
+    return st
+
+
+def drape_layers(kinds: Sequence[str], phenotype: dict[str, float], level: str = "full",
+                 worn: Sequence[str] | None = None) -> dict[str, DrapedGarment]:
     """Each draped piece of `kinds` (a recipe's garments, innermost first; `draped_pieces`) draped as
     `build_garments` drapes it: in that order, each over those before it that `DRAPED_OVER` names, at drape `level`
+    with `piece_settings` for the garments `worn` (the recipe's, where `kinds` are the first of them; None: `kinds`)
     (the same cache entries)."""
     draped: dict[str, DrapedGarment] = {}
+    worn = kinds if worn is None else worn
     for k in (p for kind in kinds for p in draped_pieces(kind)):
-        draped[k] = drape_garment(k, phenotype, drape_settings(k, level), over=draped_over(k, draped))
+        draped[k] = drape_garment(k, phenotype, piece_settings(k, level, worn), over=draped_over(k, draped))
     return draped
 
 

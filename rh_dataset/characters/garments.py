@@ -34,8 +34,8 @@ from .body import anchor_points, blended_normals, body_topology, run_anny, smoot
 from .body_features import BodyFeatures
 from .drape import (BRIDGE_BAND, BRIDGE_CAP_OVER, DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP,
                     SHELLS_UNDER, SLEEVE_GROUPS, DrapeSettings, SkinBinding, drape_garment, draped_over, draped_part,
-                    draped_pieces, drape_settings, hanging_surface, push_clearance, push_out, shell_hem, shell_hems,
-                    shells_under)
+                    draped_pieces, drape_settings, hanging_surface, piece_settings, push_clearance, push_out, shell_hem,
+                    shell_hems, shells_under)
 from .cloth_pose import LIFT_KINDS, skin_inside
 from .geometry import boundary_distance, closed_tube, hull_anchors, smoothstep, split_faces
 from .sleeves import SLEEVE_CUTS, sleeve_axis, sleeve_tops
@@ -762,11 +762,14 @@ def _skirt(feats: BodyFeatures, under: np.ndarray, n_rings: int = 14, n_around: 
 
 
 def _draped_piece(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, phenotype: dict[str, float],
-                  drape: str, draped: dict, early: dict, ends: Mapping[str, float] | None) -> list[PartGeometry]:
+                  drape: str, draped: dict, early: dict, ends: Mapping[str, float] | None,
+                  worn: Sequence[str]) -> list[PartGeometry]:
     """One draped piece of a garment (`drape.draped_pieces`) as `build_garments` makes it: the shell over its cloth
     (`SHELL_KINDS_OVER`, its sleeves ending at `ends`), then the cloth, draped over the pieces in `draped` it hangs
-    over (or taken from `early`, where it was draped before its turn) and added to `draped`; `under` is raised."""
-    st = drape_settings(kind, drape)
+    over (or taken from `early`, where it was draped before its turn) and added to `draped`; `under` is raised. Its
+    simulation is `drape.piece_settings`' for the garments `worn` (a loose top under an open jacket or a coat is hung
+    from under the arms, and its shell not laid over the bust)."""
+    st = piece_settings(kind, drape, worn)
     over = draped_over(kind, draped)
     draped[kind] = early.pop(kind, None) or drape_garment(kind, phenotype, st, over=over)
     out = []
@@ -778,7 +781,8 @@ def _draped_piece(kind: str, feats: BodyFeatures, under: np.ndarray, topology: s
         cover = ((run_anny(phenotype)["vertices"], draped[kind].vertices, draped[kind].faces)
                  if shell == "coat" else None)
         hem = shell_hems(kind, phenotype, st) if shell in BRIDGED else shell_hem(kind, phenotype, st)
-        out.append(_shell(shell, feats, under, topology, hem=hem, cover=cover, sleeves=ends, phenotype=phenotype))
+        out.append(_shell(shell, feats, under, topology, hem=hem, cover=cover, sleeves=ends,
+                          phenotype=phenotype if st.over_bust else None))
     part = draped_part(kind, phenotype, feats, under, st, over, draped[kind])
     if kind in LIFT_KINDS:
         # The skin inside the cloth as posing leaves it at rest: pushed out (`push_out`, as pose_character
@@ -831,7 +835,7 @@ def build_garments(
                 tops = sleeve_tops(phenotype, st_sleeves.n_around, SLEEVE_CUTS[sleeves_kind])
                 ends = {s: t + SHELL_OVERLAP for s, t in tops.items()}
             for kind in draped_pieces(g.kind):  # the hoodie: its body, then its hood over it
-                out.extend(_draped_piece(kind, feats, under, topology, phenotype, drape, draped, early, ends))
+                out.extend(_draped_piece(kind, feats, under, topology, phenotype, drape, draped, early, ends, kinds))
             if sleeves_kind is not None:
                 sleeves = drape_garment(sleeves_kind, phenotype, st_sleeves)
                 out.append(draped_part(sleeves_kind, phenotype, feats, under, st_sleeves, (), sleeves))
