@@ -161,3 +161,35 @@ def test_bridged_shell_lies_on_the_hanging_fabric_and_under_the_ring(pheno, shel
     moved = (bridged.offset != plain.offset)[low]
     assert moved.sum() > 10 and (r[low][moved] <= ring[moved] - D.BRIDGE_SHELL_GAP + 5e-4).all()
     assert (r[low] < ring).all()  # the shell's tuck (garments.TUCK) under the ring where it is not moved
+
+
+def test_loose_top_under_an_open_jacket_or_a_coat_hangs_from_under_the_arms():
+    """`piece_settings`: a loose top worn under an open jacket or a coat (BUST_UNDER_NOT) is hung from under the arms
+    (`over_bust` False): its pattern's ring at the chest ring's height and on the hull plus its gap all round, as
+    before the bridge; worn without one, over the bust (its drape cache key another)."""
+    from rh_dataset.characters import drape as D
+
+    kind = "draped_tshirt"
+    worn = ["shoes", "trousers", kind]
+    bare = D.piece_settings(kind, "coarse", worn)
+    assert bare == D.drape_settings(kind, "coarse") and bare.over_bust
+    for outer in D.BUST_UNDER_NOT:
+        assert not D.piece_settings(kind, "coarse", worn + [outer]).over_bust
+    assert D.piece_settings("draped_skirt", "coarse", ["draped_skirt", "draped_jacket"]).over_bust
+    under = D.piece_settings(kind, "coarse", worn + ["draped_jacket"])
+    _, feats, body, centre = _frame(PHENO)
+    heads = _heads(PHENO)
+    gap = D._ring_gap(D.PROFILES[kind], under)
+    chest = D._under_the_arms(feats, body, heads, centre, gap)
+    ring = D.garment_pattern(kind, PHENO, under)[0][:under.n_around]
+    raised = D.garment_pattern(kind, PHENO, bare)[0][:bare.n_around]
+    assert ring[0, 2] == chest < raised[0, 2] == D.ring_height(kind, PHENO)
+    assert D.ring_height(kind, PHENO, under) == chest
+    ang = np.arange(under.n_around) * (2.0 * np.pi / under.n_around)
+    np.testing.assert_allclose(np.hypot(ring[:, 0] - centre[0], ring[:, 1] - centre[1]),
+                               D._hull_radii(feats, body, chest, centre, ang) + gap, atol=1e-12)
+    with pytest.raises(ValueError, match="over_bust"):
+        D.hanging_surface(kind, PHENO, under)
+    pattern, faces, pinned = np.zeros((3, 3)), np.zeros((1, 3), np.int32), np.zeros(3, bool)
+    keys = {st: D._cache_key(kind, PHENO, st, pattern, faces, pinned) for st in (bare, under)}
+    assert keys[bare] != keys[under]

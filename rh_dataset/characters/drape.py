@@ -679,7 +679,7 @@ class HangingSurface:
 
 # Metres under the shell's hem (SHELL_OVERLAP under the pinned ring) over which its lift onto the hanging surface
 # fades out. Faded out over 5 mm under the ring, the shell's triangles (~2 cm) reached from a vertex in the
-# cleavage under the ring to one lifted over it, and at the middle of the chest the ring stood 12-14 mm over them
+# cleavage under the ring to one lifted over it, and at the middle of the chest the ring stood 13-14 mm over them
 # (seed 0's subject 28, bench/bench_bust_seam.py); under the ring the surface lies BRIDGE_SHELL_GAP under the ring.
 BRIDGE_UNDER = 0.005
 

@@ -88,15 +88,16 @@ UNDER_FADE = 0.008
 CUT_AS = {"hoodie": "longsleeve", "tee": "tshirt", "longtop": "longsleeve"}
 LAYER_GAP = 0.003  # minimum distance between two layers (well above ray-tracing epsilon at body scale)
 # A shell lifted over draped cloth (`drape.layer_lift`: a top over the loose shorts' waistband, 2-3 cm off the skin
-# where the band bridges the hollow of the back) sits that far out along normals that converge in every groove of
-# the body (the spine, the top of the buttocks' cleft), and its triangles there turned over: dark facets in renders
-# (bench/bench_shell_folds.py). Where a shell vertex's offset rises more than LIFT_SMOOTH_FROM over its garment's
-# own (BASE_OFFSET), its offset direction turns, over the next LIFT_SMOOTH_WIDTH, to the posed body's normals averaged
+# where the band bridges the hollow of the back) sits that far out along normals that converge in every groove of the
+# body (the spine, the top of the buttocks' cleft), and its triangles there turned over: dark facets in renders
+# (bench/bench_shell_folds.py). Where a shell vertex's offset rises more than LIFT_SMOOTH_FROM over its garment's own
+# (BASE_OFFSET), its offset direction turns, over the next LIFT_SMOOTH_WIDTH, to the posed body's normals averaged
 # LIFT_SMOOTH_ROUNDS times over each vertex's edge neighbours (`body.smoothed_normals`; some 3-5 cm on the trunk): the
-# lift no longer follows the grooves it bridges (`lift_turn`, `lift_directions`; posing: character.py). On a shell
-# laid over the bust (BRIDGED) the same turn takes its shading from the skin's normals to the shell's own surface:
-# shaded as the skin, it showed the bust's underside and the cleavage it spans. (The other lifted shells keep the
-# skin's shading: their own surface's showed a few turned-over triangles in the hollow of the back,
+# lift no longer follows the grooves it bridges (`lift_turn`, `lift_directions`; posing: character.py). Shells not
+# lifted keep their points bit for bit, and so do shell tops held under draped panels (`drape.SHELLS_UNDER`). On a
+# shell laid over the bust (BRIDGED) the same turn takes its shading from the skin's normals to the shell's own
+# surface: shaded as the skin, it showed the bust's underside and the cleavage it spans. (The other lifted shells keep
+# the skin's shading: their own surface's showed a few turned-over triangles in the hollow of the back,
 # tests/test_layer_lift.py.)
 LIFT_SMOOTH_FROM = 0.002
 LIFT_SMOOTH_WIDTH = 0.008
