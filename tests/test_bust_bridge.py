@@ -97,7 +97,8 @@ def _shells(shell: str, kind: str, pheno):
     hem = D.shell_hems(kind, pheno)
     n = len(feats.rest_vertices)
     plain = G._shell(shell, feats, np.zeros(n), ANNY_TOPOLOGY, hem=hem)
-    bridged = G._shell(shell, feats, np.zeros(n), ANNY_TOPOLOGY, hem=hem, phenotype=pheno)
+    bridge = G.Bridge(pheno, D.drape_settings(kind))
+    bridged = G._shell(shell, feats, np.zeros(n), ANNY_TOPOLOGY, hem=hem, bridge=bridge)
     rest = run_anny(pheno)["vertices"]
     normals = vertex_normals(rest, body_topology().faces)
     bv, bw = bridged.blend_vertices, bridged.blend_weights.astype(np.float64)

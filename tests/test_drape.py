@@ -2,6 +2,7 @@
 drape: bit-identical reruns and cloth that stays outside the body in the rest pose and in sampled poses."""
 from __future__ import annotations
 
+import dataclasses
 
 import numpy as np
 import pytest
@@ -288,3 +289,36 @@ def test_drape_cache_key_covers_the_patterns_triangles_and_pins():
     moved = pinned.copy()
     moved[len(verts) // 2] = True
     assert key != _cache_key("draped_skirt", PHENO, st, verts, faces, moved)
+
+
+def test_settle_ends_the_drape_at_rest():
+    """`DrapeSettings.settle` (steps each from rest after the drape's `steps`): a square sheet pinned along one edge,
+    let go level, swings under gravity; simulated on, it is still swinging 4 s later (20 more steps move it
+    centimetres), while after 400 settle steps it hangs straight down from its pinned edge (the static equilibrium)
+    and 20 more move it under 3 mm. The settle count enters the drape cache key only where set (keys of drapes
+    without one read back as before)."""
+    from rh_dataset.characters.drape import DrapeSettings, _cache_key, _simulate
+
+    n, size = 9, 0.16
+    x, y = np.meshgrid(np.linspace(0.0, size, n), np.linspace(0.0, size, n), indexing="ij")
+    verts = np.stack([x.ravel(), y.ravel(), np.ones(n * n)], 1)
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.int32)
+    pinned = verts[:, 0] == 0.0
+    far = (np.array([[5.0, 5.0, -5.0], [5.1, 5.0, -5.0], [5.0, 5.1, -5.0]]), np.array([[0, 1, 2]]))  # no body
+
+    def sim(steps, settle):
+        return _simulate(verts, faces, pinned, *far, DrapeSettings(steps=steps, settle=settle, self_contact=False))
+
+    swing = np.linalg.norm(sim(460, 0) - sim(440, 0), axis=1).max()
+    settled = sim(40, 400)
+    rest = np.linalg.norm(sim(40, 420) - settled, axis=1).max()
+    assert swing > 0.03 and rest < 0.003, (swing, rest)
+    assert np.abs(settled[~pinned, 0]).max() < 0.02  # under the pinned edge (x = 0)
+    assert 1.0 - settled[verts[:, 0] == size, 2].mean() > size  # its free edge a sheet's length down
+
+    st = drape_settings("draped_skirt", "coarse")
+    pat, pf, _, pp, _ = garment_pattern("draped_skirt", PHENO, st)
+    key = _cache_key("draped_skirt", PHENO, st, pat, pf, pp)
+    assert key != _cache_key("draped_skirt", PHENO, dataclasses.replace(st, settle=10), pat, pf, pp)

@@ -41,7 +41,7 @@ from .geometry import boundary_distance, closed_tube, hull_anchors, smoothstep, 
 from .sleeves import SLEEVE_CUTS, sleeve_axis, sleeve_tops
 from .recipe import GARMENT_KINDS, Garment
 
-__all__ = ["PartGeometry", "build_garments", "garment_level", "garment_parts", "SHELL_KINDS", "BASE_OFFSET",
+__all__ = ["PartGeometry", "Bridge", "build_garments", "garment_level", "garment_parts", "SHELL_KINDS", "BASE_OFFSET",
            "LAYER_GAP", "GARMENT_PARTS", "COAT_LAPEL", "TUCK", "lift_turn", "lift_directions"]
 
 # Cloth thickness above the skin, metres (outer garments thicker: a jacket stands off the body more than a tee).
@@ -309,24 +309,34 @@ def lift_directions(own: np.ndarray, even: np.ndarray, turn: np.ndarray) -> np.n
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def _bridged(kind: str, split, off: np.ndarray, feats: BodyFeatures, topology: str,
-             phenotype: dict[str, float], cloth: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+@dataclasses.dataclass(frozen=True)
+class Bridge:
+    """What a `BRIDGED` shell is laid over the bust with (`_bridged`): its wearer's `phenotype`, its draped cloth's
+    simulation `settings` (`drape.piece_settings`: the surface meets that cloth's pinned ring) and `cloth`, that
+    cloth's rest vertices (V, 3) and faces (F, 3), which the lift under the ring stays under (None: not held)."""
+
+    phenotype: dict[str, float]
+    settings: DrapeSettings
+    cloth: tuple[np.ndarray, np.ndarray] | None = None
+
+
+def _bridged(kind: str, split, off: np.ndarray, feats: BodyFeatures, topology: str, bridge: Bridge) -> np.ndarray:
     """A loose top's shell (`BRIDGED`) lifted, on the front of its trunk over its cloth's pinned ring, onto the surface
     its fabric would hang on (`drape.hanging_surface`): across the cleavage, down from the bust and out over the belly
     to the ring. Each vertex's offset is where its point, along the direction posing gives it at that offset
     (`lift_directions`), in the rest A-pose the cloth is cut in, meets that surface where it is (bisection,
     BRIDGE_ROUNDS), at most BRIDGE_MAX over its own; its weight there (`HangingSurface.weight_at`, at the skin) of the
     way. Only lifted, but up to BRIDGE_CAP_OVER over the ring, where the surface lies under the ring: a tuck
-    (TUCK) standing out of it there is lowered onto it (by its weight round the trunk alone). `cloth` (its draped
-    cloth's vertices and faces, rest A-pose): under the ring, a lift is held LAYER_GAP under that cloth along its
-    direction: under the bust the cloth falls in under the ring, and a shell lifted to the ring's radius there came
-    0.3-0.4 mm out through it (tests/test_drape_tshirt.py -m slow)."""
-    rest = run_anny(phenotype)["vertices"]
+    (TUCK) standing out of it there is lowered onto it (by its weight round the trunk alone). `bridge.cloth` (its
+    draped cloth, rest A-pose): under the ring, a lift is held LAYER_GAP under that cloth along its direction: under
+    the bust the cloth falls in under the ring, and a shell lifted to the ring's radius there came 0.3-0.4 mm out
+    through it (tests/test_drape_tshirt.py -m slow)."""
+    rest = run_anny(bridge.phenotype)["vertices"]
     normals = vertex_normals(rest, body_topology(topology).faces)
     bv = np.stack([split.body_vertex, split.cut_vertex], 1)
     bw = np.stack([1.0 - split.cut_t, split.cut_t], 1)
     skin = anchor_points(rest, normals, bv, bw, np.zeros(len(bv)))
-    surface = hanging_surface(BRIDGED[kind], phenotype)
+    surface = hanging_surface(BRIDGED[kind], bridge.phenotype, bridge.settings)
     weight = surface.weight_at(skin)
     nearest = np.where(split.cut_t > 0.5, split.cut_vertex, split.body_vertex)
     low = (skin[:, 2] <= surface.z_ring + BRIDGE_CAP_OVER) & (surface.front_weight_at(skin) > 0)
@@ -354,11 +364,12 @@ def _bridged(kind: str, split, off: np.ndarray, feats: BodyFeatures, topology: s
     w = np.where(cap, surface.front_weight_at(p), weight[sel])
     new = base + w * (found - base)
     low = np.flatnonzero((p[:, 2] < surface.z_ring) & (new > base))
-    if cloth is not None and len(low):
+    if bridge.cloth is not None and len(low):
         import trimesh
 
         d = lift_directions(own[low], even[low], lift_turn(kind, new[low]))
-        mesh = trimesh.Trimesh(np.asarray(cloth[0], np.float64), np.asarray(cloth[1]), process=False)
+        cv, cf = bridge.cloth
+        mesh = trimesh.Trimesh(np.asarray(cv, np.float64), np.asarray(cf), process=False)
         loc, ray, _ = mesh.ray.intersects_location(p[low], d, multiple_hits=False)
         hit = np.full(len(low), np.inf)
         hit[ray] = ((loc - p[low][ray]) * d[ray]).sum(1)
@@ -370,16 +381,14 @@ def _bridged(kind: str, split, off: np.ndarray, feats: BodyFeatures, topology: s
 
 def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem: float | np.ndarray | None = None,
            cover: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-           sleeves: Mapping[str, float] | None = None, phenotype: dict[str, float] | None = None,
-           bridge_under: tuple[np.ndarray, np.ndarray] | None = None) -> PartGeometry:
+           sleeves: Mapping[str, float] | None = None, bridge: Bridge | None = None) -> PartGeometry:
     """A shell cut from the body along `garment_level`'s zero level (`hem`: the coat's). Every vertex is a blend of
     the two ends of a body edge (weight 1 on one end except on the cut), offset along the blended normal: the taper
     runs over the surface distance from the cut, and layering compares with the layers below interpolated the same
     way. `cover` (the coat's shell, and a shell top's trunk under the open jacket or coat: drape.SHELLS_UNDER): (the
     body's vertices in anny's rest A-pose, and the vertices and faces of the draped cloth over the shell in that
-    pose): the shell stays under that cloth (`_under_cover`). `sleeves`: as `garment_level`'s. `phenotype`: a
-    `BRIDGED` shell's, which is then laid over the bust (`_bridged`; `bridge_under`: its draped cloth's vertices and
-    faces, which its lift under the ring stays under)."""
+    pose): the shell stays under that cloth (`_under_cover`). `sleeves`: as `garment_level`'s. `bridge`: a
+    `BRIDGED` shell's, which is then laid over the bust (`_bridged`)."""
     level = _clean_level(garment_level(kind, feats, hem, sleeves), topology)
     topo = body_topology(topology)
     face_ids = np.flatnonzero((level[topo.faces] < 0).any(axis=1))
@@ -414,8 +423,8 @@ def _shell(kind: str, feats: BodyFeatures, under: np.ndarray, topology: str, hem
     if kind in RING_LIFT:
         need = need * smoothstep((z - hem) / UNDER_FADE)
     off = np.maximum(off, need)
-    if kind in BRIDGED and phenotype is not None:
-        off = _bridged(kind, split, off, feats, topology, phenotype, bridge_under)
+    if kind in BRIDGED and bridge is not None:
+        off = _bridged(kind, split, off, feats, topology, bridge)
     if cover is not None:
         capped = np.minimum(off, _under_cover(split, off, *cover, topology))
         # The coat's whole shell; a shell top but its sleeves (drape.SHELLS_UNDER: they lie under the coat's).
@@ -799,8 +808,8 @@ def _draped_piece(kind: str, feats: BodyFeatures, under: np.ndarray, topology: s
                  if shell == "coat" else None)
         hem = shell_hems(kind, phenotype, st) if shell in BRIDGED else shell_hem(kind, phenotype, st)
         out.append(_shell(shell, feats, under, topology, hem=hem, cover=cover, sleeves=ends,
-                          phenotype=phenotype if st.over_bust else None,
-                          bridge_under=(draped[kind].vertices, draped[kind].faces)))
+                          bridge=Bridge(phenotype, st, (draped[kind].vertices, draped[kind].faces))
+                          if st.over_bust else None))
     part = draped_part(kind, phenotype, feats, under, st, over, draped[kind])
     if kind in LIFT_KINDS:
         # The skin inside the cloth as posing leaves it at rest: pushed out (`push_out`, as pose_character
