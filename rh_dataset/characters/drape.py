@@ -558,8 +558,12 @@ def shell_hems(kind: str, phenotype: dict[str, float], settings: DrapeSettings |
 
 def ring_height(kind: str, phenotype: dict[str, float], settings: DrapeSettings | None = None) -> float:
     """Height of a chest-hung draped kind's pinned ring in the A-pose frame the cloth is draped in (`PROFILES`)."""
-    st = drape_settings(kind) if settings is None else settings
-    return _ring_levels(kind, tuple(sorted((k, float(v)) for k, v in phenotype.items())), st)[0]
+    return _rings(kind, phenotype, drape_settings(kind) if settings is None else settings)[0]
+
+
+def _rings(kind: str, phenotype: dict[str, float], st: DrapeSettings) -> tuple[float, float]:
+    """`_ring_levels` for a phenotype dict (made hashable for its cache)."""
+    return _ring_levels(kind, tuple(sorted((k, float(v)) for k, v in phenotype.items())), st)
 
 
 @functools.lru_cache(maxsize=32)
@@ -755,7 +759,7 @@ def garment_pattern(kind: str, phenotype: dict[str, float], settings: DrapeSetti
     gap, ring_gap = st.clearance + 0.002, _ring_gap(prof, st)
     centre = np.asarray(heads["root"], dtype=np.float64)
     # A ring raised over the bust ("bust") keeps the chest ring's hem: the cloth it adds hangs over the bust.
-    z_top, z_cut = _ring_levels(kind, tuple(sorted((k, float(v)) for k, v in phenotype.items())), st)
+    z_top, z_cut = _rings(kind, phenotype, st)
     z_flare = z_top if prof.flare_from == "top" else \
         0.5 * (float(heads["upperleg01.L"][2]) + float(heads["upperleg01.R"][2]))
     z_knee = 0.5 * (float(heads["lowerleg01.L"][2]) + float(heads["lowerleg01.R"][2]))
