@@ -9,8 +9,9 @@ under it draped as the build drapes it (from the drape cache), then each of the 
 (`draped_pieces`: the hoodie's body, then its hood) draped at `--level` as the build drapes it (its own `settle`) and
 again with each `--settle` count, over the same cloth. Out, printed with the load average: per piece and count, how far
 the settle moved the cloth (the largest and the 99th-percentile particle displacement, mm), the cloth's worst depth in
-the body before and after (mm, `penetration`: negative is outside), and the seconds each drape took. A piece whose
-drape ends mid-swing moves by centimetres; one at rest by the solver's residual (~1 mm).
+the body before and after (mm, `penetration`: negative is outside), and the seconds each drape took; with `--more N`,
+how far N more steps move the drape as built and N more settle steps each settled one (largest, 99th percentile): a
+drape still swinging where it ends moves by millimetres a step, one at rest by the solver's residual.
 """
 from __future__ import annotations
 
@@ -37,6 +38,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="recipe garment kinds whose first wearer is draped")
     ap.add_argument("--level", default="full", choices=DRAPE_LEVELS, help="drape level")
     ap.add_argument("--settle", nargs="+", type=int, default=[100], help="settle step counts compared")
+    ap.add_argument("--more", type=int, default=0,
+                    help="also drape each with this many more steps (and each settle with this many more settle "
+                         "steps) and print how far those moved it: is it still moving where it ends? (0: not)")
     args = ap.parse_args(argv)
 
     from rh_dataset.characters import sample_recipe
@@ -65,6 +69,18 @@ def main(argv: list[str] | None = None) -> int:
             base = drape_garment(p, ph, st, use_cache=False, over=draped_over(p, draped))
             t_base = time.perf_counter() - t
             d0 = penetration(body, faces, base.vertices).max()
+
+            def more(st_more, q):  # how far `args.more` more steps (or settle steps) move the drape `q`
+                g = drape_garment(p, ph, st_more, use_cache=False, over=draped_over(p, draped))
+                step = np.linalg.norm(g.vertices - q, axis=1)
+                return f"{1000 * step.max():5.1f} / {1000 * np.percentile(step, 99):5.1f} mm"
+
+            if args.more:
+                grown = (dataclasses.replace(st, settle=st.settle + args.more) if st.settle
+                         else dataclasses.replace(st, steps=st.steps + args.more))
+                print(f"subject {s:2d} {p:24s} as built ({st.steps} steps, settle {st.settle}): {args.more} more "
+                      f"steps move it {more(grown, base.vertices)} (largest / 99th percentile)  (load {load()})",
+                      flush=True)
             for n in args.settle:
                 t = time.perf_counter()
                 g = drape_garment(p, ph, dataclasses.replace(st, settle=n), use_cache=False,
@@ -76,6 +92,10 @@ def main(argv: list[str] | None = None) -> int:
                       f"mm, 99th pct {1000 * np.percentile(moved, 99):5.1f} mm; worst depth in the body "
                       f"{1000 * d0:6.1f} -> {1000 * d1:6.1f} mm; drape {t_base:5.1f} s -> {t_n:5.1f} s  "
                       f"(load {load()})", flush=True)
+                if args.more:
+                    print(f"subject {s:2d} {p:24s} settle {n}: {args.more} more settle steps move it "
+                          f"{more(dataclasses.replace(st, settle=n + args.more), g.vertices)}  (load {load()})",
+                          flush=True)
             draped[p] = drape_garment(p, ph, st, over=draped_over(p, draped))
     print(f"(load at the end {load()})")
     return 0
