@@ -562,17 +562,21 @@ def ring_height(kind: str, phenotype: dict[str, float], settings: DrapeSettings 
 
 
 def _rings(kind: str, phenotype: dict[str, float], st: DrapeSettings) -> tuple[float, float]:
-    """`_ring_levels` for a phenotype dict (made hashable for its cache)."""
-    return _ring_levels(kind, tuple(sorted((k, float(v)) for k, v in phenotype.items())), st)
+    """`_ring_levels` for a phenotype dict and settings: keyed on the phenotype made hashable and on the only two
+    settings the rings depend on (the ring's gap and `over_bust`), so both drape levels share one finding."""
+    return _ring_levels(kind, tuple(sorted((k, float(v)) for k, v in phenotype.items())),
+                        _ring_gap(PROFILES[kind], st), st.over_bust)
 
 
 @functools.lru_cache(maxsize=32)
-def _ring_levels(kind: str, phenotype: tuple[tuple[str, float], ...], st: DrapeSettings) -> tuple[float, float]:
+def _ring_levels(kind: str, phenotype: tuple[tuple[str, float], ...], gap: float,
+                 over_bust: bool) -> tuple[float, float]:
     """(pinned top ring's height, the chest ring's) of a `PROFILES` kind in the A-pose frame: its top ring at the
-    waist (`DrapeProfile.top`, both the same), the chest under the arms (`_under_the_arms`), or ("bust", where
-    `st.over_bust`) that raised to over the bust (`_bust_height`). Found once per (kind, phenotype, settings): the
-    pattern, the shell's hem (`shell_hems`) and the bridged shell's surface (`hanging_surface`) all need it for one
-    build, and each finding runs closest-point queries against the body, twice where the ring is raised."""
+    waist (`DrapeProfile.top`, both the same), the chest under the arms (`_under_the_arms`, `gap` off the trunk's
+    hull), or ("bust", where `over_bust`) that raised to over the bust (`_bust_height`). Found once per (kind,
+    phenotype, gap, over_bust): the pattern, the shell's hem (`shell_hems`) and the bridged shell's surface
+    (`hanging_surface`) all need it for one build, and each finding runs closest-point queries against the body,
+    twice where the ring is raised."""
     prof = PROFILES[kind]
     run = run_anny(dict(phenotype))
     heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
@@ -580,9 +584,9 @@ def _ring_levels(kind: str, phenotype: tuple[tuple[str, float], ...], st: DrapeS
         top = 0.5 * (float(heads["root"][2]) + float(heads["spine04"][2])) + 0.01
         return top, top
     feats, body = body_features(dict(phenotype)), run["vertices"]
-    centre, gap = np.asarray(heads["root"], np.float64), _ring_gap(prof, st)
+    centre = np.asarray(heads["root"], np.float64)
     chest = _under_the_arms(feats, body, heads, centre, gap)
-    top = _bust_height(feats, body, heads, centre, gap, chest) if prof.top == "bust" and st.over_bust else chest
+    top = _bust_height(feats, body, heads, centre, gap, chest) if prof.top == "bust" and over_bust else chest
     return top, chest
 
 
