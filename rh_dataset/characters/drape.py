@@ -97,11 +97,13 @@ class DrapeSettings:
     fabric of `density` kg/m^2. `clearance`: particle radius, the gap newton keeps between cloth and body.
     `self_contact`: VBD's cloth-cloth contact (vertex-triangle and edge-edge, interacting within
     `self_contact_margin`, detected within margin + `self_contact_gap`), so folds do not pass through each other.
-    `settle`: steps of dynamic relaxation after `steps`, each started from rest (the particles' velocities zeroed),
-    so the drape ends at the cloth's static equilibrium rather than at a moment of its swing."""
+    `settle`: steps of dynamic relaxation after `steps`, in which each particle keeps the fraction `settle_keep` of
+    its velocity from one step to the next (a viscous damping; 0: each step from rest), so the drape ends at the
+    cloth's static equilibrium rather than at a moment of its swing."""
 
     steps: int = 300
     settle: int = 0
+    settle_keep: float = 0.0
     dt: float = 0.01
     iterations: int = 10
     collide_every: int = 5
@@ -1099,8 +1101,11 @@ def _simulate(verts, faces, pinned, body_v, body_f, st: DrapeSettings) -> np.nda
     for k in range(int(st.steps) + int(st.settle)):
         if k % int(st.collide_every) == 0:
             pipe.collide(s0, contacts)
-        if k >= st.steps:  # the settle: each step from rest, so the swing left after `steps` dies out
-            s0.particle_qd.zero_()
+        if k >= st.steps:  # the settle: the swing left after `steps` damped out
+            if st.settle_keep:
+                s0.particle_qd.assign(s0.particle_qd.numpy() * np.float32(st.settle_keep))
+            else:
+                s0.particle_qd.zero_()
         s0.clear_forces()
         solver.step(s0, s1, ctrl, contacts, st.dt)
         s0, s1 = s1, s0
@@ -1249,9 +1254,9 @@ def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, patter
     from importlib.metadata import version
 
     key = {"v": DRAPE_VERSION, "kind": kind, "phenotype": {k: float(phenotype[k]) for k in PHENOTYPE_LABELS},
-           # over_bust where False and settle where set: keys without them read back as before.
+           # over_bust where False, settle and settle_keep where set: keys without them read back as before.
            "settings": {k: v for k, v in dataclasses.asdict(st).items()
-                        if (k != "over_bust" or not v) and (k != "settle" or v)},
+                        if (k != "over_bust" or not v) and (k not in ("settle", "settle_keep") or v)},
            "newton": version("newton"), "warp": version("warp-lang"),
            "topology": ANNY_TOPOLOGY,
            # The pattern itself, points, triangles and pins: a change to how it is cut or sewn (the same points
