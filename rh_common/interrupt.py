@@ -12,7 +12,7 @@ what is finished so far. Out: the same `main`, which
   through instead.
 
 A stop can be lost on the way: Python cannot raise out of a C library's callback (rtree's ctypes stream, under
-trimesh's closest-point queries, prints "Exception ignored" and carries on, perhaps with a wrong answer). So the
+trimesh's search-tree queries, prints "Exception ignored" and carries on, perhaps with a wrong answer). So the
 signal is also remembered, and `checkpoint()` raises it again: `rh_common.imageio.atomic_path` calls it before it
 commits a file, so nothing computed across a lost stop is kept; an error that escapes after a stop (the library's
 own failure at the lost exception) is reported as that stop.

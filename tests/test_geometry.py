@@ -31,3 +31,46 @@ def test_query_mesh_answers_as_trimesh_does():
                         theirs.ray.intersects_id(pts, d, multiple_hits=True, return_locations=True)):
             np.testing.assert_array_equal(a, b)
     assert len(query_mesh(v, f[:0]).faces) == 0  # no faces: no tree to build
+
+
+def test_closest_point_is_the_brute_force_minimum():
+    """`geometry.closest_point` (libigl's AABB tree, kept in the mesh's cache): on anny's body and on a rumpled cloth
+    patch with squashed triangles, every point's distance is the minimum over all faces (trimesh's closest point
+    on each triangle, brute force), the closest point lies that far from the point, and so does the face it names. And
+    where trimesh's own query takes a face up to its tie tolerance (1e-8 in squared distance) farther because its
+    normal faces the point: a point 0.30 mm from one face's edge and 0.305 mm straight over another face gets the
+    first."""
+    from rh_dataset.characters.geometry import closest_point
+
+    def brute(mesh, pts):
+        tri = mesh.triangles
+        return np.array([np.linalg.norm(trimesh.triangles.closest_point(tri, np.repeat(p[None], len(tri), 0)) - p,
+                                         axis=1).min() for p in pts])
+
+    rng = np.random.default_rng(5)
+    v = run_anny(PHENO)["vertices"]
+    f = body_topology().faces
+    x, y = np.meshgrid(np.linspace(0, 0.1, 12), np.linspace(0, 0.1, 12))
+    cloth_v = np.c_[x.ravel(), y.ravel(), 0.01 * np.sin(40 * x.ravel()) * np.cos(30 * y.ravel())]
+    cloth_v[5] = cloth_v[6]  # two vertices pushed onto one point: squashed triangles
+    idx = np.arange(144).reshape(12, 12)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    cloth_f = np.r_[np.c_[a, b, c], np.c_[a, c, d]]
+    for mesh, pts in ((query_mesh(v, f), v[rng.choice(len(v), 150)] + rng.normal(0.0, 0.01, (150, 3))),
+                      (query_mesh(cloth_v, cloth_f), rng.uniform([-0.02, -0.02, -0.03], [0.12, 0.12, 0.03],
+                                                                 (150, 3)))):
+        closest, dist, tri = closest_point(mesh, pts)
+        assert mesh._cache["rh_igl_aabb"] is not None  # the tree is kept for the next query
+        np.testing.assert_allclose(dist, brute(mesh, pts), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(np.linalg.norm(closest - pts, axis=1), dist, rtol=0, atol=1e-12)
+        on_face = trimesh.triangles.closest_point(mesh.triangles[tri], pts)  # the face it names is that close
+        np.testing.assert_allclose(np.linalg.norm(on_face - pts, axis=1), dist, rtol=0, atol=1e-12)
+    # One face with its edge at x = 0 (x <= 0, z = 0), another 0.305 mm straight under a point 0.300 mm from that
+    # edge, its normal pointing at the point.
+    tri_v = np.array([[-0.01, -0.01, 0.0], [0.0, -0.01, 0.0], [0.0, 0.01, 0.0],
+                      [5e-5, -0.01, -2.2e-5], [2e-4, -0.01, -2.2e-5], [5e-5, 0.01, -2.2e-5]])
+    mesh = query_mesh(tri_v, np.array([[0, 1, 2], [3, 4, 5]]))
+    p = np.array([[1e-4, 0.0, 2.83e-4]])
+    closest, dist, tri = closest_point(mesh, p)
+    assert tri[0] == 0 and abs(dist[0] - np.linalg.norm(p)) < 1e-15, (tri, dist)
+    assert len(closest_point(mesh, np.zeros((0, 3)))[0]) == 0

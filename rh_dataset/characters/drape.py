@@ -46,7 +46,7 @@ from rh_common.imageio import atomic_path
 
 from .body import PHENOTYPE_LABELS, body_topology, run_anny
 from .body_features import body_features
-from .geometry import edge_counts, hull_anchors, metre_uvs, query_mesh, seamed_grid, smoothstep
+from .geometry import closest_point, edge_counts, hull_anchors, metre_uvs, query_mesh, seamed_grid, smoothstep
 from .sleeves import SLEEVE_CUTS, sleeve_pattern, sleeves_render_mesh
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
@@ -1355,7 +1355,7 @@ def _closest_weights(mesh, points: np.ndarray) -> np.ndarray:
     import trimesh
 
     topo = body_topology()
-    closest, _, tri = trimesh.proximity.closest_point(mesh, points)
+    closest, _, tri = closest_point(mesh, points)
     corners = np.asarray(mesh.faces)[tri]  # (P, 3)
     bary = trimesh.triangles.points_to_barycentric(mesh.vertices[corners], closest)
     bary = np.clip(bary, 0.0, None)
@@ -1631,7 +1631,7 @@ def _closest(body_vertices, body_faces, points, body_normals=None, mesh=None, tr
     p = np.asarray(points, np.float64)
     if mesh is None:
         mesh = query_mesh(v, f)
-    closest, dist, tri = trimesh.proximity.closest_point(mesh, p)
+    closest, dist, tri = closest_point(mesh, p)
     # A triangle squashed to a line or a point (two cloth vertices pushed onto one surface point) has no
     # barycentrics: its corners' normals, averaged.
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -23,7 +23,7 @@ import numpy as np
 from .body import body_topology
 from .body_features import BodyFeatures
 from .eyes import MIRROR, fit_eyes
-from .geometry import bind_points
+from .geometry import bind_points, closest_point, query_mesh
 from .hair import StrandGeometry
 from .textures import BROW_SPAN, brow_band
 
@@ -54,9 +54,7 @@ def _bound(kind: str, rest: np.ndarray, radius: np.ndarray, feats: BodyFeatures)
 
 def build_brows(feats: BodyFeatures, rng: np.random.Generator) -> StrandGeometry:
     """Both brows' hairs, left brow first (deterministic for a given `rng` state)."""
-    import trimesh
-
-    mesh = trimesh.Trimesh(np.asarray(feats.rest_vertices, np.float64), body_topology().faces, process=False)
+    mesh = query_mesh(feats.rest_vertices, body_topology().faces)
     hairs = []
     for side, sign in (("L", 1.0), ("R", -1.0)):
         e = np.asarray(feats.bone_heads[f"eye.{side}"], np.float64)
@@ -82,7 +80,7 @@ def build_brows(feats: BodyFeatures, rng: np.random.Generator) -> StrandGeometry
         length = BROW_LENGTH[0] + (BROW_LENGTH[1] - BROW_LENGTH[0]) * u * share[ray]
         s = np.linspace(0.0, 1.0, POINTS)
         p = loc[:, None, :] + (s[None, :, None] * length[:, None, None]) * d[:, None, :]
-        on, _, t = trimesh.proximity.closest_point(mesh, p.reshape(-1, 3))  # along the skin's curve
+        on, _, t = closest_point(mesh, p.reshape(-1, 3))  # along the skin's curve
         lift = BROW_LIFT[0] + (BROW_LIFT[1] - BROW_LIFT[0]) * np.tile(s, len(u))
         hairs.append((on + lift[:, None] * mesh.face_normals[t]).reshape(-1, POINTS, 3))
     rest = np.concatenate(hairs)

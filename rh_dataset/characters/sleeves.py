@@ -159,14 +159,13 @@ def _frame(phenotype: dict[str, float]):
 
 
 def _tops(body, heads, feats, n_around: int, cut: SleeveCut) -> dict[str, float]:
-    import trimesh
-
     from .body import body_topology
     from .drape import penetration
+    from .geometry import closest_point, query_mesh
 
     faces = body_topology().faces
     rest = ~feats.in_groups("upperarm", "lowerarm", "hand")
-    mesh = trimesh.Trimesh(body, faces[rest[faces].all(axis=1)], process=False)
+    mesh = query_mesh(body, faces[rest[faces].all(axis=1)])
     arm = feats.in_groups("upperarm", "lowerarm")
     ang = np.arange(n_around) * (2.0 * np.pi / n_around)
     out = {}
@@ -178,7 +177,7 @@ def _tops(body, heads, feats, n_around: int, cut: SleeveCut) -> dict[str, float]
                          ang)
             # Off the rest of the body by the gap, and outside the body (a ring point deep in the chest of a heavy
             # body lies farther than the gap from its surface).
-            if (trimesh.proximity.closest_point(mesh, ring)[1].min() >= cut.ring_gap
+            if (closest_point(mesh, ring)[1].min() >= cut.ring_gap
                     and penetration(body, faces, ring).max() < 0.0):
                 out[side] = float(t)
                 break

@@ -5,7 +5,8 @@ faces in the camera frame (metres, OpenCV axes) and anny's joints mapped to the 
 Out (`SubjectFit`): one `betas` shared bit-for-bit by every frame, `scale` (1.0: the betas carry the size, so the
 ZJU-MoCap params, which have no scale, describe the same body), and per frame a `FrameFit`: `pose` (3·(J−1),
 parent-relative axis-angle), `global_orient`, `global_trans`, the posed `vertices` and `joints` in the camera frame,
-and `FitQuality` (vertex-to-surface distances both ways, measured with trimesh's closest points, and joint error).
+and `FitQuality` (vertex-to-surface distances both ways, from exact closest points, `geometry.closest_point`, and
+joint error).
 
 The camera-frame body is the one the Relighting Humans clients build (docs/research/clients_relighting_humans.md
 §1.2): `x_cam = scale · (V − J0) + global_trans`, with V, J the model posed by (betas, pose, global_orient)
@@ -196,13 +197,11 @@ def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def measure_quality(model_vertices, model_faces, model_joints, target: FrameTarget) -> FitQuality:
-    """Distances both ways with trimesh's exact closest points on the triangles, in millimetres."""
-    import trimesh
+    """Distances both ways from exact closest points on the triangles (`geometry.closest_point`), in millimetres."""
+    from rh_dataset.characters.geometry import closest_point, query_mesh
 
-    anny = trimesh.Trimesh(target.vertices, target.faces, process=False)
-    fitted = trimesh.Trimesh(model_vertices, model_faces, process=False)
-    _, d_ma, _ = trimesh.proximity.closest_point(anny, model_vertices)
-    _, d_am, _ = trimesh.proximity.closest_point(fitted, target.vertices)
+    _, d_ma, _ = closest_point(query_mesh(target.vertices, target.faces), model_vertices)
+    _, d_am, _ = closest_point(query_mesh(model_vertices, model_faces), target.vertices)
     dj = np.linalg.norm(np.asarray(model_joints) - target.joints, axis=1)
     return FitQuality(1e3 * float(d_ma.mean()), 1e3 * float(d_ma.max()), 1e3 * float(d_am.mean()),
                       1e3 * float(d_am.max()), 1e3 * float(dj.mean()), 1e3 * float(dj.max()))
