@@ -298,7 +298,7 @@ def test_settle_ends_the_drape_at_rest():
     velocity it hangs straight down from its pinned edge (the static equilibrium) and 10 more move it under 1 mm
     (measured 0.29 mm); 200 steps each from rest (`settle_keep` 0) leave it creeping (10 more move it 4.1 mm): the
     sheet's swing about its pinned edge is a slow mode (restored by gravity alone), which steps from rest relax with
-    a time constant of ~300 steps, a damped swing in tens. The settle's count and fraction enter the drape cache key
+    a time constant of ~300 steps, a damped swing in tens (`pytest -s` prints the three). The settle's count and fraction enter the drape cache key
     only where set (keys of drapes without one read back as before)."""
     from rh_dataset.characters.drape import DrapeSettings, _cache_key, _simulate
 
@@ -322,6 +322,8 @@ def test_settle_ends_the_drape_at_rest():
     settled = sim(40, 200, 0.8)
     rest = moved(sim(40, 210, 0.8), settled)
     creep = moved(sim(40, 210), sim(40, 200))
+    print(f"10 more steps: swinging {1e3 * swing:.1f} mm, settled keeping 0.8 {1e3 * rest:.2f} mm, from rest "
+          f"{1e3 * creep:.2f} mm")
     assert swing > 0.03 and rest < 0.001 and creep > 0.002, (swing, rest, creep)
     assert np.abs(settled[~pinned, 0]).max() < 0.02  # under the pinned edge (x = 0)
     assert 1.0 - settled[verts[:, 0] == size, 2].mean() > size  # its free edge a sheet's length down

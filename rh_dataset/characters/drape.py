@@ -98,8 +98,9 @@ class DrapeSettings:
     `self_contact`: VBD's cloth-cloth contact (vertex-triangle and edge-edge, interacting within
     `self_contact_margin`, detected within margin + `self_contact_gap`), so folds do not pass through each other.
     `settle`: steps of dynamic relaxation after `steps`, in which each particle keeps the fraction `settle_keep` of
-    its velocity from one step to the next (a viscous damping; 0: each step from rest), so the drape ends at the
-    cloth's static equilibrium rather than at a moment of its swing."""
+    its velocity from one step to the next (a viscous damping; 0: each step from rest), so the drape ends nearer the
+    cloth's static equilibrium than at a moment of its swing. Only the full hood settles, from rest: on the body
+    neither way reaches rest in 100 steps (docs/ARCHITECTURE.md, "Does a drape end at rest?")."""
 
     steps: int = 300
     settle: int = 0
