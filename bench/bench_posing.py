@@ -2,6 +2,8 @@
 
     python bench/bench_posing.py                         # seed 0's subjects 2 and 14 (open jackets over loose tops)
     python bench/bench_posing.py --subjects 0,1 --poses 3 --repeats 5
+    python bench/bench_posing.py --save /tmp/old.npz           # in a checkout of the old commit (this script copied in)
+    python bench/bench_posing.py --against /tmp/old.npz        # here: where the posed meshes differ, and by how much
 
 In: the dataset seed, the subjects (rh-generate's protocol a subjects, built as at the `standard` preset: full
 drapes from the user's drape cache, skinned cloth), how many of the test split's poses besides the rest pose, and
@@ -11,7 +13,9 @@ summed over the frames), and the sha256 of every posed part's vertices and norma
 bytes, in part order): two checkouts whose posing code differs only in speed print the same hash. To time another
 commit, copy this script into a checkout of it (with bench_cloth_pose.py, for its subjects and poses) and run it
 there, in turn with this one (sys.path takes the script's own checkout); compare the ratios within one sitting,
-since a shared machine's load moves the seconds. The load average is printed.
+since a shared machine's load moves the seconds. The load average is printed. `--save` writes every posed mesh's
+vertices (float32) to an .npz; `--against` reads one back and prints, per frame, each part whose vertices differ:
+the largest displacement and how many vertices moved more than 1 um and 0.1 mm.
 """
 from __future__ import annotations
 
@@ -41,12 +45,28 @@ def fingerprint(posed, digest) -> None:
                 digest.update(np.ascontiguousarray(x, np.float32).tobytes())
 
 
+def compare(meshes: dict[str, np.ndarray], old: dict[str, np.ndarray]) -> list[str]:
+    """Per posed mesh, how it differs from the same mesh in `old`: nothing where the bits agree."""
+    out = []
+    for key, v in meshes.items():
+        if key not in old or old[key].shape != v.shape:
+            out.append(f"{key.split('/')[-1]} not comparable")
+            continue
+        d = np.linalg.norm(v.astype(np.float64) - old[key], axis=1)
+        if d.max() > 0:
+            out.append(f"{key.split('/')[-1]} {1e3 * d.max():.3f} mm at most, {(d > 1e-6).sum()} vertices > 1 um, "
+                       f"{(d > 1e-4).sum()} > 0.1 mm of {len(d)}")
+    return out or ["the same bits"]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--seed", type=int, default=0, help="dataset seed whose subjects are posed")
     ap.add_argument("--subjects", default="2,14", help="comma-separated protocol a subject indices")
     ap.add_argument("--poses", type=int, default=2, help="test poses per subject besides the rest pose")
     ap.add_argument("--repeats", type=int, default=3, help="posings of each frame whose median is taken")
+    ap.add_argument("--save", type=Path, help="write the posed meshes' vertices to this .npz")
+    ap.add_argument("--against", type=Path, help="compare the posed meshes with this .npz (from --save)")
     args = ap.parse_args(argv)
     try:
         subjects = [int(x) for x in args.subjects.split(",") if x]
@@ -54,6 +74,9 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--subjects: comma-separated integers, got {args.subjects!r}")
     if not subjects or args.poses < 0 or args.repeats < 1:
         ap.error("--subjects must name a subject, --poses be >= 0 and --repeats >= 1")
+    if args.against is not None and not args.against.is_file():
+        ap.error(f"--against: no such file {args.against}")
+    saved, old = {}, (dict(np.load(args.against)) if args.against is not None else None)
 
     from bench_cloth_pose import rest_and_test_poses, test_source
     from rh_dataset.characters import pose_character
@@ -69,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
         pose_character(ch, frames[0][1], frames[0][2])  # first call: imports, kernels
         digest = hashlib.sha256()
         secs = 0.0
-        for _, bones, root in frames:
+        for i, (_, bones, root) in enumerate(frames):
             times = []
             for r in range(args.repeats):
                 t = time.perf_counter()
@@ -78,9 +101,15 @@ def main(argv: list[str] | None = None) -> int:
             secs += statistics.median(times)
             fingerprint(posed, digest)
             fingerprint(posed, everything)
+            meshes = {f"{s}/{i}/{m.name}": np.asarray(m.vertices, np.float32) for m in posed if hasattr(m, "faces")}
+            saved.update(meshes)
+            if old is not None:
+                print(f"  subject {s} frame {i}: " + "; ".join(compare(meshes, old)))
         total += secs
         print(f"{s:7d} {len(frames):6d} {secs / len(frames):10.3f}  {digest.hexdigest()[:32]}   (load {load()})",
               flush=True)
+    if args.save is not None:
+        np.savez(args.save, **saved)
     print(f"{'all':>7s} {len(subjects) * (args.poses + 1):6d} {total / (len(subjects) * (args.poses + 1)):10.3f}  "
           f"{everything.hexdigest()[:32]}   (load {load()})")
     return 0

@@ -10,7 +10,7 @@
 #     Then, on the GPU machine, from the checkout's root: bash tools/device_render_stage.sh (README, "On a GPU").
 #   bash tools/device_bundle.sh pipeline [PYTHON_VERSION=3.12]
 #     .dev/pipeline/pN/   the whole pipeline's missing packages (the above, and anny, warp, newton, trimesh, rtree,
-#                         roma; the GPU machine has torch, numpy, scipy, Pillow, matplotlib, tqdm, pytest), console
+#                         libigl, roma; the GPU machine has torch, numpy, scipy, Pillow, matplotlib, tqdm, pytest), console
 #                         scripts for the checkout's entry points, the 8 bundled HDRIs (Debian's blender-data) and
 #                         this machine's drape cache, as one xz stream cut into parts of 60 MB, one folder each.
 #     Then, on the GPU machine, one call per part, each carrying its folder:
@@ -26,7 +26,7 @@ grep -qx '/.dev/' .git/info/exclude 2>/dev/null || echo '/.dev/' >> .git/info/ex
 pin() { grep -i "^$1==" constraints.txt | head -1; }
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
 pkgs=(mitsuba drjit colour-science openexr)
-[ "$mode" = pipeline ] && pkgs+=(anny warp-lang newton trimesh rtree roma)
+[ "$mode" = pipeline ] && pkgs+=(anny warp-lang newton trimesh rtree libigl roma)
 for pkg in "${pkgs[@]}"; do
   python -m pip download -q --disable-pip-version-check --no-deps --only-binary=:all: --python-version "$py" \
     --implementation cp --platform manylinux_2_28_x86_64 --platform manylinux_2_27_x86_64 \
