@@ -8,15 +8,14 @@ In: the dataset seed (default 0); for the first benchmark subject of the seed we
 under it draped as the build drapes it (from the drape cache), then each of the kind's draped pieces
 (`draped_pieces`: the hoodie's body, then its hood) draped at `--level` as the build drapes it (its own `settle`) and
 again with each `--settle` count and `--keep` fraction, over the same cloth. Out, printed with the load average: per
-piece, count and fraction, how far
-the settle moved the cloth (the largest and the 99th-percentile particle displacement, and the largest, 99th
-percentile and median distance of its particles to the surface as built: a fold that travels round the body moves
-particles along the surface, which moves the first and not the second; mm), the cloth's worst depth in
-the body before and after (mm, `penetration`: negative is outside), and the seconds each drape took; with `--more N`,
-how far N more steps move the drape as built and N more settle steps each settled one (largest, 99th percentile): a
-drape still swinging where it ends moves by millimetres a step, one at rest by the solver's residual. (Steps from
-rest, `--keep 0`, move a cloth that is not at rest ~3x less than steps keeping 0.8 of the velocity and ~5x less than
-free steps: compare `--more` figures at one fraction.)
+piece, count and fraction, how far the settle moved the cloth (the largest and the 99th-percentile particle
+displacement, and the largest, 99th percentile and median distance of its particles to the surface as built: a fold
+that travels round the body moves particles along the surface, which moves the first and not the second; mm), the
+cloth's worst depth in the body before and after (mm, `penetration`: negative is outside), and the seconds each drape
+took; with `--more N`, how far N more steps move the drape as built and N more settle steps each settled one
+(largest, 99th percentile): a drape still swinging where it ends moves by millimetres a step, one at rest by the
+solver's residual. (Steps from rest, `--keep 0`, move a cloth that is not at rest ~3x less than steps keeping 0.8 of
+the velocity and ~5x less than free steps: compare `--more` figures at one fraction.)
 """
 from __future__ import annotations
 
@@ -27,7 +26,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -56,6 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.body import body_topology, run_anny
     from rh_dataset.characters.drape import (drape_garment, drape_layers, draped_over, draped_pieces,
                                              penetration, piece_settings)
+    from rh_dataset.characters.geometry import closest_point, query_mesh
     from rh_dataset.generate.seeding import rng_for
 
     bad = [k for k in args.kinds if not set(draped_pieces(k)) <= set(DRAPED_KINDS) or not draped_pieces(k)]
@@ -98,8 +97,7 @@ def main(argv: list[str] | None = None) -> int:
                 moved = np.linalg.norm(g.vertices - base.vertices, axis=1)
                 # How far the cloth's surface moved, not its particles: a fold travelling round the body moves
                 # particles along the surface, which the closest point on the drape as built does not count.
-                off = trimesh.proximity.closest_point(trimesh.Trimesh(base.vertices, base.faces, process=False),
-                                                      g.vertices)[1]
+                off = closest_point(query_mesh(base.vertices, base.faces), g.vertices)[1]
                 d1 = penetration(body, faces, g.vertices).max()
                 print(f"subject {s:2d} {p:24s} settle {st.settle:3d} -> {n:3d} keep {st_n.settle_keep:.2f}: particles "
                       f"moved max {1000 * moved.max():5.1f} / 99th pct {1000 * np.percentile(moved, 99):5.1f} mm, "
