@@ -305,7 +305,7 @@ def test_settle_ends_the_drape_at_rest():
     velocity it hangs straight down from its pinned edge (the static equilibrium) and 10 more move it under 1 mm
     (measured 0.26 mm); 200 steps each from rest (`settle_keep` 0) leave it creeping (10 more move it 3.8 mm): the
     sheet's swing about its pinned edge is a slow mode (restored by gravity alone), which steps from rest relax with
-    a time constant of ~300 steps, a damped swing in tens (`pytest -s` prints the three). The settle's count and
+    a time constant of ~100 steps, a damped swing in tens (`pytest -s` prints the three). The settle's count and
     fraction enter the drape cache key only where set (keys of drapes without one read back as before)."""
     from rh_dataset.characters.drape import DrapeSettings, _cache_key, _simulate
 
