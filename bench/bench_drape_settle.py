@@ -14,8 +14,8 @@ that travels round the body moves particles along the surface, which moves the f
 cloth's worst depth in the body before and after (mm, `penetration`: negative is outside), and the seconds each drape
 took; with `--more N`, how far N more steps move the drape as built and N more settle steps each settled one
 (largest, 99th percentile): a drape still swinging where it ends moves by millimetres a step, one at rest by the
-solver's residual. (Steps from rest, `--keep 0`, move a cloth that is not at rest ~3x less than steps keeping 0.8 of
-the velocity and ~5x less than free steps: compare `--more` figures at one fraction.)
+solver's residual. (Under a steady force, steps from rest, `--keep 0`, move a cloth ~3x less than steps keeping 0.8
+of the velocity and ~5x less than free steps: compare `--more` figures at one fraction.)
 """
 from __future__ import annotations
 
