@@ -540,7 +540,8 @@ def closest_point(mesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     Exactness: where its two best faces lie within `tol.merge` (1e-8) in *squared* distance it takes the one whose
     normal faces the point, which in metres, millimetres from a surface, is up to ~15 micrometres farther than the
     closest (measured on posed cloth; libigl's answer is the brute-force minimum: tests/test_geometry.py). Where a
-    point is equally close to two faces the two libraries may pick either."""
+    closest point lies on a corner or an edge, several faces hold it: the face named is the one whose normal faces
+    the point best (`_facing_face`), trimesh's rule for its two best."""
     import igl
 
     p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
@@ -556,7 +557,40 @@ def closest_point(mesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
         tree.init(v, f)
         mesh._cache["rh_igl_aabb"] = tree
     sq, tri, closest = tree.squared_distance(v, f, p)
-    return closest, np.sqrt(sq), tri
+    return closest, np.sqrt(sq), _facing_face(mesh, p, closest, tri)
+
+
+def _facing_face(mesh, points: np.ndarray, closest: np.ndarray, tri: np.ndarray, tol: float = 1e-6) -> np.ndarray:
+    """Of the faces that share a closest point on a corner or an edge (all equally close), the one whose normal
+    faces the point best, as trimesh's query chose between its two best: the face a closest point names decides
+    which cloth triangle `cloth_pose.lift_over_skin` moves, and libigl names whichever its tree met first (with it,
+    a seated knee's skin through the trousers went from 17 to 35 vertices, tests/test_cloth_pose.py, slow). `tol`:
+    barycentric coordinates under it put the closest point on the face's boundary."""
+    import trimesh
+
+    f = np.asarray(mesh.faces)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        bary = trimesh.triangles.points_to_barycentric(mesh.triangles[tri], closest)
+    on = np.isfinite(bary).all(1) & (bary < tol).any(1)
+    off = points - closest
+    size = np.linalg.norm(off, axis=1)
+    idx = np.flatnonzero(on & (size > 0.0))
+    if not len(idx):
+        return tri
+    corners = f[tri[idx]]  # (n, 3)
+    keep = bary[idx] >= tol  # the corners spanning the corner or edge the closest point lies on
+    first = corners[np.arange(len(idx)), np.argmax(keep, axis=1)]
+    cand = np.asarray(mesh.vertex_faces)[first]  # (n, D), -1 padded: the faces round that corner
+    ok = cand >= 0
+    cf = f[np.where(ok, cand, 0)]  # (n, D, 3)
+    for k in range(3):  # ... that hold every spanning corner
+        need = np.where(keep[:, k], corners[:, k], -1)
+        ok &= (need[:, None] < 0) | (cf == need[:, None, None]).any(-1)
+    dots = (mesh.face_normals[np.where(ok, cand, 0)] * (off[idx] / size[idx, None])[:, None, :]).sum(-1)
+    best = cand[np.arange(len(idx)), np.argmax(np.where(ok, dots, -np.inf), axis=1)]
+    out = tri.copy()
+    out[idx] = best
+    return out
 
 
 def first_hit(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
