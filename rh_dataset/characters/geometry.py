@@ -536,7 +536,7 @@ def closest_point(mesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
 
     Why not trimesh's: (1) speed: for each point it boxes the faces out to the nearest vertex in an rtree (~35
     candidate faces a point on a posed body) and tests every one in numpy, a Python loop per point picking the best
-    two; posing made ~60 such queries a frame, ~70 % of a loose subject's posing (bench/bench_posing.py). (2)
+    two; posing made ~60 such queries a frame, ~70 % of a loose subject's posing in a profile (docs/TRADEOFFS.md). (2)
     Exactness: where its two best faces lie within `tol.merge` (1e-8) in *squared* distance it takes the one whose
     normal faces the point, which in metres, millimetres from a surface, is up to ~15 micrometres farther than the
     closest (measured on posed cloth; libigl's answer is the brute-force minimum: tests/test_geometry.py). Where a
