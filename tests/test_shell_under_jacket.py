@@ -32,10 +32,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
 # (rh-generate's benchmark subject, or benchmark pool recipe, of seed 0): (its garments, innermost first: shoes, the
 # draped bottom, the shell top, the draped outer kind; the most trunk vertices over the panels in its first test pose,
-# coarse drape, skinned, and the most of those a camera around sees: measured above)
-SUBJECTS = {("subject", 7): (["shoes", "draped_straight_trousers", "longsleeve", "draped_jacket"], (0, 0)),
-            ("subject", 25): (["shoes", "draped_shorts", "longsleeve", "draped_coat"], (20, 0)),
-            ("pool", 5): (["shoes", "draped_trousers", "longsleeve", "draped_jacket"], (0, 0))}
+# coarse drape, skinned: measured above)
+SUBJECTS = {("subject", 7): (["shoes", "draped_straight_trousers", "longsleeve", "draped_jacket"], 0),
+            ("subject", 25): (["shoes", "draped_shorts", "longsleeve", "draped_coat"], 20),
+            ("pool", 5): (["shoes", "draped_trousers", "longsleeve", "draped_jacket"], 0)}
 
 
 @pytest.fixture(scope="module", params=sorted(SUBJECTS), ids=lambda k: f"{k[0]}{k[1]}")
@@ -103,12 +103,12 @@ def test_the_shell_top_stays_under_the_panels(subject):
     from rh_dataset.poses import sample_pose
 
     s, _, ch = subject
-    (_, _, name, outer), (bound, seen_bound) = SUBJECTS[s]
+    (_, _, name, outer), bound = SUBJECTS[s]
     part = ch.part(name)
     nearer = part.blend_vertices[np.arange(len(part.blend_vertices)), np.argmax(part.blend_weights, axis=1)]
     trunk = ~group_mask(ANNY_TOPOLOGY, *SLEEVE_GROUPS)[nearer]
     first = dict(sample_pose(rng_for(0, "pose", s[1], "test", 0), load_anny()).bones)  # as the bench poses it
-    for (at_most, seen_most), bones in (((0, 0), {}), ((bound, seen_bound), first)):
+    for at_most, bones in ((0, {}), (bound, first)):
         meshes = pose_character(ch, bones)
         posed = {m.name: m for m in meshes}
         panels, top = posed[outer], posed[name]
@@ -116,7 +116,7 @@ def test_the_shell_top_stays_under_the_panels(subject):
                         LAYER_REACH)
         over = trunk & (np.nan_to_num(d, nan=1.0) < 0.0)
         assert over.sum() <= at_most, (s, over.sum())
-        assert seen_around(top.vertices[over], top.normals[over], meshes).sum() <= seen_most
+        assert not seen_around(top.vertices[over], top.normals[over], meshes).any()
 
 
 def test_over_shell_bottoms_nothing_is_capped(subject):
