@@ -1,6 +1,7 @@
-"""`geometry.query_mesh`: a trimesh whose triangles' search tree is bulk-loaded from numpy arrays answers closest-point
-and ray queries exactly as trimesh's own (the same tree: the same candidates, in the same order), on anny's body and
-on a local piece of it as `drape.push_out` cuts one."""
+"""`geometry.query_mesh`: a trimesh whose triangles' search tree is bulk-loaded from numpy arrays on first use answers
+closest-point and ray queries exactly as trimesh's own (the same tree: the same candidates, in the same order), on
+anny's body and on a local piece of it as `drape.push_out` cuts one; `geometry.closest_point` (libigl) against the
+brute-force minimum, and the face it names where several hold the closest point."""
 from __future__ import annotations
 
 import numpy as np
@@ -17,7 +18,8 @@ def test_query_mesh_answers_as_trimesh_does():
     rng = np.random.default_rng(3)
     for faces in (f, f[(v[f][:, :, 2] > np.median(v[:, 2])).all(axis=1)]):  # the whole body; its upper half
         ours, theirs = query_mesh(v, faces), trimesh.Trimesh(v, faces, process=False)
-        assert ours.triangles_tree is ours.triangles_tree  # cached: built once, at construction
+        assert ours._cache["triangles_tree"] is None  # not built until a query needs it
+        assert ours.triangles_tree is ours.triangles_tree  # then built once, and cached
         centres = v[rng.choice(len(v), 200)]
         boxes = np.c_[centres - 0.03, centres + 0.03]
         for box in boxes:  # the same candidates in the same order
@@ -61,6 +63,7 @@ def test_closest_point_is_the_brute_force_minimum():
                                                                  (150, 3)))):
         closest, dist, tri = closest_point(mesh, pts)
         assert mesh._cache["rh_igl_aabb"] is not None  # the tree is kept for the next query
+        assert mesh._cache["triangles_tree"] is None  # closest points never build the rays' rtree
         np.testing.assert_allclose(dist, brute(mesh, pts), rtol=0, atol=1e-12)
         np.testing.assert_allclose(np.linalg.norm(closest - pts, axis=1), dist, rtol=0, atol=1e-12)
         on_face = trimesh.triangles.closest_point(mesh.triangles[tri], pts)  # the face it names is that close
@@ -74,3 +77,21 @@ def test_closest_point_is_the_brute_force_minimum():
     closest, dist, tri = closest_point(mesh, p)
     assert tri[0] == 0 and abs(dist[0] - np.linalg.norm(p)) < 1e-15, (tri, dist)
     assert len(closest_point(mesh, np.zeros((0, 3)))[0]) == 0
+
+
+def test_faces_round_a_corner_are_trimeshs_vertex_faces():
+    """`geometry._faces_round` (the faces `closest_point` weighs where a closest point lies on a corner or an edge)
+    gives, for the vertices asked, trimesh's `vertex_faces` rows (highest face first, -1 padded), on the body and on
+    a shuffled subset of its faces, and on a mesh with a degenerate face (a vertex used twice)."""
+    from rh_dataset.characters.geometry import _faces_round
+
+    v = run_anny(PHENO)["vertices"]
+    f = body_topology().faces
+    rng = np.random.default_rng(11)
+    for faces in (f, f[rng.permutation(len(f))[:4000]]):
+        corners = rng.choice(np.unique(faces), 500)  # repeats included
+        ours, theirs = _faces_round(faces, corners), trimesh.Trimesh(v, faces, process=False).vertex_faces[corners]
+        assert ours.shape[1] <= theirs.shape[1] and (theirs[:, ours.shape[1]:] == -1).all()
+        np.testing.assert_array_equal(ours, theirs[:, :ours.shape[1]])
+    tiny = np.array([[0, 1, 2], [0, 0, 3], [2, 1, 3]])  # face 1 uses vertex 0 twice
+    np.testing.assert_array_equal(_faces_round(tiny, np.array([3, 0, 1])), [[2, 1, -1], [1, 1, 0], [2, 0, -1]])

