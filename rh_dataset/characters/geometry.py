@@ -6,9 +6,9 @@ along a level set when asked), per-vertex distances (`boundary_distance`, `surfa
 as loops and their roughness (`boundary_loops`, `edge_roughness`), ray distances to a mesh (`first_hit`, trimesh), a
 trimesh for closest-point and ray queries whose rays' search tree is bulk-loaded on first use (`query_mesh`),
 exact closest points on a mesh (`closest_point`, libigl), blend weights that make a point follow the posed body
-(`hull_anchors`, `smoothing_weights`, `bind_points` -> `Binding`), compacted meshes (`drop_unreferenced`), the texel -> (face, barycentrics) map of anny's UV layout
-(`uv_raster`), capped tubes (`closed_tube`) and the smoothstep every cut and fade blends with (`smoothstep`).
-Body features (bone groups, masks) are `body_features`'s.
+(`hull_anchors`, `smoothing_weights`, `bind_points` -> `Binding`), compacted meshes (`drop_unreferenced`), the
+texel -> (face, barycentrics) map of anny's UV layout (`uv_raster`), capped tubes (`closed_tube`) and the
+smoothstep every cut and fade blends with (`smoothstep`). Body features (bone groups, masks) are `body_features`'s.
 """
 from __future__ import annotations
 
