@@ -381,8 +381,9 @@ def _plot(results: dict, path: Path) -> None:
 
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scenes", nargs="+", default=list(bt.SCENES), choices=bt.SCENES)
-    p.add_argument("--resolution", type=int, default=256)
+    p.add_argument("--scenes", nargs="+", default=list(bt.SCENES), choices=bt.SCENES,
+                   help="bench_tradeoff.py's reference scenes compared (default: both)")
+    p.add_argument("--resolution", type=int, default=256, help="frame width and height in pixels (default 256)")
     p.add_argument("--depth", type=int, default=4, help="Mitsuba max_depth on both sides (Cycles bounces = depth-2); "
                    "4 = the `standard` preset")
     p.add_argument("--ref-spp", type=int, default=4096, help="spp of the Mitsuba reference (cached in --cache)")
@@ -391,11 +392,14 @@ def main(argv=None) -> dict:
     p.add_argument("--principled-spp", type=int, default=256, help="Cycles spp of the principled check (Mitsuba "
                    "uses 4x); 0 skips it")
     p.add_argument("--max-spp", type=int, default=256, help="largest spp of the sweep (powers of 2 from 1)")
-    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--repeats", type=int, default=3,
+                   help="rounds of the spp sweep, both renderers in each; times are medians over the rounds, "
+                        "relMSE the mean of their independent seeds (default 3)")
     p.add_argument("--levels", type=float, nargs="*", default=None, help="relMSE levels for the equal-error ratio "
                    "(default: Mitsuba's relMSE at draft's spp, 64 and standard's spp, which the sweep includes)")
     p.add_argument("--threads", type=int, default=2, help="Cycles threads (Mitsuba's LLVM backend uses every core)")
-    p.add_argument("--chunk-spp", type=int, default=256)
+    p.add_argument("--chunk-spp", type=int, default=256,
+                   help="largest spp per Mitsuba render call; more is rendered in chunks and averaged (default 256)")
     p.add_argument("--sampler", default=STANDARD.sampler, help="Mitsuba's sampler for our renders (default: the "
                    f"standard preset's, {STANDARD.sampler})")
     p.add_argument("--env-spp", type=lambda v: None if v in ("", "none") else int(v), default=STANDARD.env_spp,
@@ -403,9 +407,14 @@ def main(argv=None) -> dict:
                         f"(default: the standard preset's, {STANDARD.env_spp}; 'none' renders every pixel at full spp)")
     p.add_argument("--aov-spp", type=int, default=STANDARD.aov_spp, help="spp of the coverage pass the focused pass "
                    f"needs (default: the standard preset's, {STANDARD.aov_spp})")
-    p.add_argument("--cache", default="/tmp/rh_ref")
-    p.add_argument("--out", default="/tmp/rh_cycles")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--cache", default="/tmp/rh_ref",
+                   help="folder of the cached Mitsuba references, bench_tradeoff.py's (default /tmp/rh_ref)")
+    p.add_argument("--out", default="/tmp/rh_cycles",
+                   help="folder for cycles_peer.png, .md and .json, and a temporary folder of the scenes exported "
+                        "to Blender (default /tmp/rh_cycles)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the scenes (their character and random pose, bench_tradeoff.build_scene); part of "
+                        "the reference's cache key (default 0)")
     args = p.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

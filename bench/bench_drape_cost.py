@@ -42,8 +42,12 @@ KINDS = ("draped_dress", "draped_skirt", "draped_trousers", "draped_coat", "drap
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--protocols", nargs="+", default=["demo", "a", "b", "c"])
+    ap.add_argument("--seed", type=int, default=0,
+                    help="dataset seed whose subjects are drawn (rh-generate --seed; default 0, the generator's "
+                         "and rh-demo's)")
+    ap.add_argument("--protocols", nargs="+", default=["demo", "a", "b", "c"],
+                    help="protocols tabulated (a, b, c, demo, another name in rh_dataset/scenes/ or a scene JSON "
+                         "path); the subjects drawn are as many as the largest one has")
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), help=f"draped kinds timed (of {KINDS})")
     ap.add_argument("--posing-only", action="store_true",
                     help="time the per-frame posing only, with the drapes from the usual cache (RH_DRAPE_CACHE or "

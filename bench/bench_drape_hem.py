@@ -38,9 +38,12 @@ BUILDS = {"slim woman": {"gender": 1.0, "age": 0.6, "muscle": 0.5, "weight": 0.5
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kind", default="draped_jacket")
+    ap.add_argument("--kind", default="draped_jacket",
+                    help="draped kind measured, one cut by a drape.DrapeProfile (drape.PROFILES), e.g. draped_coat, "
+                         "draped_skirt, draped_straight_trousers (default draped_jacket)")
     ap.add_argument("--hem", type=float, nargs="*", default=[], help="cuts tried (DrapeProfile.hem); default its own")
-    ap.add_argument("--levels", nargs="+", default=["full", "coarse"])
+    ap.add_argument("--levels", nargs="+", default=["full", "coarse"],
+                    help="drape levels measured (drape.DRAPE_LEVELS: full, coarse; default both)")
     args = ap.parse_args(argv)
 
     import trimesh

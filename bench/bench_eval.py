@@ -148,7 +148,9 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--frames", type=int, default=8, help="frame pairs (default 8)")
     p.add_argument("--size", type=int, default=512, help="frame size in pixels (default 512)")
-    p.add_argument("--batch-size", type=int, default=4)
+    p.add_argument("--batch-size", type=int, default=4,
+                   help="frames per network batch, in the pipeline (EvalOptions.batch_size) and the bare passes "
+                        "alike (default 4)")
     p.add_argument("--region", default="full", choices=("full", "default", "mask"),
                    help="region convention (default full: the networks see the whole 512x512 frame, like the bare "
                         "passes; 'default' crops to the person's dilated box and is faster)")

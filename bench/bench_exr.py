@@ -70,9 +70,12 @@ def measure(arrays: list[np.ndarray], compression: str, repeats: int, work: Path
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
-    p.add_argument("--dataset", required=True, type=Path)
+    p.add_argument("--dataset", required=True, type=Path,
+                   help="dataset folder (rh-generate output); the frames are those of its first "
+                        "subject_*/protocol_*/test folder")
     p.add_argument("--frames", type=int, default=2, help="test frames used per layer")
-    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--repeats", type=int, default=3,
+                   help="writes and reads of each frame per compression; the times are medians (default 3)")
     args = p.parse_args(argv)
     print(f"OpenEXR {OpenEXR.__version__}; load average before: {Path('/proc/loadavg').read_text().split()[:3]}")
     test = sorted(args.dataset.glob("subject_*/protocol_*/test"))[0]

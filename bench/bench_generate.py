@@ -39,15 +39,23 @@ STAGES = ("pose", "light", "load", "beauty", "aov", "meta", "write")
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--resolution", type=int, default=512)
-    p.add_argument("--presets", nargs="+", default=["draft", "standard", "reference"])
-    p.add_argument("--repeats", type=int, default=2)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--resolution", type=int, default=512,
+                   help="frame width and height in pixels, in place of the protocol's (default 512)")
+    p.add_argument("--presets", nargs="+", default=["draft", "standard", "reference"],
+                   help="render presets timed, a table row each (rh_dataset/scenes/presets.json; default all three)")
+    p.add_argument("--repeats", type=int, default=2,
+                   help="timed frames per row, after its untimed warm-up; the table gives medians (default 2)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="dataset seed (rh-generate --seed: characters, poses, lights and sampler seeds; default 0)")
     p.add_argument("--subject", type=int, default=0,
                    help="the protocol's subject rendered (default 0; seed 0's 2 wears an open jacket over a loose long "
                         "sleeve over a draped skirt, its posing several times subject 0's)")
-    p.add_argument("--protocol", default="a")
-    p.add_argument("--split", default="test")
+    p.add_argument("--protocol", default="a",
+                   help="protocol rendered: a, b, c, another name in rh_dataset/scenes/ or a scene JSON path "
+                        "(default a)")
+    p.add_argument("--split", default="test",
+                   help="the protocol's split whose frame is rendered (default test; a multi-view split's frame is "
+                        "every camera of it)")
     p.add_argument("--distinct-frames", action="store_true",
                    help="time frames 1..repeats of the split (each its own pose and light, as a dataset renders them) "
                         "instead of frame 0 again: the kernel columns then say whether a new frame reuses kernels")

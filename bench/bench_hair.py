@@ -179,12 +179,18 @@ def figure(path: Path, scenes, subjects, resolution: int) -> None:
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scenes", nargs="+", default=list(bt.SCENES), choices=bt.SCENES)
-    p.add_argument("--subjects", type=int, nargs="+", default=[0])
-    p.add_argument("--resolution", type=int, default=512)
-    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--scenes", nargs="+", default=list(bt.SCENES), choices=bt.SCENES,
+                   help="bench_tradeoff.py's reference scenes rendered (default: both)")
+    p.add_argument("--subjects", type=int, nargs="+", default=[0],
+                   help="benchmark subjects, each in the scene's pose, light and camera fill (default 0, the "
+                        "scenes' own)")
+    p.add_argument("--resolution", type=int, default=512, help="frame width and height in pixels (default 512)")
+    p.add_argument("--repeats", type=int, default=3,
+                   help="timed frames per variant, interleaved, after an untimed warm-up of each; medians are "
+                        "printed (default 3)")
     p.add_argument("--cost-spp", type=int, default=64, help="samples per pixel of the cost-by-first-hit table")
-    p.add_argument("--skip-ab", action="store_true")
+    p.add_argument("--skip-ab", action="store_true",
+                   help="leave out the wrapper / plain / none comparison: the cost-by-first-hit table only")
     p.add_argument("--figure", type=Path, default=None, help="write the head crops (old cut / now) here instead")
     args = p.parse_args(argv)
 

@@ -147,8 +147,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--before", type=Path, help="another checkout whose garments to compare with")
     p.add_argument("--picture", type=Path, help="write the before/after crops here (needs --before)")
-    p.add_argument("--size", type=int, default=512)
-    p.add_argument("--spp", type=int, default=24)
+    p.add_argument("--size", type=int, default=512, help="width and height in pixels of each --picture crop "
+                   "(default 512)")
+    p.add_argument("--spp", type=int, default=24, help="samples per pixel of the --picture crops (default 24)")
     p.add_argument("--dump", type=Path, help=argparse.SUPPRESS)
     p.add_argument("--tiles", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args()

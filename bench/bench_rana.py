@@ -51,13 +51,21 @@ def _scores(pred_root: Path, dataset: Path, protocol: str, subject: str) -> dict
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     ap.add_argument("--dataset", type=Path, default=None, help="dataset (default: a synthetic one in a temp dir)")
-    ap.add_argument("--subject", default="subject_000")
-    ap.add_argument("--protocol", default="a")
-    ap.add_argument("--resolutions", default="48,96")
-    ap.add_argument("--steps", default="20,100")
-    ap.add_argument("--preset", default="cpu")
-    ap.add_argument("--pretrained", type=Path, default=None)
-    ap.add_argument("--threads", type=int, default=0)
+    ap.add_argument("--subject", default="subject_000", help="subject personalized and scored (default subject_000)")
+    ap.add_argument("--protocol", default="a",
+                    help="protocol letter (a or b): the subject's train split personalizes, its test frames are "
+                         "scored (default a)")
+    ap.add_argument("--resolutions", default="48,96",
+                    help="working resolutions in pixels, comma-separated (model.resolution; the coarse stage's "
+                         "geometry at min(res, 128); default 48,96)")
+    ap.add_argument("--steps", default="20,100",
+                    help="personalization step counts, comma-separated: a run each at every resolution "
+                         "(default 20,100)")
+    ap.add_argument("--preset", default="cpu",
+                    help="rana preset the runs start from: paper, cpu, demo or tiny (default cpu)")
+    ap.add_argument("--pretrained", type=Path, default=None,
+                    help="pretrained.pt from rana-pretrain to personalize from (default: from scratch)")
+    ap.add_argument("--threads", type=int, default=0, help="torch intra-op threads (default 0: torch's default)")
     ap.add_argument("--out", type=Path, default=None, help="also write the rows as JSON")
     args = ap.parse_args(argv)
 

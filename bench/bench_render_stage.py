@@ -200,9 +200,11 @@ def main() -> None:
     sub = p.add_subparsers(dest="command", required=True)
     s = sub.add_parser("save", help="pickle the render stage's input of some test frames, one per preset")
     s.add_argument("--out", required=True, help="folder for scenes.pkl.xz")
-    s.add_argument("--presets", nargs="+", default=["draft", "standard", "reference"])
+    s.add_argument("--presets", nargs="+", default=["draft", "standard", "reference"],
+                   help="render presets whose scenes are saved (default all three)")
     s.add_argument("--frames", nargs="+", type=int, default=[0], help="test-frame indices of subject 0 (protocol a)")
-    s.add_argument("--resolution", type=int, default=512)
+    s.add_argument("--resolution", type=int, default=512,
+                   help="frame width and height in pixels, in place of protocol a's (default 512)")
     s.add_argument("--seed", type=int, default=0, help="dataset seed")
     r = sub.add_parser("render", help="render saved scenes on this machine's variant, timed, and write the frames")
     r.add_argument("scenes", help="scenes.pkl.xz or the folder holding it")
@@ -213,7 +215,8 @@ def main() -> None:
     r.add_argument("--seed-offset", type=int, default=0,
                    help="add this to each scene's sampler seed (1: another sample stream, the noise yardstick)")
     c = sub.add_parser("compare", help="per-layer differences between rendered folders, in pairs")
-    c.add_argument("folders", nargs="+")
+    c.add_argument("folders", nargs="+",
+                   help="folders that render --layers-out wrote, in pairs A B [C D ...]: each pair is compared")
     args = p.parse_args()
     {"save": save, "render": render, "compare": compare}[args.command](args)
 

@@ -21,9 +21,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--size", type=int, default=96)
-    p.add_argument("--spp", type=int, nargs="+", default=[4, 9, 12, 16, 25, 64, 99, 100])
-    p.add_argument("--runs", type=int, default=4)
+    p.add_argument("--size", type=int, default=96, help="image width and height in pixels (default 96)")
+    p.add_argument("--spp", type=int, nargs="+", default=[4, 9, 12, 16, 25, 64, 99, 100],
+                   help="sample counts rendered, a table row each")
+    p.add_argument("--runs", type=int, default=4,
+                   help="renders per sample count by mi.render and by render_pixels, each compared with the first "
+                        "(default 4)")
     args = p.parse_args()
 
     from analytic_scenes import uv_sphere

@@ -283,15 +283,20 @@ def floors(args, results: dict, report: list) -> None:
 
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scenes", nargs="+", default=["interior-apose", "sunrise-random"])
-    p.add_argument("--samplers", nargs="+", default=list(SAMPLER_NAMES), choices=SAMPLER_NAMES)
+    p.add_argument("--scenes", nargs="+", default=["interior-apose", "sunrise-random"],
+                   help="bench_tradeoff.py's reference scenes: interior-apose, sunrise-random (default both)")
+    p.add_argument("--samplers", nargs="+", default=list(SAMPLER_NAMES), choices=SAMPLER_NAMES,
+                   help="Mitsuba samplers of the sweep (default all five)")
     p.add_argument("--resolution", type=int, default=128, help="sweep resolution (default 128)")
     p.add_argument("--targets", type=int, nargs="+", default=[4, 16, 64, 256],
                    help="requested spp; each sampler renders the counts it takes nearest to these")
     p.add_argument("--max-spp", type=int, default=256, help="largest count of the sweep (render_frame's one-call limit)")
-    p.add_argument("--seeds", type=int, default=2)
+    p.add_argument("--seeds", type=int, default=2,
+                   help="renders per sample count in the sweeps, each with its own seed; their errors are "
+                        "averaged (default 2)")
     p.add_argument("--ref-chunks", type=int, default=256, help="ldsampler reference: number of chunks")
-    p.add_argument("--ref-chunk-spp", type=int, default=256)
+    p.add_argument("--ref-chunk-spp", type=int, default=256,
+                   help="spp of each reference chunk, ldsampler and independent alike (default 256)")
     p.add_argument("--ref-aov-spp", type=int, default=1024, help="ldsampler AOV reference")
     p.add_argument("--aov-targets", type=int, nargs="+", default=[4, 16, 64], help="requested aov spp of the AOV table")
     p.add_argument("--aov-only", action="store_true", help="the sweep measures the AOV pass only (no beauty sweep)")
@@ -303,14 +308,18 @@ def main(argv=None) -> dict:
                         "(env_spp: the focused beauty pass, rh_dataset.render.focus; aTIERS, e.g. "
                         "a16-36-64-100-169-256: samples by noise, rh_dataset.render.adaptive, spp their mean over "
                         "the person)")
-    p.add_argument("--floor-resolution", type=int, default=512)
+    p.add_argument("--floor-resolution", type=int, default=512,
+                   help="frame width and height in pixels of the --floor renders (default 512)")
     p.add_argument("--floor-repeats", type=int, default=1, help="rounds of every --floor configuration, interleaved")
-    p.add_argument("--skip-sweep", action="store_true")
-    p.add_argument("--skip-floor", action="store_true")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--skip-sweep", action="store_true", help="leave out the sweep (and the references it needs)")
+    p.add_argument("--skip-floor", action="store_true", help="leave out the --floor noise floors")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the scenes (their character and random pose, bench_tradeoff.build_scene); part of "
+                        "the references' cache key (default 0)")
     p.add_argument("--subject", type=int, default=0,
                    help="benchmark subject in the scenes (bench_tradeoff.build_scene)")
-    p.add_argument("--cache", default="/tmp/rh_ref")
+    p.add_argument("--cache", default="/tmp/rh_ref",
+                   help="folder of the cached references, sampler_ref_*.npz (default /tmp/rh_ref)")
     p.add_argument("--out", default=None, help="write the results JSON here")
     args = p.parse_args(argv)
 

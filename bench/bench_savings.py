@@ -129,9 +129,12 @@ def closeup_camera(scene):
 
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scenes", nargs="+", default=list(bt.SCENES), choices=bt.SCENES)
-    p.add_argument("--resolution", type=int, default=256)
-    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--scenes", nargs="+", default=list(bt.SCENES), choices=bt.SCENES,
+                   help="bench_tradeoff.py's reference scenes (default: both)")
+    p.add_argument("--resolution", type=int, default=256, help="frame width and height in pixels (default 256)")
+    p.add_argument("--repeats", type=int, default=3,
+                   help="timed runs with and without each saving, alternated after a warm-up; times are medians "
+                        "(default 3; --only depth does not use it)")
     p.add_argument("--preset", default="standard", help="preset whose spp/aov_spp the frames use")
     p.add_argument("--check-spp", type=int, default=512,
                    help="also compare culled vs unculled beauty at this spp (0: skip)")

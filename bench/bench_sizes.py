@@ -77,9 +77,12 @@ def full_benchmark(r: dict, resolution: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
-    p.add_argument("--preset", default="draft")
-    p.add_argument("--protocol", default="a")
-    p.add_argument("--resolutions", type=int, nargs="+", default=[128, 256, 512])
+    p.add_argument("--preset", default="draft", help="render preset: draft, standard or reference (default draft)")
+    p.add_argument("--protocol", default="a",
+                   help="protocol rendered, as rh-generate --protocol takes it (subject 0; default a)")
+    p.add_argument("--resolutions", type=int, nargs="+", default=[128, 256, 512],
+                   help="frame sizes in pixels, a run each; the last run's mean frame also sizes the full "
+                        "benchmark")
     p.add_argument("--frames", type=int, default=3, help="frames per split")
     args = p.parse_args(argv)
     print(f"load average before: {Path('/proc/loadavg').read_text().split()[:3]}")

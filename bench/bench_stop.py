@@ -25,8 +25,11 @@ REPO = Path(__file__).resolve().parents[1]
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
-    p.add_argument("--resolution", default="512")
-    p.add_argument("--preset", default="standard")
+    p.add_argument("--resolution", default="512", help="image size N or WxH, passed to rh-generate --resolution "
+                   "(default 512)")
+    p.add_argument("--preset", default="standard",
+                   help="render preset passed to rh-generate --preset: draft, standard or reference "
+                        "(default standard)")
     p.add_argument("--delay", type=float, default=1.0, help="seconds after the first frame's JSON to send SIGINT")
     args = p.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="rh_stop_") as work:

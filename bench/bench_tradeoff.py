@@ -283,23 +283,39 @@ def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cache", default="/tmp/rh_ref", help="folder for cached references (default /tmp/rh_ref)")
     p.add_argument("--out", default=None, help="folder for the plot and results JSON (default: --cache)")
-    p.add_argument("--scenes", nargs="+", default=list(SCENES), choices=SCENES)
-    p.add_argument("--resolution", type=int, default=256)
-    p.add_argument("--ref-spp", type=int, default=4096)
-    p.add_argument("--ref-depth", type=int, default=16)
-    p.add_argument("--ref-aov-spp", type=int, default=1024)
+    p.add_argument("--scenes", nargs="+", default=list(SCENES), choices=SCENES,
+                   help="reference scenes measured (default: both)")
+    p.add_argument("--resolution", type=int, default=256,
+                   help="frame width and height in pixels, of the references and every sweep but the resolution "
+                        "sweep (default 256)")
+    p.add_argument("--ref-spp", type=int, default=4096, help="spp of the references' beauty pass (default 4096)")
+    p.add_argument("--ref-depth", type=int, default=16,
+                   help="max path depth of the references' beauty pass (default 16)")
+    p.add_argument("--ref-aov-spp", type=int, default=1024,
+                   help="spp of the references' AOV pass: mask, albedo, normal, depth (default 1024)")
     p.add_argument("--chunk-spp", type=int, default=256, help="largest spp per Mitsuba render call")
     p.add_argument("--max-spp", type=int, default=1024, help="largest spp of the sweep (powers of 2 from 1)")
     p.add_argument("--sweep-depth", type=int, default=12, help="max depth used for the spp sweep")
-    p.add_argument("--depths", type=int, nargs="+", default=[2, 3, 4, 5, 6, 8, 10, 12, 16])
+    p.add_argument("--depths", type=int, nargs="+", default=[2, 3, 4, 5, 6, 8, 10, 12, 16],
+                   help="max depths of the depth sweep, each at --depth-spp with the same seed; the deepest is "
+                        "what the others' truncation is measured against")
     p.add_argument("--depth-spp", type=int, default=64, help="spp of the depth sweep")
-    p.add_argument("--resolutions", type=int, nargs="+", default=[128, 256, 512])
-    p.add_argument("--res-spp", type=int, default=16)
-    p.add_argument("--denoise-spp", type=int, nargs="+", default=[1, 4, 16, 64, 256])
-    p.add_argument("--max-aov-spp", type=int, default=64)
-    p.add_argument("--skip-presets", action="store_true")
-    p.add_argument("--skip-aov-only", action="store_true")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--resolutions", type=int, nargs="+", default=[128, 256, 512],
+                   help="frame sizes in pixels of the resolution sweep, at --res-spp; a multiple of --resolution is "
+                        "also box-downsampled to it and scored against the reference")
+    p.add_argument("--res-spp", type=int, default=16, help="spp of the resolution sweep (default 16)")
+    p.add_argument("--denoise-spp", type=int, nargs="+", default=[1, 4, 16, 64, 256],
+                   help="spp of the denoised renders (pyoidn, albedo and normal guides); those above --chunk-spp "
+                        "are skipped")
+    p.add_argument("--max-aov-spp", type=int, default=64,
+                   help="largest AOV spp of the AOV sweep (powers of 2 from 1; default 64)")
+    p.add_argument("--skip-presets", action="store_true",
+                   help="leave out the table of each render preset against the reference")
+    p.add_argument("--skip-aov-only", action="store_true",
+                   help="leave out the timing of an AOV-only frame against a full frame (draft and standard)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the scenes (their character and random pose); part of the references' cache key "
+                        "(default 0)")
     args = p.parse_args(argv)
     out_dir = Path(args.out or args.cache)
     out_dir.mkdir(parents=True, exist_ok=True)

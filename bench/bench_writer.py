@@ -31,9 +31,11 @@ def _ms(fn, repeats: int) -> float:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--resolution", type=int, default=512)
-    p.add_argument("--preset", default="standard")
-    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--resolution", type=int, default=512, help="frame width and height in pixels (default 512)")
+    p.add_argument("--preset", default="standard",
+                   help="render preset of the frame written: draft, standard or reference (default standard)")
+    p.add_argument("--repeats", type=int, default=5,
+                   help="timed runs of each part; the tables give medians (default 5)")
     args = p.parse_args()
 
     from PIL import Image

@@ -103,7 +103,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="x0,y0,x1,y1: keep this part of every tile, as fractions of it (0,0 its top left; "
                          "default the whole tile)")
     ap.add_argument("--zoom", type=int, default=1, help="magnify every (cropped) tile this many times, nearest")
-    ap.add_argument("--out", type=Path, default=Path("/tmp/draped_garments.png"))
+    ap.add_argument("--out", type=Path, default=Path("/tmp/draped_garments.png"),
+                    help="PNG sheet written (default /tmp/draped_garments.png)")
     args = ap.parse_args(argv)
     crop = tuple(float(x) for x in args.crop.split(",")) if args.crop else (0.0, 0.0, 1.0, 1.0)
     if len(crop) != 4 or not (0 <= crop[0] < crop[2] <= 1 and 0 <= crop[1] < crop[3] <= 1) or args.zoom < 1:

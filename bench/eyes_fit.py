@@ -18,8 +18,10 @@ import numpy as np
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--subjects", type=int, default=12)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--subjects", type=int, default=12,
+                   help="how many subjects: the first N that rh-generate draws for protocol_a (default 12)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="dataset seed the subjects are drawn at (rh-generate --seed; default 0)")
     args = p.parse_args()
 
     from rh_dataset.characters import sample_recipe

@@ -24,10 +24,13 @@ from subjects_gallery import studio_environment  # noqa: E402
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--out", type=Path, default=Path("docs/eyes.png"))
-    p.add_argument("--size", type=int, default=512)
-    p.add_argument("--spp", type=int, default=32)
-    p.add_argument("--subjects", type=int, default=4)
+    p.add_argument("--out", type=Path, default=Path("docs/eyes.png"),
+                   help="PNG written (default docs/eyes.png, relative to the working directory)")
+    p.add_argument("--size", type=int, default=512, help="width and height in pixels of each close-up (default 512)")
+    p.add_argument("--spp", type=int, default=32, help="samples per pixel of each close-up (default 32)")
+    p.add_argument("--subjects", type=int, default=4,
+                   help="columns: the first benchmark recipes (seeds 2, 4, ...) whose iris classes differ, "
+                        "glasses wearers skipped (default 4)")
     args = p.parse_args()
 
     from rh_common.camera import Camera

@@ -88,7 +88,9 @@ def summarise(lights: list[dict]) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scenes", nargs="*", default=["a", "b", "mixed_a", "mixed_b"])
+    ap.add_argument("scenes", nargs="*", default=["a", "b", "mixed_a", "mixed_b"],
+                    help="protocols whose random-light splits are summarised: names as rh-generate --protocol "
+                         "takes them or scene JSON paths (default a b mixed_a mixed_b)")
     ap.add_argument("--dataset", type=Path, help="read the lights of this generated dataset instead of drawing")
     ap.add_argument("--subjects", type=int, default=1, help="subjects whose lights are drawn (default 1)")
     ap.add_argument("--seed", type=int, default=0, help="dataset seed (rh-generate --seed)")

@@ -51,7 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     p.add_argument("dataset", type=Path, help="a dataset holding protocol c")
     p.add_argument("--out", type=Path, required=True, help="folder for the predictions and results")
-    p.add_argument("--metrics", default=METRICS)
+    p.add_argument("--metrics", default=METRICS,
+                   help=f"comma-separated metrics, passed to rh-eval --metrics (default {METRICS}: the table's "
+                        "columns)")
     args = p.parse_args(argv)
     from rana.oracle import main as oracle_main
     from rh_eval.cli import main as eval_main

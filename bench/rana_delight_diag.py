@@ -34,11 +34,15 @@ from rh_common import sh  # noqa: E402
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
-    ap.add_argument("--dataset", required=True, type=Path)
-    ap.add_argument("--subject", default="subject_000")
-    ap.add_argument("--protocol", default="a")
+    ap.add_argument("--dataset", required=True, type=Path, help="dataset holding the subject (rh-generate output)")
+    ap.add_argument("--subject", default="subject_000", help="subject diagnosed (default subject_000)")
+    ap.add_argument("--protocol", default="a",
+                    help="protocol letter (a or b): its train frames are observed, its test frames give the "
+                         "ground-truth albedo (default a)")
     ap.add_argument("--run", required=True, type=Path, help="run folder holding the subject's coarse.pt")
-    ap.add_argument("--preset", default="cpu")
+    ap.add_argument("--preset", default="cpu",
+                    help="the run's rana preset: paper, cpu, demo or tiny (default cpu); its model resolution and "
+                         "texture settings read the frames")
     args = ap.parse_args(argv)
 
     from rana.body import body_topology

@@ -102,9 +102,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--subjects", type=int, nargs="*", default=[22, 41, 0], help="benchmark subjects to render")
     ap.add_argument("--seed", type=int, default=0, help="dataset seed (rh-generate --seed)")
-    ap.add_argument("--spp", type=int, default=12)
-    ap.add_argument("--repeats", type=int, default=1)
-    ap.add_argument("--out", type=Path, default=Path("/tmp/skin_detail"))
+    ap.add_argument("--spp", type=int, default=12, help="samples per pixel of the renders of parts 3 and 4 "
+                    "(default 12)")
+    ap.add_argument("--repeats", type=int, default=1,
+                    help="timed runs after one warm-up, medians printed (default 1; the texture builds at least 2)")
+    ap.add_argument("--out", type=Path, default=Path("/tmp/skin_detail"),
+                    help="folder for each subject's PNGs: before | after, albedo, face crops at 4x "
+                         "(default /tmp/skin_detail)")
     ap.add_argument("--no-pores", action="store_true", help="skip part 4 (the pore normal map renders)")
     ap.add_argument("--figure", type=Path, help="also write one PNG: a row per subject of its face crops at 4x "
                                                 "(image before, after; albedo before, after)")

@@ -22,9 +22,12 @@ import numpy as np
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", type=Path, default=None, help="folder with SMPL_{NEUTRAL,MALE,FEMALE}.pkl")
-    ap.add_argument("--frames", type=int, default=5)
-    ap.add_argument("--gender", default="neutral")
-    ap.add_argument("--kind", default="smpl", choices=["smpl", "smplx"])
+    ap.add_argument("--frames", type=int, default=5,
+                    help="frames fitted jointly: the A-pose and N-1 poses from the pose prior (default 5)")
+    ap.add_argument("--gender", default="neutral",
+                    help="which model file is fitted: neutral, male or female (default neutral)")
+    ap.add_argument("--kind", default="smpl", choices=["smpl", "smplx"],
+                    help="body model fitted: SMPL or SMPL-X (default smpl)")
     args = ap.parse_args()
 
     import torch

@@ -90,7 +90,9 @@ def summarise(recipes: list) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scene", nargs="?", default="protocol_a")
+    ap.add_argument("scene", nargs="?", default="protocol_a",
+                    help="protocol whose subjects are drawn: a name as rh-generate --protocol takes it or a scene "
+                         "JSON path (default protocol_a)")
     ap.add_argument("--seed", type=int, default=0, help="dataset seed (rh-generate --seed)")
     args = ap.parse_args(argv)
     recipes = benchmark_recipes(args.scene, args.seed)

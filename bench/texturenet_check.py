@@ -36,9 +36,10 @@ def score(pred: torch.Tensor, target: torch.Tensor, valid: torch.Tensor) -> tupl
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     p.add_argument("--dataset", required=True, type=Path, help="AOV-only pretraining dataset")
-    p.add_argument("--protocol", default="a")
+    p.add_argument("--protocol", default="a", help="protocol folder of the --dataset (default a)")
     p.add_argument("--cache", required=True, type=Path, help="character cache folder (rana-pretrain's OUT/cache)")
-    p.add_argument("--preset", default="cpu", choices=sorted(PRESETS))
+    p.add_argument("--preset", default="cpu", choices=sorted(PRESETS),
+                   help="starting configuration (default cpu); the --<section>.<field> flags override it")
     p.add_argument("--steps", default="80", help="TextureNet run lengths, comma-separated (default 80)")
     p.add_argument("--holdout", type=int, default=2, help="the last N characters are held out")
     add_config_flags(p)

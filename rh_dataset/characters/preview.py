@@ -105,13 +105,17 @@ def render_preview(posed: list, width: int = 256, height: int = 512, spp: int = 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=8, help="number of characters")
-    ap.add_argument("--out", type=Path, default=Path("/tmp/chars.png"))
-    ap.add_argument("--pool", choices=POOLS, default="benchmark")
+    ap.add_argument("--out", type=Path, default=Path("/tmp/chars.png"),
+                    help="PNG contact sheet written (default /tmp/chars.png)")
+    ap.add_argument("--pool", choices=POOLS, default="benchmark",
+                    help="recipe pool the characters are drawn from (default benchmark)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the generator recipes are drawn with")
-    ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--cols", type=int, default=4)
-    ap.add_argument("--texture-resolution", type=int, default=1024)
-    ap.add_argument("--exposure", type=float, default=1.3)
+    ap.add_argument("--spp", type=int, default=16, help="samples per pixel of each 256x512 tile (default 16)")
+    ap.add_argument("--cols", type=int, default=4, help="tiles per row of the sheet (default 4)")
+    ap.add_argument("--texture-resolution", type=int, default=1024,
+                    help="texture resolution of each character (build_character's, 16 to 8192; default 1024)")
+    ap.add_argument("--exposure", type=float, default=1.3,
+                    help="factor on the linear render before sRGB encoding (default 1.3)")
     ap.add_argument("--denoise", action=argparse.BooleanOptionalAction, default=True,
                     help="denoise each tile with Open Image Denoise (pyoidn) - look-dev only, biased")
     args = ap.parse_args(argv)
