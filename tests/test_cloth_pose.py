@@ -320,8 +320,9 @@ def test_push_over_lifts_what_lies_under_the_inner_layer():
 
 def test_layer_depth_finds_the_open_edge_as_a_test_of_every_edge_would():
     """layer_depth's open-edge rule (NaN where the closest surface point lies on a hem) tests only the closest points
-    near an open edge's midpoint (`cloth_pose._surface`'s k-d tree): on a wavy, unevenly meshed sheet with a hole,
-    for points around and beyond its edges, it gives exactly the depths of the test against every open edge."""
+    near an open edge's midpoint, each against only the open edges whose midpoints lie that near
+    (`cloth_pose._surface`'s k-d tree): on a wavy, unevenly meshed sheet with a hole, for points around and beyond
+    its edges, it gives exactly the depths of the test of every closest point against every open edge."""
     from rh_dataset.characters.cloth_pose import RIM_TOLERANCE, layer_depth
     from rh_dataset.characters.drape import _closest
     from rh_dataset.characters.geometry import edge_counts

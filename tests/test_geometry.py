@@ -95,3 +95,40 @@ def test_faces_round_a_corner_are_trimeshs_vertex_faces():
         np.testing.assert_array_equal(ours, theirs[:, :ours.shape[1]])
     tiny = np.array([[0, 1, 2], [0, 0, 3], [2, 1, 3]])  # face 1 uses vertex 0 twice
     np.testing.assert_array_equal(_faces_round(tiny, np.array([3, 0, 1])), [[2, 1, -1], [1, 1, 0], [2, 0, -1]])
+
+
+def test_edge_counts_are_the_row_wise_unique():
+    """`geometry.edge_counts` (one int64 key per edge) returns exactly what `np.unique(sorted edges, axis=0,
+    return_counts=True)` does, in the same order: on the body, a shuffled subset of its faces and no faces."""
+    from rh_dataset.characters.geometry import edge_counts
+
+    f = body_topology().faces
+    rng = np.random.default_rng(2)
+    for faces in (f, f[rng.permutation(len(f))[:3000]], f[:0]):
+        e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]).astype(np.int64), axis=1)
+        want, want_counts = np.unique(e.reshape(-1, 2), axis=0, return_counts=True)
+        got, got_counts = edge_counts(faces)
+        assert got.dtype == np.int64 and got.shape == want.shape
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(got_counts, want_counts)
+
+
+def test_anchor_sums_are_numpys_sum_to_the_bit():
+    """`body.anchor_points` and `body.blended_normals` add their K weighted body rows one k at a time
+    (`body._weighted_rows`): the same bits as numpy's `(rows[idx] * w[..., None]).sum(1)` for any K (numpy adds
+    along that axis in order; past 8 terms a pairwise sum would differ), and zeros for K = 0."""
+    from rh_dataset.characters.body import _weighted_rows, anchor_points
+
+    rng = np.random.default_rng(4)
+    v = run_anny(PHENO)["vertices"]
+    n = rng.normal(size=v.shape)
+    for k in (0, 1, 3, 4, 8, 9, 17):
+        bv = rng.integers(0, len(v), (500, k))
+        bw = rng.random((500, k)).astype(np.float32)
+        np.testing.assert_array_equal(_weighted_rows(v, bv, bw), (v[bv] * bw.astype(np.float64)[..., None]).sum(1))
+        if k:
+            off = rng.normal(0.0, 0.01, 500).astype(np.float32)
+            nb = (n[bv] * bw.astype(np.float64)[..., None]).sum(1)
+            unit = nb / np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
+            want = (v[bv] * bw.astype(np.float64)[..., None]).sum(1) + off[:, None].astype(np.float64) * unit
+            np.testing.assert_array_equal(anchor_points(v, n, bv, bw, off), want)

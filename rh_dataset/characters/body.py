@@ -133,16 +133,27 @@ def smoothed_normals(normals: np.ndarray, rounds: int, topology: str = ANNY_TOPO
 
 def blended_normals(normals: np.ndarray, bv: np.ndarray, bw: np.ndarray) -> np.ndarray:
     """Unit normals (P, 3) float64 of blended anchors: the `bw`-weighted sums (P, K) of body vertex normals `bv`."""
-    nb = (normals[bv] * bw.astype(np.float64)[..., None]).sum(1)
+    nb = _weighted_rows(normals, bv, bw)
     return nb / np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
+
+
+def _weighted_rows(rows: np.ndarray, idx: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """sum_k weights[:, k] * rows[idx[:, k]] (P, 3) float64, added k by k: the order numpy's sum over axis 1 of the
+    (P, K, 3) products takes, so the same bits, at half its time (no (P, K, 3) array, no strided reduce)."""
+    w = weights.astype(np.float64)
+    if not idx.shape[1]:
+        return np.zeros((len(idx), rows.shape[1]))
+    out = rows[idx[:, 0]] * w[:, 0, None]
+    for k in range(1, idx.shape[1]):
+        out += rows[idx[:, k]] * w[:, k, None]
+    return out
 
 
 def anchor_points(verts: np.ndarray, normals: np.ndarray, bv: np.ndarray, bw: np.ndarray, off: np.ndarray
                   ) -> np.ndarray:
     """Blended anchors of body vertices plus offsets along the blended normals (P, 3) float64: where a shell's,
     hair's or headwear's vertices sit on a posed body (`verts`, `normals`)."""
-    w = bw.astype(np.float64)[..., None]
-    return (verts[bv] * w).sum(1) + off[:, None].astype(np.float64) * blended_normals(normals, bv, bw)
+    return _weighted_rows(verts, bv, bw) + off[:, None].astype(np.float64) * blended_normals(normals, bv, bw)
 
 
 @functools.lru_cache(maxsize=1)

