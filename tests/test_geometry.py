@@ -114,16 +114,19 @@ def test_edge_counts_are_the_row_wise_unique():
 
 
 def test_anchor_sums_are_numpys_sum_to_the_bit():
-    """`body.anchor_points` and `body.blended_normals` add their K weighted body rows one k at a time
-    (`body._weighted_rows`): the same bits as numpy's `(rows[idx] * w[..., None]).sum(1)` for any K (numpy adds
-    along that axis in order; past 8 terms a pairwise sum would differ), and zeros for K = 0."""
+    """`body.anchor_points` and `body.blended_normals` sum their K weighted body rows as a sparse product
+    (`body._weighted_rows`): the same bits as numpy's `(rows[idx] * w[..., None]).sum(1)` for any K (both add along
+    that axis in order; past 8 terms a pairwise sum would differ), int32 or int64 indices, repeated indices in a row,
+    and zeros for K = 0."""
     from rh_dataset.characters.body import _weighted_rows, anchor_points
 
     rng = np.random.default_rng(4)
     v = run_anny(PHENO)["vertices"]
     n = rng.normal(size=v.shape)
-    for k in (0, 1, 3, 4, 8, 9, 17):
-        bv = rng.integers(0, len(v), (500, k))
+    for k in (0, 1, 3, 4, 8, 9, 16, 17):
+        bv = rng.integers(0, len(v), (500, k)).astype(np.int32 if k % 2 else np.int64)
+        if k > 2:
+            bv[:50, 1] = bv[:50, 0]  # a body vertex twice in one row
         bw = rng.random((500, k)).astype(np.float32)
         np.testing.assert_array_equal(_weighted_rows(v, bv, bw), (v[bv] * bw.astype(np.float64)[..., None]).sum(1))
         if k:

@@ -138,15 +138,16 @@ def blended_normals(normals: np.ndarray, bv: np.ndarray, bw: np.ndarray) -> np.n
 
 
 def _weighted_rows(rows: np.ndarray, idx: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """sum_k weights[:, k] * rows[idx[:, k]] (P, 3) float64, added k by k: the order numpy's sum over axis 1 of the
-    (P, K, 3) products takes, so the same bits, at half its time (no (P, K, 3) array, no strided reduce)."""
-    w = weights.astype(np.float64)
-    if not idx.shape[1]:
-        return np.zeros((len(idx), rows.shape[1]))
-    out = rows[idx[:, 0]] * w[:, 0, None]
-    for k in range(1, idx.shape[1]):
-        out += rows[idx[:, k]] * w[:, k, None]
-    return out
+    """sum_k weights[:, k] * rows[idx[:, k]] (P, 3) float64, as a sparse (P, V) x (V, 3) product (scipy's CSR kernel
+    adds each row's K products in order, from zero): numpy's `(rows[idx] * w[..., None]).sum(1)` adds them in the
+    same order, so the same bits (but for the sign of a sum whose every term is -0.0), ~7x faster for the hair's
+    45,000 points x 16 weights (no (P, K, 3) array, no strided reduce; tests/test_geometry.py)."""
+    from scipy import sparse
+
+    p, k = idx.shape
+    op = sparse.csr_matrix((weights.astype(np.float64).ravel(), idx.ravel(), np.arange(p + 1) * k),
+                           shape=(p, len(rows)))
+    return np.asarray(op @ np.asarray(rows, np.float64))
 
 
 def anchor_points(verts: np.ndarray, normals: np.ndarray, bv: np.ndarray, bw: np.ndarray, off: np.ndarray
