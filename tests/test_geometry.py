@@ -135,3 +135,23 @@ def test_anchor_sums_are_numpys_sum_to_the_bit():
             unit = nb / np.maximum(np.linalg.norm(nb, axis=1, keepdims=True), 1e-12)
             want = (v[bv] * bw.astype(np.float64)[..., None]).sum(1) + off[:, None].astype(np.float64) * unit
             np.testing.assert_array_equal(anchor_points(v, n, bv, bw, off), want)
+
+
+def test_unique_rows_is_numpys_unique_over_rows():
+    """`geometry.unique_rows` (a lexsort) returns what `np.unique(rows, axis=0, return_inverse=True)` does: the same
+    distinct rows in the same order and the same inverse, for int rows with negatives and repeats (the welds' grid
+    keys), float rows (positions) and no rows."""
+    from rh_dataset.characters.geometry import unique_rows
+
+    rng = np.random.default_rng(9)
+    keys = np.round(rng.normal(0.0, 0.3, (4000, 3)) / 1e-6).astype(np.int64)
+    keys[2000:] = keys[rng.integers(0, 2000, 2000)]  # seam copies
+    small = rng.integers(-3, 3, (500, 4))  # many ties in the first columns
+    pos = np.round(rng.normal(size=(3000, 3)), 2)
+    pos[1500:] = pos[:1500]
+    for rows in (keys, small, pos, keys[:0], keys[:1]):
+        want_rows, want_inv = np.unique(rows, axis=0, return_inverse=True)
+        got_rows, got_inv = unique_rows(rows)
+        np.testing.assert_array_equal(got_rows, want_rows)
+        np.testing.assert_array_equal(got_inv, want_inv.ravel())
+        assert got_inv.dtype == np.int64 and got_rows.dtype == rows.dtype

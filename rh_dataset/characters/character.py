@@ -38,7 +38,7 @@ from .drape import (BOTTOMS_UNDER, DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYE
                     DrapeSettings, SkinBinding, penetration, SLEEVE_GROUPS, push_clearance, push_out, shells_under,
                     skin_points)
 from .eyes import eye_geometry
-from .geometry import split_faces
+from .geometry import split_faces, unique_rows
 from .face_hair import build_brows, build_lashes
 from .hair import build_hair
 from .headwear import build_headwear, press_hair
@@ -438,9 +438,7 @@ def _check_transform(name: str, m: np.ndarray) -> np.ndarray:
 
 def _welded_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Normals of a generated part's own surface, averaged across duplicated seam vertices (same position)."""
-    key = np.round(vertices / 1e-6).astype(np.int64)
-    _, inv = np.unique(key, axis=0, return_inverse=True)
-    inv = inv.ravel()
+    inv = unique_rows(np.round(vertices / 1e-6).astype(np.int64))[1]
     welded = vertex_normals(_mean_by(vertices, inv), inv[faces])
     return welded[inv]
 

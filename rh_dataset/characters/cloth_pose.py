@@ -39,7 +39,7 @@ import numpy as np
 from .body import body_topology, run_anny, vertex_normals
 from .drape import (DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, cloth_model, cloth_solver,
                     collider_faces, drape_garment, draped_over, push_clearance, push_out, skin_points)
-from .geometry import edge_counts, query_mesh, smoothstep
+from .geometry import edge_counts, query_mesh, smoothstep, unique_rows
 
 __all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "POSE_FABRIC", "pose_fabric", "ClothPoseSettings", "BodyMotion",
            "body_motion", "simulate_into_pose", "skin_into_pose", "simulated_parts", "self_crossings", "hem_split",
@@ -705,8 +705,7 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
     inside = np.asarray(inside, np.int64)
     if not len(p) or not len(inside):
         return p.copy()
-    v, weld = np.unique(p, axis=0, return_inverse=True)
-    weld = weld.ravel()
+    v, weld = unique_rows(p)
     f = weld[np.asarray(faces)]
     f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
     skin = np.asarray(body_vertices, np.float64)[inside]

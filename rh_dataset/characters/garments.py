@@ -37,7 +37,7 @@ from .drape import (BRIDGE_BAND, BRIDGE_CAP_OVER, DRAPED_KINDS, FRONT_OPENING, S
                     draped_pieces, drape_settings, hanging_surface, piece_settings, push_clearance, push_out, shell_hem,
                     shell_hems, shells_under)
 from .cloth_pose import LIFT_KINDS, skin_inside
-from .geometry import boundary_distance, closed_tube, hull_anchors, smoothstep, split_faces
+from .geometry import boundary_distance, closed_tube, hull_anchors, smoothstep, split_faces, unique_rows
 from .sleeves import SLEEVE_CUTS, sleeve_axis, sleeve_tops
 from .recipe import GARMENT_KINDS, Garment
 
@@ -565,8 +565,7 @@ def _shoe_shape(feats: BodyFeatures, side: str, n_sections: int = 24, n_around: 
 
 def _same_for_coincident(points: np.ndarray, values: np.ndarray) -> np.ndarray:
     """The per-group maximum of `values` over points at equal positions (copies of a vertex at a UV seam)."""
-    _, inv = np.unique(np.round(points / 1e-7).astype(np.int64), axis=0, return_inverse=True)
-    inv = inv.ravel()
+    inv = unique_rows(np.round(points / 1e-7).astype(np.int64))[1]
     m = np.full(inv.max() + 1, -np.inf)
     np.maximum.at(m, inv, values)
     return m[inv]
