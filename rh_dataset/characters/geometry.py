@@ -556,6 +556,8 @@ def _query_mesh_type():
             tree = self._cache["triangles_tree"]  # None if absent; cleared when the vertices or faces change
             if tree is None:
                 tri = self.triangles
+                if not len(tri):
+                    return super().triangles_tree  # trimesh's own (no faces: it raises, as before)
                 tree = rtree.index.Index((np.arange(len(tri), dtype=np.int64), tri.min(axis=1), tri.max(axis=1)),
                                          properties=rtree.index.Property(dimension=3))
                 self._cache["triangles_tree"] = tree
