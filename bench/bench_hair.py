@@ -4,6 +4,7 @@
     python bench/bench_hair.py                                  # 512x512, both scenes, subject 0, 3 repeats
     python bench/bench_hair.py --scenes sunrise-random --subjects 0 8 --repeats 5
     python bench/bench_hair.py --figure docs/hair_depth.png --subjects 44 --scenes interior-apose   # old cut vs now
+    python bench/bench_hair.py --curves 4 8 --subjects 0 8            # spline vs polyline strands: time and error
 
 Variants (bench_tradeoff's scenes; `--subjects`: benchmark subjects in the scene's pose, light and camera fill):
   wrapper   the strands' BSDF as today: strand_shape.HAIR_WITH_ALBEDO, a Python BSDF whose scattering queries go to
@@ -23,9 +24,26 @@ ray hits first (none: the environment); each label's pixels are traced at --cost
 focused pass's own tracer, hair BSDF as today), and the CPU microseconds per sample are printed with each label's
 share of the pixels and of the pass's CPU time.
 
---figure PATH: instead, the head of each --subjects in each --scenes (top: the standard preset with the plain cut it
-had before, depth 3 / 4 by class; bottom: as now, the class's Russian roulette up to its max depth), same seed, in
-display space (the frame's exposure, sRGB), 3x enlarged: what the truncated bounces took from the hair.
+--curves [M ...]: instead, the strands' primitive (docs/TRADEOFFS.md, "Strands as polylines"): Mitsuba's
+`bsplinecurve` of the control points (what every preset draws) against the `linearcurve` through the spline at M
+points a segment (`polylines` here; default M: 8). First straight fibres, where a polyline is its spline exactly:
+one, and a stack of 12, under a uniform white environment, without and with melanin, the mean of the pixels both
+primitives cover (Mitsuba's `hair` BSDF is specified for `bsplinecurve`). Then the geometry: each polyline piece's
+largest distance from the stretch of spline it stands for (the spline sampled 64 times a segment), over every strand
+of the frame, by fibre. Then a standard frame of each, interleaved, --repeats times (at least 2): medians of beauty
+wall and frame CPU seconds; and the image, from those renders (each repeat its own seed), in display space over the
+person's region as rh-eval scores it (PSNR = -10 log10 MSE). "noise": a primitive's renders against each other, every
+pair of seeds, plus 3.01 dB (each render against its converged image); "bias": how far the converged images of the
+two primitives lie apart, estimated as the mean squared error of the polyline's renders against the spline's of other
+seeds less the mean of both primitives' own noise.
+
+--curves ... --figure PATH: also a picture of that run, one column per subject and scene, top to bottom: the head in
+the spline's renders (averaged over the repeats), in the last M's polyline's, their difference x4 about grey, and
+the noise such a difference would show with no bias (two of the spline's renders' difference x4 / sqrt(repeats)).
+
+--figure PATH (alone): instead, the head of each --subjects in each --scenes (top: the standard preset with the plain
+cut it had before, depth 3 / 4 by class; bottom: as now, the class's Russian roulette up to its max depth), same seed,
+in display space (the frame's exposure, sRGB), 3x enlarged: what the truncated bounces took from the hair.
 """
 from __future__ import annotations
 
@@ -138,10 +156,207 @@ def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
         s = None
 
 
-def figure(path: Path, scenes, subjects, resolution: int) -> None:
-    """Head crops, old plain cut above the class's roulette, one column per subject and scene (see the docstring)."""
+def _basis(t: np.ndarray) -> np.ndarray:
+    """The uniform cubic B-spline's basis at t in [0, 1): (len(t), 4); on segment j, sum_i B_i(t) P_(j+i)."""
+    return np.stack([(1 - t) ** 3, 3 * t ** 3 - 6 * t ** 2 + 4, -3 * t ** 3 + 3 * t ** 2 + 3 * t + 1, t ** 3], 1) / 6.0
+
+
+def polylines(points: np.ndarray, radius: np.ndarray, per_segment: int) -> tuple[np.ndarray, np.ndarray]:
+    """The polyline through each strand's spline as the generator draws it (the control points, the first and last
+    repeated twice more: K + 1 segments of a uniform cubic B-spline from the root to the tip), `per_segment` points
+    a segment, then the tip: (S, K, 3), (S, K) -> (S, N, 3), (S, N) float64, N = (K + 1) * per_segment + 1; the
+    radius the same spline of the control points' radii."""
+    P = np.asarray(points, dtype=np.float64)
+    R = np.asarray(radius, dtype=np.float64)
+    P = np.concatenate([P[:, :1], P[:, :1], P, P[:, -1:], P[:, -1:]], 1)
+    R = np.concatenate([R[:, :1], R[:, :1], R, R[:, -1:], R[:, -1:]], 1)
+    b = _basis(np.arange(per_segment, dtype=np.float64) / per_segment)
+    win = np.arange(P.shape[1] - 3)[:, None] + np.arange(4)[None, :]  # each segment's 4 control points
+    pts = np.einsum("mk,snkd->snmd", b, P[:, win]).reshape(len(P), -1, 3)
+    rad = np.einsum("mk,snk->snm", b, R[:, win]).reshape(len(R), -1)
+    return np.concatenate([pts, P[:, -1:]], 1), np.concatenate([rad, R[:, -1:]], 1)
+
+
+def linear_curves(strands, stand_in: bool = False, *, per_segment: int, generator_curves):
+    """The strands as a `linearcurve` through their splines (`polylines`), with the BSDF of the shape
+    `generator_curves` (the generator's `strand_shape.mitsuba_curves`) builds: the --curves variant."""
+    import tempfile
+
+    import mitsuba as mi
+
+    from rh_dataset.variant import jit_array
+
+    bsdf = generator_curves(strands, stand_in).bsdf()
+    Q, R = polylines(strands.points, strands.radius, per_segment)
+    S, n = R.shape
+    cp = np.concatenate([Q, R[..., None]], -1).astype(np.float32).reshape(-1)
+    seg = (np.arange(S, dtype=np.uint32)[:, None] * n + np.arange(n - 1, dtype=np.uint32)[None, :]).ravel()
+    with tempfile.TemporaryDirectory(prefix="rh_bench_curves_") as tmp:
+        (Path(tmp) / "s.txt").write_text("0 0 0 0.001\n0 0 1 0.001\n")
+        shape = mi.load_dict({"type": "linearcurve", "filename": str(Path(tmp) / "s.txt"), "bsdf": bsdf})
+    params = mi.traverse(shape)
+    params["control_points"] = jit_array(mi.Float, cp)
+    params["segment_indices"] = jit_array(mi.UInt32, seg)
+    params["control_point_count"] = int(S * n)
+    params.update()
+    return shape
+
+
+def _drawn_with(per_segment: int):
+    """A context in which render_frame draws strands as polylines of `per_segment` points a segment (0: as the
+    generator does, splines): the scene dict takes `strand_shape.mitsuba_curves` at call time."""
+    import contextlib
+    import functools
+
+    from rh_dataset.characters import strand_shape
+
+    @contextlib.contextmanager
+    def ctx():
+        orig = strand_shape.mitsuba_curves
+        if per_segment:
+            strand_shape.mitsuba_curves = functools.partial(linear_curves, per_segment=per_segment,
+                                                            generator_curves=orig)
+        try:
+            yield
+        finally:
+            strand_shape.mitsuba_curves = orig
+    return ctx()
+
+
+def chord_deviation(strands, per_segment: int, dense: int = 64) -> np.ndarray:
+    """Each polyline piece's distance from the spline it stands for, at `dense` samples a spline segment (metres)."""
+    fine, _ = polylines(strands.points, strands.radius, dense)
+    poly, _ = polylines(strands.points, strands.radius, per_segment)
+    i = np.arange(fine.shape[1] - 1)
+    piece = (i // dense) * per_segment + (i % dense) * per_segment // dense  # the piece each sample falls on
+    a, b, q = poly[:, piece], poly[:, piece + 1], fine[:, :-1]
+    d = b - a
+    u = np.clip(((q - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-30), 0.0, 1.0)
+    return np.linalg.norm(q - (a + u[..., None] * d), axis=-1).ravel()
+
+
+def straight_fibres(spp: int = 512) -> list[list]:
+    """Straight fibres, where a polyline is its spline exactly, under a uniform white environment, seen side-on:
+    the mean of the pixels both primitives cover fully, for one fibre and for a stack of 12 touching ones, with
+    zero melanin (the white furnace: 1 for an energy-conserving fibre) and with some (a light brown)."""
+    from rh_common.camera import Camera
+    from rh_dataset.characters.character import PosedStrands
+    from rh_dataset.characters.hair_fibre import HairFibre
+    from rh_dataset.render.passes import render_frame
+    from rh_dataset.render.scene import RenderSettings
+
+    cam = Camera(64, 64, 10.0, (0.0, -6.0, 0.1), (0.0, 0.0, 0.1))
+    white = {"type": "constant", "radiance": {"type": "rgb", "value": 1.0}}
+    x = np.linspace(-0.5, 0.5, 6)
+    rows = []
+    for n in (1, 12):
+        pts = np.stack([np.stack([x, 0 * x, 0 * x + 0.04 * k], 1) for k in range(n)]).astype(np.float32)
+        for fibre in (HairFibre(0.0, 0.0), HairFibre(0.3, 0.1)):
+            s = PosedStrands("s", pts, np.full(pts.shape[:2], 0.02, np.float32), fibre)
+            outs = {}
+            for per in (0, 8):
+                with _drawn_with(per):
+                    outs[per] = render_frame([s], white, cam, RenderSettings(spp=spp, aov_spp=16, max_depth=64),
+                                             ["image", "mask"], 3)
+            both = (outs[0].layers["mask"] > 0.999) & (outs[8].layers["mask"] > 0.999)
+            means = [outs[per].layers["image"][both].mean(0) for per in (0, 8)]
+            rows.append([f"{n} fibre{'s' if n > 1 else ''}", f"{fibre.eumelanin} / {fibre.pheomelanin}",
+                         " / ".join(f"{v:.4f}" for v in means[0]), " / ".join(f"{v:.4f}" for v in means[1]),
+                         float(means[1].mean() / means[0].mean()), int(both.sum())])
+    return rows
+
+
+def curves(scene, settings, per_segments, repeats: int) -> tuple[list[list], list[list], np.ndarray]:
+    """The --curves tables for one scene: geometry rows, then time and image rows (see the module docstring), and
+    its picture's column."""
+    import math
+
+    from rh_dataset.render.passes import render_frame
+
+    geo = []
+    for m in scene.meshes:
+        if hasattr(m, "fibre"):
+            for per in per_segments:
+                dev = chord_deviation(m, per)
+                geo.append([m.name, f"{len(m.points)} x {m.points.shape[1]}", per,
+                            len(m.points) * ((m.points.shape[1] + 1) * per + 1), 1e6 * dev.max(),
+                            1e6 * np.percentile(dev, 99), 1e6 * np.median(dev), 1e3 * float(np.median(m.radius))])
+    variants = {"bsplinecurve": 0, **{f"linearcurve, {per} a segment": per for per in per_segments}}
+
+    def one(name, seed):
+        with _drawn_with(variants[name]):
+            c = time.process_time()
+            out = render_frame(scene.meshes, scene.emitter, scene.camera, settings, ["image", "mask"], seed,
+                               exposure=scene.exposure)
+            return out, time.process_time() - c
+
+    for name in variants:
+        one(name, 1)  # warm-up: each primitive's kernels
+    runs = {name: [] for name in variants}
+    for r in range(max(repeats, 2)):
+        for name in variants:
+            runs[name].append(one(name, 4242 + r))
+    ref = runs["bsplinecurve"]
+    mask = ref[0][0].layers["mask"]
+
+    def mse(a, b):
+        sc = bt.Scorer({"image": b, "mask": mask}, scene.exposure)
+        return 10.0 ** (-sc.psnr(a) / 10.0)
+
+    def pairs(xs, ys):  # mean squared error over every pair of renders of different seeds
+        return float(np.mean([mse(x[0].layers["image"], y[0].layers["image"])
+                              for i, x in enumerate(xs) for j, y in enumerate(ys) if i != j]))
+
+    same = pairs(ref, ref)
+    rows = []
+    for name, rs in runs.items():
+        beauty = float(np.median([o.seconds["beauty"] for o, _ in rs[:repeats]]))
+        cpu = float(np.median([c for _, c in rs[:repeats]]))
+        own = pairs(rs, rs)
+        err = f"noise {-10 * math.log10(own / 2):.2f} dB"
+        if name != "bsplinecurve":
+            bias = pairs(rs, ref) - 0.5 * (same + own)  # the cross pairs' error less both images' own noise
+            err += f", bias {-10 * math.log10(bias):.2f} dB" if bias > 0 else ", bias within noise"
+        rows.append([name, beauty, cpu, err])
+    base = rows[0]
+    for row in rows:
+        row.insert(3, row[2] / base[2])
+    return geo, rows, _curves_crops(scene, ref, runs[list(variants)[-1]])
+
+
+def _head_box(mask: np.ndarray) -> tuple[int, int, int]:
+    """The head: the top of the person's mask, a square as wide as a sixth of the frame (y0, x0, side)."""
+    resolution = mask.shape[1]
+    ys, xs = np.nonzero(mask > 0.5)
+    top, side = int(ys.min()), resolution // 6
+    cx = int(np.median(xs[ys < top + side // 2]))
+    return max(top - side // 8, 0), min(max(cx - side // 2, 0), resolution - side), side
+
+
+def _curves_crops(scene, spline_runs, poly_runs) -> np.ndarray:
+    """The --curves picture's column for one scene: the head, the spline's renders averaged, the polyline's
+    averaged, their difference x4 about grey, and the spline's first two seeds' difference x4 / sqrt(n) (the noise
+    that difference of averages of n renders would show with no bias)."""
+    from rh_common.colourspace import to_display
+
+    disp = [[to_display(o.layers["image"], scene.exposure) for o, _ in rs] for rs in (spline_runs, poly_runs)]
+    y0, x0, side = _head_box(spline_runs[0][0].layers["mask"])
+    b, p = (np.mean(d, axis=0)[y0:y0 + side, x0:x0 + side] for d in disp)
+    noise = (disp[0][0] - disp[0][1])[y0:y0 + side, x0:x0 + side] / np.sqrt(len(disp[0]))
+    return np.concatenate([b, p, 0.5 + 4 * (p - b), 0.5 + 4 * noise], axis=0)
+
+
+def _save_picture(path: Path, columns) -> None:
     from PIL import Image
 
+    img = np.concatenate(columns, axis=1)
+    img = np.repeat(np.repeat(img, 3, axis=0), 3, axis=1)
+    Image.fromarray((np.clip(img, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)).save(path)
+    print(f"wrote {path}", flush=True)
+
+
+def figure(path: Path, scenes, subjects, resolution: int) -> None:
+    """Head crops, old plain cut above the class's roulette, one column per subject and scene (see the docstring)."""
     from rh_common.colourspace import to_display
     from rh_dataset.cli import render_settings
     from rh_dataset.presets import load_presets
@@ -149,6 +364,11 @@ def figure(path: Path, scenes, subjects, resolution: int) -> None:
 
     standard = load_presets()["standard"]
     columns = []
+    if args.curves is not None:
+        bt.table("straight fibres (a polyline is its spline), uniform white light, side-on, 512 spp, depth 64: mean "
+                 "of the pixels both primitives cover", ["fibres", "eumelanin / pheomelanin", "bsplinecurve R/G/B",
+                                                         "linearcurve R/G/B", "linear / spline", "pixels"],
+                 straight_fibres())
     for subject in subjects:
         for name in scenes:
             scene = bt.build_scene(name, resolution, subject=subject)
@@ -161,20 +381,13 @@ def figure(path: Path, scenes, subjects, resolution: int) -> None:
                 out = render_frame(scene.meshes, scene.emitter, scene.camera, st, ["image", "mask"], 7,
                                    exposure=scene.exposure)
                 rows.append(to_display(out.layers["image"], scene.exposure))
-            # the head: the top of the person's mask, a square as wide as a sixth of the frame
-            ys, xs = np.nonzero(out.layers["mask"] > 0.5)
-            top, side = int(ys.min()), resolution // 6
-            cx = int(np.median(xs[ys < top + side // 2]))
-            y0, x0 = max(top - side // 8, 0), min(max(cx - side // 2, 0), resolution - side)
+            y0, x0, side = _head_box(out.layers["mask"])
             crops = [r[y0:y0 + side, x0:x0 + side] for r in rows]
             columns.append(np.concatenate(crops, axis=0))
             print(f"  {name}, subject {subject}: depth {before.max_depth} (plain) above depth {now.max_depth} "
                   f"(roulette from {now.rr_depth}); mean display value of the crop {crops[0].mean():.4f} -> "
                   f"{crops[1].mean():.4f}", flush=True)
-    img = np.concatenate(columns, axis=1)
-    img = np.repeat(np.repeat(img, 3, axis=0), 3, axis=1)
-    Image.fromarray((np.clip(img, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)).save(path)
-    print(f"wrote {path}", flush=True)
+    _save_picture(path, columns)
 
 
 def main(argv=None) -> None:
@@ -191,7 +404,12 @@ def main(argv=None) -> None:
     p.add_argument("--cost-spp", type=int, default=64, help="samples per pixel of the cost-by-first-hit table")
     p.add_argument("--skip-ab", action="store_true",
                    help="leave out the wrapper / plain / none comparison: the cost-by-first-hit table only")
-    p.add_argument("--figure", type=Path, default=None, help="write the head crops (old cut / now) here instead")
+    p.add_argument("--figure", type=Path, default=None,
+                   help="write the head crops (old cut / now) here instead; with --curves, that run's head crops "
+                        "(spline, the last M's polyline, their difference x4, the noise x4) after its tables")
+    p.add_argument("--curves", type=int, nargs="*", default=None, metavar="M",
+                   help="instead, the strands' primitive: bsplinecurve against the polyline at each M points a "
+                        "spline segment (default 8); straight fibres, geometry, time and image tables")
     args = p.parse_args(argv)
 
     import drjit as dr
@@ -208,9 +426,15 @@ def main(argv=None) -> None:
                 if line.startswith("model name")), "?") if Path("/proc/cpuinfo").exists() else "?"
     print(f"bench_hair: {cpu}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at the start; {variant}; "
           f"{args.resolution}x{args.resolution}", flush=True)
-    if args.figure is not None:
+    if args.figure is not None and args.curves is None:
         return figure(args.figure, args.scenes, args.subjects, args.resolution)
     standard = load_presets()["standard"]
+    columns = []
+    if args.curves is not None:
+        bt.table("straight fibres (a polyline is its spline), uniform white light, side-on, 512 spp, depth 64: mean "
+                 "of the pixels both primitives cover", ["fibres", "eumelanin / pheomelanin", "bsplinecurve R/G/B",
+                                                         "linearcurve R/G/B", "linear / spline", "pixels"],
+                 straight_fibres())
     for subject in args.subjects:
         for name in args.scenes:
             scene = bt.build_scene(name, args.resolution, subject=subject)
@@ -221,6 +445,16 @@ def main(argv=None) -> None:
             title = (f"{name}, subject {subject} ({strands} strands), standard ({settings.spp} / env "
                      f"{settings.env_spp} spp, depth {settings.max_depth}, roulette from "
                      f"{settings.rr_depth or 'Mitsuba default 5'})")
+            if args.curves is not None:
+                geo, rows, column = curves(scene, settings, args.curves or [8], args.repeats)
+                columns.append(column)
+                bt.table(f"{title}: the polyline's distance from the spline",
+                         ["fibre", "strands x control points", "points a segment", "polyline points", "max um",
+                          "p99 um", "median um", "strand radius median mm"], geo)
+                bt.table(f"{title}: the strands' primitive, medians of {args.repeats} interleaved frames",
+                         ["primitive", "beauty s", "frame CPU s", "CPU / bsplinecurve",
+                          "person PSNR: noise, bias against the spline"], rows)
+                continue
             if not args.skip_ab:
                 bt.table(f"{title}: the strands' BSDF, medians of {args.repeats} interleaved frames",
                          ["strands", "scene load s", "beauty s", "frame CPU s", "CPU / wrapper",
@@ -228,6 +462,8 @@ def main(argv=None) -> None:
             bt.table(f"{title}: cost by first hit, {args.cost_spp} spp through render_pixels",
                      ["first hit", "pixels", "share of pixels", "CPU us / sample", "share of CPU"],
                      cost_by_first_hit(scene, settings, args.cost_spp))
+    if columns and args.figure is not None:
+        _save_picture(args.figure, columns)
     print(f"\nload average {os.getloadavg()[0]:.2f} at the end", flush=True)
 
 

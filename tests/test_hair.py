@@ -137,6 +137,78 @@ def _spline_samples(points: np.ndarray, per_segment: int = 4) -> np.ndarray:
     return np.einsum("tk,snkd->sntd", b, segs).reshape(-1, 3)
 
 
+def _scipy_spline(points: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The strand's clamped uniform cubic B-spline at parameters x in [0, K + 1] (segments), evaluated by scipy
+    from the control points with the ends repeated twice more: an evaluation independent of the ones under test."""
+    from scipy.interpolate import BSpline
+
+    p = np.concatenate([points[:1], points[:1], points, points[-1:], points[-1:]]).astype(np.float64)
+    return BSpline(np.arange(len(p) + 4, dtype=np.float64), p, 3, extrapolate=False)(3.0 + x)
+
+
+def _bench_hair():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    import bench_hair
+
+    return bench_hair
+
+
+def test_bench_polylines_lie_on_the_strands_splines():
+    """bench_hair.polylines (what its --curves measures against the splines): every vertex on the strand's B-spline
+    (scipy's evaluation), root and tip exact, the radius the same spline of the radii; its chord deviation falls
+    about 4x with twice the points (a chord's sag goes as its length squared), under 0.2 mm at 8 a segment on long
+    hair (the benchmark's subjects 0 and 8: 0.17 / 0.19 mm at most)."""
+    bh = _bench_hair()
+    ch = build_character(_recipe("long"), 32)
+    posed = next(m for m in pose_character(ch) if m.name == "hair")
+    P, R = posed.points[:200].astype(np.float64), posed.radius[:200].astype(np.float64)
+    Q, Rq = bh.polylines(P, R, 8)
+    K = P.shape[1]
+    assert Q.shape == (len(P), (K + 1) * 8 + 1, 3) and Rq.shape == Q.shape[:2]
+    x = np.minimum(np.arange((K + 1) * 8 + 1) / 8, K + 1 - 1e-12)
+    for i in range(0, len(P), 37):
+        np.testing.assert_allclose(Q[i], _scipy_spline(P[i], x), atol=1e-9)
+        np.testing.assert_allclose(Rq[i], _scipy_spline(R[i][:, None], x)[:, 0], atol=1e-12)
+    np.testing.assert_allclose(Q[:, 0], P[:, 0], rtol=0, atol=1e-12)  # the basis at 0 sums to 1 to rounding
+    np.testing.assert_array_equal(Q[:, -1], P[:, -1])
+    strands = dataclasses.replace(posed, points=P[:200], radius=R[:200])
+    d8, d16 = bh.chord_deviation(strands, 8).max(), bh.chord_deviation(strands, 16).max()
+    assert d8 < 0.0002 and 0.15 < d16 / d8 < 0.35
+
+
+def test_the_generator_draws_splines_and_the_bench_its_polylines():
+    """strand_shape.mitsuba_curves: a `bsplinecurve` (Mitsuba's `hair` BSDF is specified for it) of the control
+    points, the ends repeated twice more (K + 1 segments a strand); bench_hair.linear_curves: a `linearcurve` whose
+    control points are the polylines (float32) with their radii, a segment between each two consecutive points of a
+    strand and none across strands, carrying the generator's BSDF."""
+    import mitsuba as mi
+
+    from rh_dataset.characters.strand_shape import mitsuba_curves
+
+    bh = _bench_hair()
+    s = _straight(0.01, n=3, gap=0.1)
+    shape = mitsuba_curves(s)
+    assert str(shape).startswith("BSpline[")
+    spline = mi.traverse(shape)
+    cp = np.array(spline["control_points"]).reshape(3, -1, 4)
+    np.testing.assert_array_equal(cp[:, 2:-2, :3], s.points)
+    np.testing.assert_array_equal(cp[:, :3, :3], np.repeat(s.points[:, :1], 3, 1))
+    assert len(np.array(spline["segment_indices"])) == 3 * (s.points.shape[1] + 1)
+    line = bh.linear_curves(s, per_segment=8, generator_curves=mitsuba_curves)
+    assert str(line).startswith("LinearCurve[") and "HairWithAlbedo" in str(line)
+    Q, R = bh.polylines(s.points, s.radius, 8)
+    params = mi.traverse(line)
+    cp = np.array(params["control_points"]).reshape(-1, 4)
+    np.testing.assert_array_equal(cp[:, :3], Q.reshape(-1, 3).astype(np.float32))
+    np.testing.assert_array_equal(cp[:, 3], R.ravel().astype(np.float32))
+    seg = np.array(params["segment_indices"])
+    n = Q.shape[1]
+    assert len(seg) == 3 * (n - 1) and not np.any(np.isin(seg, np.arange(1, 4) * n - 1))
+
+
 def _depth_inside(body, pts: np.ndarray, k: int = 8) -> np.ndarray:
     """How deep (metres, 0 outside) each point lies inside a watertight trimesh: the exact closest point over the
     faces around the k nearest vertices (trimesh.triangles.closest_point), signed by that face's normal
