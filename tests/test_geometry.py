@@ -155,3 +155,30 @@ def test_unique_rows_is_numpys_unique_over_rows():
         np.testing.assert_array_equal(got_rows, want_rows)
         np.testing.assert_array_equal(got_inv, want_inv.ravel())
         assert got_inv.dtype == np.int64 and got_rows.dtype == rows.dtype
+
+
+def test_vertex_normals_sum_as_add_at_did_to_the_bit():
+    """body.vertex_normals adds each vertex's face normals by one bincount over corner 0, 1, then 2 of every face:
+    the same order, so the same bits, as the np.add.at loop it replaced, on the body's topology (random vertices,
+    and an isolated vertex, which gets +Z) and with no faces."""
+    from rh_dataset.characters.body import vertex_normals
+
+    def add_at(vertices, faces):
+        v = np.asarray(vertices, dtype=np.float64)
+        tri = v[faces]
+        fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n = np.zeros_like(v)
+        for corner in range(3):
+            np.add.at(n, faces[:, corner], fn)
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        bad = length[:, 0] < 1e-20
+        n[bad], length[bad] = (0.0, 0.0, 1.0), 1.0
+        return n / length
+
+    faces = body_topology().faces
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        v = rng.normal(size=(int(faces.max()) + 2, 3))  # the last vertex is in no face
+        got = vertex_normals(v, faces)
+        assert np.array_equal(got, add_at(v, faces)) and np.array_equal(got[-1], [0.0, 0.0, 1.0])
+    assert np.array_equal(vertex_normals(v[:4], np.zeros((0, 3), np.int64)), np.tile([0.0, 0.0, 1.0], (4, 1)))
