@@ -364,11 +364,6 @@ def figure(path: Path, scenes, subjects, resolution: int) -> None:
 
     standard = load_presets()["standard"]
     columns = []
-    if args.curves is not None:
-        bt.table("straight fibres (a polyline is its spline), uniform white light, side-on, 512 spp, depth 64: mean "
-                 "of the pixels both primitives cover", ["fibres", "eumelanin / pheomelanin", "bsplinecurve R/G/B",
-                                                         "linearcurve R/G/B", "linear / spline", "pixels"],
-                 straight_fibres())
     for subject in subjects:
         for name in scenes:
             scene = bt.build_scene(name, resolution, subject=subject)
