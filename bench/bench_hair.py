@@ -1,5 +1,6 @@
 """Where the beauty pass's time goes with strand hair: the strands' BSDF as the generator builds it against plain
-`hair` and against no strands, and the cost of a sample by what the camera ray hits first.
+`hair` and against no strands, the cost of a sample by what the camera ray hits first, and (--curves) the strands
+drawn as polylines instead of splines.
 
     python bench/bench_hair.py                                  # 512x512, both scenes, subject 0, 3 repeats
     python bench/bench_hair.py --scenes sunrise-random --subjects 0 8 --repeats 5
