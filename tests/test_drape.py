@@ -285,7 +285,8 @@ def test_character_wears_the_draped_skirt_in_every_pose(tmp_path, monkeypatch, k
 
 def test_drape_cache_key_covers_the_patterns_triangles_and_pins():
     """A pattern whose points stay but whose triangles or pins change (the hood's faces were once flipped that way)
-    must not read back a drape cached for the old one; the same pattern gives the same key."""
+    must not read back a drape cached for the old one; the same pattern gives the same key, and so does one whose
+    points differ in their last bits."""
     from rh_dataset.characters.drape import _cache_key
 
     st = drape_settings("draped_skirt", "coarse")
@@ -296,6 +297,23 @@ def test_drape_cache_key_covers_the_patterns_triangles_and_pins():
     moved = pinned.copy()
     moved[len(verts) // 2] = True
     assert key != _cache_key("draped_skirt", PHENO, st, verts, faces, moved)
+
+    # The points are keyed to 1 nm (KEY_DECIMALS): a pattern a few ulps off, as anny through another torch build or
+    # CPU may give, reads back the same drape; a point moved by 1 micrometre does not. Signed zeros hash as one.
+    rng = np.random.default_rng(0)
+    ulps = np.nextafter(verts, np.where(rng.random(verts.shape) < 0.5, -np.inf, np.inf))
+    ulps = np.nextafter(ulps, np.where(rng.random(verts.shape) < 0.5, -np.inf, np.inf))
+    assert not np.array_equal(ulps, verts) and np.abs(ulps - verts).max() < 1e-15
+    assert key == _cache_key("draped_skirt", PHENO, st, ulps, faces, pinned)
+    shifted = verts.copy()
+    shifted[7, 2] += 1e-6
+    assert key != _cache_key("draped_skirt", PHENO, st, shifted, faces, pinned)
+    zeroed = verts.copy()
+    zeroed[0, 0] = 0.0
+    negzero = zeroed.copy()
+    negzero[0, 0] = -1e-17
+    assert _cache_key("draped_skirt", PHENO, st, zeroed, faces, pinned) == \
+        _cache_key("draped_skirt", PHENO, st, negzero, faces, pinned)
 
 
 def test_settle_ends_the_drape_at_rest():

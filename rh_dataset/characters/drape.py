@@ -1248,6 +1248,21 @@ def _walk_out(p: np.ndarray, depth: np.ndarray, pushed: np.ndarray, v: np.ndarra
 PUSH_REACH = 0.2  # metres: deeper than any point of the body lies under its skin
 
 
+KEY_DECIMALS = 9
+"""Decimals of a metre the drape cache key keeps of a pattern's points (and of the cloth under it): 1 nm. The
+pattern comes from anny's body through torch, whose last bits may differ on another CPU or torch build; hashed to
+the bit, such a pattern missed a cache made elsewhere and was draped afresh (docs/TRADEOFFS.md, the GPU pipeline's
+drape-cache misses). Rounded, two patterns a few ulps apart share a key unless a coordinate lies on a rounding
+boundary (about one in 10^7 per coordinate for differences of 1e-16 m); a change to the cut moves points by far
+more than 1 nm."""
+
+
+def _key_points(points: np.ndarray) -> bytes:
+    """Points rounded to KEY_DECIMALS, as bytes for the cache key (+0.0 folds -0.0 into 0.0: a coordinate rounded to
+    zero from below must hash as one rounded from above)."""
+    return (np.round(np.asarray(points, np.float64), KEY_DECIMALS) + 0.0).tobytes()
+
+
 def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, pattern: np.ndarray, faces: np.ndarray,
                pinned: np.ndarray, over: Sequence[DrapedGarment] = ()) -> str:
     # The installed versions from their metadata (the same strings as the modules' __version__): importing newton
@@ -1262,12 +1277,11 @@ def _cache_key(kind: str, phenotype: dict[str, float], st: DrapeSettings, patter
            "topology": ANNY_TOPOLOGY,
            # The pattern itself, points, triangles and pins: a change to how it is cut or sewn (the same points
            # joined otherwise, as the hood's flipped faces were) cannot read back a drape of the old one.
-           "pattern": hashlib.sha256(np.ascontiguousarray(pattern, np.float64).tobytes()
-                                     + np.ascontiguousarray(faces, np.int64).tobytes()
+           "pattern": hashlib.sha256(_key_points(pattern) + np.ascontiguousarray(faces, np.int64).tobytes()
                                      + np.ascontiguousarray(pinned, np.bool_).tobytes()).hexdigest()}
     if over:  # the draped cloth it hangs over is part of the collider (a key without it reads back as before)
-        key["over"] = [hashlib.sha256(np.ascontiguousarray(g.vertices, np.float64).tobytes()
-                                      + np.ascontiguousarray(g.faces, np.int64).tobytes()).hexdigest() for g in over]
+        key["over"] = [hashlib.sha256(_key_points(g.vertices) + np.ascontiguousarray(g.faces, np.int64).tobytes())
+                       .hexdigest() for g in over]
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:24]
 
 
