@@ -34,8 +34,8 @@ from .scalp import Scalp, directions, hang_envelope, sample_envelope, scalp
 __all__ = ["StrandStyle", "STRAND_STYLES", "StrandGeometry", "build_hair", "STEP"]
 
 STEP = 0.0025  # metres per growth step
-_BLEND_KEEP = 16
-_ARM_SECTOR = (55.0, 125.0)  # degrees of azimuth from the front that hanging hair leaves to the arms  # blend weights kept per control point (the largest; renormalised)
+_BLEND_KEEP = 16  # blend weights kept per control point (the largest; renormalised)
+_ARM_SECTOR = (55.0, 125.0)  # degrees of azimuth from the front that hanging hair leaves to the arms
 
 
 @dataclasses.dataclass(frozen=True)
