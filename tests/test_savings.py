@@ -292,7 +292,9 @@ def test_a_clothed_character_renders_the_same_without_its_hidden_skin(character)
     s = RenderSettings(spp=16, aov_spp=4, max_depth=3)
     a = render_frame(meshes, ENV, c, s, ["image", *AOVS], seed=2, hidden=hidden_faces(character))
     b = render_frame(meshes, ENV, c, dataclasses.replace(s, cull=False), ["image", *AOVS], seed=2)
-    assert a.info["culled_faces"]["hidden_under_clothes"] > 5000
+    # Subject 0 wears a draped dress: the culling counts skin under shells, not under draped cloth (its bodice and
+    # shoes: 4704 faces on 6 December; over 5000 under its shell clothes of before), as test_generated_frames_... says.
+    assert a.info["culled_faces"]["hidden_under_clothes"] > 3000
     for k in AOVS:
         assert np.array_equal(a.layers[k], b.layers[k]), k
     # Measured bit-identical (no path meets the hidden skin); allow noise-level change for other platforms.
