@@ -231,6 +231,32 @@ def _depth_inside(body, pts: np.ndarray, k: int = 8) -> np.ndarray:
     return np.where(inside, np.minimum(best, 1.0), 0.0)
 
 
+# How deep (metres) a grown strand's spline may lie in the bind-pose skin before it is bound (the 1.5 mm base lift
+# and the binding's clearance come after). Measured (seed 40's body, bare, 6 December): long 2.2 mm (tips at the
+# edges of the arms' sector), ponytail 1.0 mm. Two faults it catches: a clump guide chosen by the nearest root
+# pulled tips half-way between the routes in front of and behind the shoulder, into the arm (88 mm); a ponytail
+# strand whose target on the tail lay under its layer circled above it and reached the tail in one 10 cm chord
+# through the head (16 mm).
+GROWN_DEPTH_BOUND_M = 0.004
+
+
+@pytest.mark.parametrize("style", ["long", "ponytail"])
+def test_grown_strands_stay_out_of_the_bind_pose_body(style):
+    """The strands `build_hair` grows (clumped, frizzed, before binding) are outside the bind-pose skin within
+    GROWN_DEPTH_BOUND_M."""
+    import trimesh
+
+    from rh_dataset.characters.body import body_topology
+    from rh_dataset.characters.body_features import body_features
+    from rh_dataset.characters.hair import build_hair
+
+    feats = body_features(_recipe(style).phenotype)
+    g = build_hair(style, feats, np.random.default_rng([40, 2]))
+    body = trimesh.Trimesh(feats.rest_vertices, body_topology().faces, process=False)
+    d = _depth_inside(body, _spline_samples(g.rest))
+    assert d.max() < GROWN_DEPTH_BOUND_M, (style, d.max())
+
+
 # Worst depth (metres) of any rendered spline sample inside the posed body, over the A-pose and four prior poses, per
 # style (seed 40), with headroom over what was measured: short 0 mm; bun 1.8 mm (0.4 % of samples); ponytail 4.7 mm
 # (the scalp part, where the kernel-regressed skull dips under the skin; before the 1.5 mm base lift); long 16 mm on

@@ -223,7 +223,11 @@ def _grow(style: str, st: StrandStyle, sc: Scalp, feats: BodyFeatures, under: np
                 rho_base[lv] = np.hypot(p[lv, 0], p[lv, 1])
                 az_base[lv] = np.degrees(np.arctan2(p[lv, 0], -p[lv, 1]))
             elif target is not None:
-                near = np.linalg.norm(p[on] - target[on], axis=1) < 0.01
+                # Reached when over the target on the scalp (within 1 cm across): a target under the strand's layer
+                # is never within 1 cm, and such a strand would circle above it until the loop ends.
+                u_p = p[on] / np.linalg.norm(p[on], axis=1, keepdims=True)
+                u_t = target[on] / np.linalg.norm(target[on], axis=1, keepdims=True)
+                near = np.linalg.norm(u_p - u_t, axis=1) * np.linalg.norm(p[on], axis=1) < 0.01
                 mode[idx[near]] = 2
             else:
                 stop = (a_on >= length[on]) | (en < sc.hairline_at(tn) - 0.12)
@@ -290,7 +294,10 @@ def _clump_and_frizz(pts: np.ndarray, st: StrandStyle, rng: np.random.Generator,
     if st.clump > 0:
         n_guides = max(s // 25, 1)
         guides = rng.choice(s, n_guides, replace=False)
-        _, g = cKDTree(pts[guides, 0]).query(pts[:, 0])
+        # A strand joins the guide that runs closest to it along its whole length, not the one rooted nearest: two
+        # neighbouring roots may part round a shoulder, and pulling one towards the other put tips inside the arm
+        # (long hair 48 mm deep before, tests/test_hair.py).
+        _, g = cKDTree(pts[guides].reshape(n_guides, -1)).query(pts.reshape(s, -1))
         pts = pts + st.clump * w * (pts[guides[g]] - pts)
     if st.frizz > 0:
         jit = rng.normal(0.0, st.frizz, pts.shape) * w ** 2
