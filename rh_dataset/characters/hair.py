@@ -14,7 +14,8 @@ Growth (all strands marched together, 2.5 mm steps):
 - hanging styles (bob, long, long_wavy) fall vertically from where they leave the skull, outside the
   `scalp.hang_envelope` of head, neck, shoulders, back and clothes; ponytails follow the tail's curve, each strand
   at a fixed place in its cross-section; buns wrap round the bun;
-- then waves (outward only), clumping towards a guide strand and frizz (both growing towards the tip).
+- then waves (outward only), clumping towards the guide strand nearest along the whole strand, and frizz (both
+  growing towards the tip).
 The binding region is the head and neck for short styles (they move rigidly with the head) and head, neck, trunk,
 shoulders and upper arms for hanging ones (they bend with the neck and shoulders).
 """
