@@ -75,7 +75,9 @@ def main() -> None:
     for k, style in enumerate(HAIR_STYLES):
         colour = names[k % len(names)]
         recipe = recipe_from_seed(2 * (k + 1), "benchmark", k)
-        recipe = dataclasses.replace(recipe, hair=HairSpec(style, tuple(c / 255 for c in COLOURS[colour])))
+        # Bare-headed, so that the style shows (a scarf hides all of it, a cap most); --headwear has its own.
+        recipe = dataclasses.replace(recipe, hair=HairSpec(style, tuple(c / 255 for c in COLOURS[colour])),
+                                     headwear=())
         t = time.perf_counter()
         posed = pose_character(build_character(recipe, 512))
         hair = np.concatenate([m.vertices for m in posed if hasattr(m, "fibre")])
