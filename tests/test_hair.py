@@ -231,12 +231,12 @@ def _depth_inside(body, pts: np.ndarray, k: int = 8) -> np.ndarray:
     return np.where(inside, np.minimum(best, 1.0), 0.0)
 
 
-# How deep (metres) a grown strand's spline may lie in the bind-pose skin before it is bound (the 1.5 mm base lift
-# and the binding's clearance come after). Measured (seed 40's body, bare, 6 December): long 2.2 mm (tips at the
-# edges of the arms' sector), ponytail 1.0 mm. Two faults it catches: a clump guide chosen by the nearest root
-# pulled tips half-way between the routes in front of and behind the shoulder, into the arm (88 mm); a ponytail
-# strand whose target on the tail lay under its layer circled above it and reached the tail in one 10 cm chord
-# through the head (16 mm).
+# How deep (metres) a grown strand's spline may lie in the bind-pose skin before it is bound (the 1.5 mm base lift and
+# the binding's clearance come after). Measured (seed 40's body, bare, 6 December; `pytest -s` prints it): long 2.4 mm
+# (tips at the edges of the arms' sector), ponytail 1.0 mm. Two faults it catches: a clump guide chosen by the nearest
+# root pulled tips half-way between the routes in front of and behind the shoulder, into the arm (88 mm); a ponytail
+# strand whose target on the tail lay under its layer circled above it and reached the tail in one 10 cm chord through
+# the head (16 mm).
 GROWN_DEPTH_BOUND_M = 0.004
 
 
@@ -254,11 +254,13 @@ def test_grown_strands_stay_out_of_the_bind_pose_body(style):
     g = build_hair(style, feats, np.random.default_rng([40, 2]))
     body = trimesh.Trimesh(feats.rest_vertices, body_topology().faces, process=False)
     d = _depth_inside(body, _spline_samples(g.rest))
+    print(f"{style}: grown strands {d.max() * 1e3:.1f} mm deep in the bind-pose skin at most")
     assert d.max() < GROWN_DEPTH_BOUND_M, (style, d.max())
 
 
 # Worst depth (metres) of any rendered spline sample inside the posed body, over the A-pose and four prior poses, per
-# style (seed 40), with headroom over what was measured (6 December, after the clump and ponytail fixes above): short
+# style (seed 40), with headroom over what was measured (6 December, after the clump and ponytail fixes above; `pytest
+# -s` prints the figures per pose, pose 0 the A-pose): short
 # 0 mm; bun 0.6 mm (0.01 % of samples); ponytail 2.6 mm (0.13 %); bob 2.5 mm (0.06 %); long 2.2 mm in the A-pose and
 # 14.3 mm (0.13 %) in one prior pose, long_wavy 2.4 and 20.9 mm (0.14 %): a posed arm swinging into hanging hair
 # (strands are bound, not simulated). Before those fixes: ponytail 18.1, bob 19.1, long 47.7, long_wavy 107.5 mm.
@@ -285,13 +287,14 @@ def test_strands_stay_outside_the_body_over_protocol_poses(style):
     faces = body_topology().faces
     poses = [None] + [sample_pose(np.random.default_rng([7, k]), load_anny()) for k in range(4)]
     worst, frac = 0.0, 0.0
-    for pose in poses:
+    for k, pose in enumerate(poses):
         bones = None if pose is None else dict(pose.bones)
         posed = pose_character(ch, bones)
         body = trimesh.Trimesh(run_anny(ch.phenotype, bones)["vertices"], faces, process=False)
         assert body.is_watertight
         pts = np.concatenate([_spline_samples(m.points) for m in posed if hasattr(m, "fibre")])
         d = _depth_inside(body, pts)
+        print(f"{style} pose {k}: {d.max() * 1e3:.1f} mm deep at most, {np.mean(d > 0) * 100:.2f} % of samples inside")
         worst, frac = max(worst, float(d.max())), max(frac, float(np.mean(d > 0)))
     assert worst < PENETRATION_BOUND_M[style] and frac < INSIDE_FRACTION_BOUND[style], (style, worst, frac)
 
