@@ -226,9 +226,9 @@ def _grow(style: str, st: StrandStyle, sc: Scalp, feats: BodyFeatures, under: np
             elif target is not None:
                 # Reached when over the target on the scalp (within 1 cm across): a target under the strand's layer
                 # is never within 1 cm, and such a strand would circle above it until the loop ends.
-                u_p = p[on] / np.linalg.norm(p[on], axis=1, keepdims=True)
+                r_p = np.linalg.norm(p[on], axis=1, keepdims=True)
                 u_t = target[on] / np.linalg.norm(target[on], axis=1, keepdims=True)
-                near = np.linalg.norm(u_p - u_t, axis=1) * np.linalg.norm(p[on], axis=1) < 0.01
+                near = np.linalg.norm(p[on] / r_p - u_t, axis=1) * r_p[:, 0] < 0.01
                 mode[idx[near]] = 2
             else:
                 stop = (a_on >= length[on]) | (en < sc.hairline_at(tn) - 0.12)
