@@ -289,7 +289,7 @@ HOOD = HoodCut()
 # around and along, half the steps (~1/8 of the work): the draft preset's, for quick looks, the demo and tests
 # (bench/bench_drape_cost.py measures both).
 DRAPE_LEVELS = ("full", "coarse")
-_HOOD_FABRIC = dict(density=0.3, tri_ke=1.0e5, tri_ka=1.0e5, edge_ke=0.1, contact_ke=1.0e5, clearance=HOOD_CLEARANCE)
+_HOOD_FABRIC = dict(density=0.3, tri_ke=1.0e5, tri_ka=1.0e5, edge_ke=0.1, contact_ke=2.0e5, clearance=HOOD_CLEARANCE)
 _SETTINGS = {
     ("draped_skirt", "full"): DrapeSettings(),
     ("draped_dress", "full"): DrapeSettings(n_rings=36, contact_ke=5.0e4),
@@ -314,8 +314,11 @@ _SETTINGS = {
                                                clearance=TSHIRT_CLEARANCE, flare=0.12),
     # The hood: a heavier, firmer knit (sweatshirt fleece: 0.3 kg/m^2, ten times the skirt's membrane stiffness and a
     # hundred times its bending stiffness), so it sags less and folds in rounder rolls; 32 x 24 particles (~1.5 cm
-    # apart), contact found every step and twice the dress's contact stiffness (it rests on the shoulders' slope; at
-    # 5e4 particles came to 1.5 mm off the skin, under the shell), its collider keeping the upper arms
+    # apart), contact found every step and the fleece's contact stiffness, 2e5, as its body and sleeves have (it
+    # rests on the shoulders' slope; at 5e4 particles came to 1.5 mm off the skin, under the shell; at 1e5, to 6
+    # December, the slim test body's particle next to the pinned ring over the right trapezius was pressed into the
+    # skin by the stretched first row and stayed there, 1.1 mm in, its triangles folded over: 2e5 holds it 10 mm
+    # off), its collider keeping the upper arms
     # (`collider_faces`: without them a heavy body's hood corners sank 6 mm into the deltoids). The coarse level
     # keeps 16 rows (with 12 a corner next to the pinned ring fell 12 mm into the shoulder; measured before the ring
     # was put on the neckline) and the full level's 300 steps
@@ -339,15 +342,15 @@ _SETTINGS[("draped_sleeves", "coarse")] = DrapeSettings(n_around=16, n_rings=5, 
 # (~1.2-1.6 cm apart) over their 33-43 cm from the ring to the hem; coarse, 16 x 10.
 _SETTINGS[("draped_long_sleeves", "full")] = dataclasses.replace(_SETTINGS["draped_sleeves", "full"], n_rings=28)
 _SETTINGS[("draped_long_sleeves", "coarse")] = dataclasses.replace(_SETTINGS["draped_sleeves", "coarse"], n_rings=10)
-# The hoodie's sleeves (`draped_hoodie_sleeves`): the long sleeves' cut, particles and contact in the hood's fleece
-# (half as heavy again, a tenfold stiffer membrane, bending a hundredfold stiffer than the jersey's), and a contact
-# four times the jersey sleeves' (2e5): at their 5e4 the heavier, stiffer tube's coarse drape put a particle 2.8 mm
+# The hoodie's sleeves (`draped_hoodie_sleeves`): the long sleeves' cut and particles in the hood's fleece (`_FLEECE`:
+# half as heavy again, a tenfold stiffer membrane, bending a hundredfold stiffer than the jersey's, and a contact
+# four times the jersey sleeves', 2e5): at their 5e4 the heavier, stiffer tube's coarse drape put a particle 2.8 mm
 # into the slim test body's forearm (tests/test_sleeves.py's coarse drape keeps every particle half its radius off). The
 # particle radius stays the sleeves' (the hood's 14 mm is for lying over the shell's back, not round an arm).
-_FLEECE = {k: _HOOD_FABRIC[k] for k in ("density", "tri_ke", "tri_ka", "edge_ke")}
+_FLEECE = {k: _HOOD_FABRIC[k] for k in ("density", "tri_ke", "tri_ka", "edge_ke", "contact_ke")}
 for _level in ("full", "coarse"):
     _SETTINGS[("draped_hoodie_sleeves", _level)] = dataclasses.replace(_SETTINGS["draped_long_sleeves", _level],
-                                                                       contact_ke=2.0e5, **_FLEECE)
+                                                                       **_FLEECE)
 # The open coat's sleeves (`draped_coat_sleeves`): the long sleeves' particles and fabric (the coat's panels are
 # simulated in the same default fabric), the coat's particle radius, so the drape keeps them over the top's shell
 # sleeve (6 mm off the arm) as the panels keep over the clothes under them; pushed out to the coat's 12 mm posed.
@@ -363,12 +366,11 @@ PUSH_CLEARANCES["draped_longsleeve"] = PUSH_CLEARANCES["draped_tshirt"]
 _SETTINGS.update({("draped_longsleeve", level): _SETTINGS["draped_tshirt", level] for level in DRAPE_LEVELS})
 # The hoodie's body (`draped_hoodie_body`, since 6 December; a shell cut like the longsleeve's before, which showed
 # the body's shape under a hood and sleeves of loose fleece): the loose t-shirt's cut, clearances and particles in
-# the hood's fleece, with the fleece sleeves' contact stiffness (2e5: the heavier cloth rests on the hips' slope
-# and on a draped bottom's waistband, where the jersey's 5e4 is the light cloth's).
+# the hood's fleece, its contact stiffness included (2e5: the heavier cloth rests on the hips' slope and on a draped
+# bottom's waistband, where the jersey's 5e4 is the light cloth's).
 PROFILES["draped_hoodie_body"] = PROFILES["draped_tshirt"]
 PUSH_CLEARANCES["draped_hoodie_body"] = PUSH_CLEARANCES["draped_tshirt"]
-_SETTINGS.update({("draped_hoodie_body", level): dataclasses.replace(_SETTINGS["draped_tshirt", level],
-                                                                     contact_ke=2.0e5, **_FLEECE)
+_SETTINGS.update({("draped_hoodie_body", level): dataclasses.replace(_SETTINGS["draped_tshirt", level], **_FLEECE)
                   for level in DRAPE_LEVELS})
 # The loose shorts: the wide trousers' settings with half their rings (the same ~2.7 cm spacing, coarse ~6 cm, over
 # their ~45 cm).
