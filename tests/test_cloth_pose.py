@@ -324,7 +324,7 @@ def test_layer_depth_finds_the_open_edge_as_a_test_of_every_edge_would():
     (`cloth_pose._surface`'s k-d tree): on a wavy, unevenly meshed sheet with a hole, for points around and beyond
     its edges, it gives exactly the depths of the test of every closest point against every open edge."""
     from rh_dataset.characters.cloth_pose import RIM_TOLERANCE, layer_depth
-    from rh_dataset.characters.drape import _closest
+    from rh_dataset.characters.drape import closest_on_surface
     from rh_dataset.characters.geometry import edge_counts
 
     rng = np.random.default_rng(7)
@@ -341,7 +341,7 @@ def test_layer_depth_finds_the_open_edge_as_a_test_of_every_edge_would():
     pts = rng.uniform(lo, hi, (3000, 3))
     got = layer_depth(pts, v, f, near=0.05)
 
-    depth, closest, _ = _closest(v, f, pts)
+    depth, closest, _ = closest_on_surface(v, f, pts)
     edges, counts = edge_counts(f)
     rim = edges[counts == 1]
     ra, rd = v[rim[:, 0]], v[rim[:, 1]] - v[rim[:, 0]]

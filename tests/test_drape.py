@@ -132,9 +132,9 @@ def test_push_out_clears_points_sunk_into_the_skin(monkeypatch):
     assert penetration(v, faces, out).max() < 0.0
     # push_out searches only the skin near the points (one search tree, PUSH_REACH): the closest points on the whole
     # body, but for a point equally close to two faces, which the smaller search may order otherwise (1e-18 m seen).
-    from rh_dataset.characters.drape import _closest
+    from rh_dataset.characters.drape import closest_on_surface
 
-    d, closest, cn = _closest(v, faces, sunk, n)
+    d, closest, cn = closest_on_surface(v, faces, sunk, n)
     bad = d > -PUSH_CLEARANCE + 1e-6
     whole = sunk.copy()
     whole[bad] = closest[bad] + PUSH_CLEARANCE * cn[bad]

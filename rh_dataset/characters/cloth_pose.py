@@ -505,10 +505,11 @@ def _surface(vertices: np.ndarray, faces: np.ndarray) -> _Surface:
 def _layer_closest(points, surface: _Surface, near: float, triangles: bool = False):
     """`layer_depth`'s (depth, closest surface points (P, 3), unit interpolated normals there (P, 3)) on `surface`
     (`_surface`), and with `triangles` the faces the closest points lie on (P,) as a fourth."""
-    from .drape import _closest
+    from .drape import closest_on_surface
 
     v, a, d = surface.vertices, surface.rim_a, surface.rim_d
-    depth, closest, normal, tri = _closest(v, surface.faces, points, surface.normals, surface.mesh, triangles=True)
+    depth, closest, normal, tri = closest_on_surface(v, surface.faces, points, surface.normals, surface.mesh,
+                                                     triangles=True)
     on_rim = np.zeros(len(closest), bool)
     if len(a):
         # A closest point can lie on an open edge only within the longest half edge (and the tolerance) of that
@@ -697,7 +698,7 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
     other limb. Vertices at the same position (a seam's duplicated column) move together. The moved points are then
     pushed out of the skin again at `clearance` (`drape.push_out`, as the caller pushed them before: a lift can carry
     cloth into another limb); the others are returned bit for bit."""
-    from .drape import _closest
+    from .drape import closest_on_surface
 
     if way not in LIFT_WAYS:
         raise ValueError(f"lift_over_skin: way must be one of {LIFT_WAYS}, got {way!r}")
@@ -721,7 +722,7 @@ def lift_over_skin(points: np.ndarray, faces: np.ndarray, inside: np.ndarray, bo
         # The closest cloth points of all the skin, then the open-edge test (`layer_depth`'s) for the few near it,
         # both on the one search tree.
         surface = _surface(v, f)
-        depth, closest, _ = _closest(v, f, skin, surface.normals, surface.mesh)
+        depth, closest, _ = closest_on_surface(v, f, skin, surface.normals, surface.mesh)
         sel = np.flatnonzero((depth < 0.0) & (np.linalg.norm(skin - closest, axis=1) <= reach))
         if len(sel):
             depth, _, normal, tri = _layer_closest(skin[sel], surface, reach, triangles=True)

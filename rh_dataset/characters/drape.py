@@ -54,7 +54,8 @@ __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "dra
            "SHELLS_UNDER", "SLEEVE_GROUPS", "shells_under", "SHELL_TOPS", "BOTTOMS_UNDER",
            "DrapeProfile", "PROFILES", "drape_settings", "DRAPE_LEVELS",
            "bind_to_skeleton", "bind_loose", "loose_iterations", "skin_points", "drape_cache_dir", "DRAPE_VERSION",
-           "draped_part", "penetration", "push_out", "push_clearance", "PUSH_CLEARANCES", "collider_faces",
+           "draped_part", "penetration", "closest_on_surface", "push_out", "push_clearance", "PUSH_CLEARANCES",
+           "collider_faces",
            "cloth_model", "cloth_solver", "binding_faces", "SLEEVE_CLEARANCE",
            "shell_hem", "shell_hems", "ring_height", "hanging_surface", "HangingSurface", "BRIDGE_BAND",
            "piece_settings", "BUST_UNDER_NOT",
@@ -839,7 +840,7 @@ def _hood_pattern(phenotype: dict[str, float], st: DrapeSettings, cut: HoodCut =
     centre = np.array([heads["neck01"][0], heads["neck01"][1], neck[:, 2].mean()], np.float64)
     idx, w = hull_anchors(neck, np.arange(len(neck)), centre, ang[0])
     on_skin = (neck[idx] * w[..., None]).sum(1)
-    _, closest, normal = _closest(body, faces_all, on_skin)
+    _, closest, normal = closest_on_surface(body, faces_all, on_skin)
     ring = closest + gap * normal
     ring_r = np.linalg.norm(ring[:, :2] - centre[:2], axis=1)
     head_r = 1.0 / np.sqrt((np.sin(ang) / cut.width) ** 2 + (np.cos(ang) / cut.depth) ** 2)
@@ -860,7 +861,7 @@ def _hood_pattern(phenotype: dict[str, float], st: DrapeSettings, cut: HoodCut =
     # Anything the laid-back shape brings within the gap of the body (the hood's collider: forearms and hands left
     # out) is put `gap` off it, so the simulation starts clear.
     cf = collider_faces(phenotype, "draped_hoodie")
-    depth, closest, n = _closest(body, cf, verts)
+    depth, closest, n = closest_on_surface(body, cf, verts)
     near = depth > -gap
     near[:na] = False
     verts[near] = closest[near] + gap * n[near]
@@ -1188,7 +1189,7 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
     moved = np.zeros(len(p), bool)
     pushed = np.zeros_like(p)  # the sum of the normals each point was pushed along
     for r in range(rounds + 1):
-        depth, closest, n = _closest(v, local, p[todo], body_normals, mesh=mesh)
+        depth, closest, n = closest_on_surface(v, local, p[todo], body_normals, mesh=mesh)
         bad = (depth > -clearance + 1e-6) & (np.abs(depth) < PUSH_REACH)
         todo = todo[bad]
         if not len(todo) or r == rounds:
@@ -1232,7 +1233,7 @@ def _walk_out(p: np.ndarray, depth: np.ndarray, pushed: np.ndarray, v: np.ndarra
     for k in range(1, WALK_STEPS + 1):
         w = ways[todo]
         q = p[todo, None] + (0.5 * clearance * k) * w  # (T, 27, 3)
-        depth = _closest(v, faces, q.reshape(-1, 3), normals, mesh=mesh)[0].reshape(len(todo), -1)
+        depth = closest_on_surface(v, faces, q.reshape(-1, 3), normals, mesh=mesh)[0].reshape(len(todo), -1)
         clear = depth <= -clearance + 1e-6
         # The clear way nearest the bisector (the bisector itself if it is clear), else the way farthest out.
         nearest = np.argmax(np.where(clear, (w * w[:, :1]).sum(-1), -2.0), axis=1)
@@ -1634,7 +1635,7 @@ def _pieces_render_mesh(g: DrapedGarment):
     return np.concatenate(src), np.concatenate(faces), uvs, mpu
 
 
-def _closest(body_vertices, body_faces, points, body_normals=None, mesh=None, triangles: bool = False):
+def closest_on_surface(body_vertices, body_faces, points, body_normals=None, mesh=None, triangles: bool = False):
     """(depth (P,) > 0 inside, closest surface points (P, 3), unit interpolated normals there (P, 3)), and with
     `triangles` the index of the face each closest point lies on (P,) as a fourth. `mesh`: the trimesh of
     (body_vertices, body_faces) if the caller has one (its search tree is reused)."""
@@ -1665,4 +1666,4 @@ def penetration(body_vertices: np.ndarray, body_faces: np.ndarray, points: np.nd
     the closest surface point (trimesh), signed by the body's vertex normals interpolated there. trimesh's own
     `signed_distance` decides the sign by casting rays, ~30x slower here; for points near the skin, which is where
     cloth is, the interpolated normal gives the same answer (tests/test_drape.py compares them)."""
-    return _closest(body_vertices, body_faces, points)[0]
+    return closest_on_surface(body_vertices, body_faces, points)[0]

@@ -65,7 +65,7 @@ def _rotate(p: np.ndarray, centre: np.ndarray, axis: int, angle: float) -> np.nd
 
 def _left_side(feats: BodyFeatures) -> list[tuple[np.ndarray, float]]:
     """Paths and radii of the left half (x > 0): rim, half the bridge, nose pad, temple."""
-    from .drape import _closest
+    from .drape import closest_on_surface
 
     v = feats.rest_vertices
     faces = body_topology().faces
@@ -82,7 +82,7 @@ def _left_side(feats: BodyFeatures) -> list[tuple[np.ndarray, float]]:
     rim = _rotate(rim, centre, 2, np.radians(-6.0))
     # Forward until the whole rim clears brow, cheeks and the sides of the nose (trimesh closest points).
     for _ in range(8):
-        depth = _closest(v, faces, rim, feats.rest_normals)[0]
+        depth = closest_on_surface(v, faces, rim, feats.rest_normals)[0]
         need = float((RIM_RADIUS + CLEAR) + depth.max())
         if need <= 0.0:
             break
@@ -103,7 +103,7 @@ def _left_side(feats: BodyFeatures) -> list[tuple[np.ndarray, float]]:
     # A nose pad: from the rim's inner lower edge to the side of the nose.
     low = rim[np.argmin(np.where(rim[:, 2] < centre[2] - 0.1 * b, rim[:, 0], np.inf))]
     start = low + np.array([0.0, 0.002, 0.0])
-    _, q, n = _closest(v, faces, start[None], feats.rest_normals)
+    _, q, n = closest_on_surface(v, faces, start[None], feats.rest_normals)
     end = q[0] + (PAD_RADIUS + CLEAR) * n[0]
     if np.linalg.norm(end - start) > 0.002:
         paths.append((start + np.linspace(0.0, 1.0, 4)[:, None] * (end - start), PAD_RADIUS))

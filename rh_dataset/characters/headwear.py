@@ -213,7 +213,7 @@ def _hat(feats: BodyFeatures, sc: Scalp):
 
 
 def _scarf(feats: BodyFeatures, sc: Scalp, under: np.ndarray):
-    from .drape import _closest
+    from .drape import closest_on_surface
 
     c, z_eye = sc.centre, sc.z_eye
     v = feats.rest_vertices
@@ -280,7 +280,7 @@ def _scarf(feats: BodyFeatures, sc: Scalp, under: np.ndarray):
     near = np.flatnonzero(w > 0)
     from .body import body_topology
 
-    _, q, n = _closest(v, body_topology().faces, verts[near], feats.rest_normals)
+    _, q, n = closest_on_surface(v, body_topology().faces, verts[near], feats.rest_normals)
     from scipy.spatial import cKDTree
 
     cloth = under[cKDTree(v).query(q)[1]]  # a collar under the edge: stay outside it too
