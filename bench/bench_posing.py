@@ -14,8 +14,8 @@ bytes, in part order): two checkouts whose posing code differs only in speed pri
 commit, copy this script into a checkout of it (with bench_cloth_pose.py, for its subjects and poses) and run it
 there, in turn with this one (sys.path takes the script's own checkout); compare the ratios within one sitting,
 since a shared machine's load moves the seconds. The load average is printed. `--save` writes every posed mesh's
-vertices (float32) to an .npz; `--against` reads one back and prints, per frame, each part whose vertices differ:
-the largest displacement and how many vertices moved more than 1 um and 0.1 mm.
+vertices and every posed strands' control points (float32) to an .npz; `--against` reads one back and prints, per
+frame, each part whose points differ: the largest displacement and how many points moved more than 1 um and 0.1 mm.
 """
 from __future__ import annotations
 
@@ -46,7 +46,8 @@ def fingerprint(posed, digest) -> None:
 
 
 def compare(meshes: dict[str, np.ndarray], old: dict[str, np.ndarray]) -> list[str]:
-    """Per posed mesh, how it differs from the same mesh in `old`: nothing where the bits agree."""
+    """Per posed mesh or strands (their control points), how it differs from the same in `old`: nothing where the
+    bits agree."""
     out = []
     for key, v in meshes.items():
         if key not in old or old[key].shape != v.shape:
@@ -65,8 +66,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--subjects", default="2,14", help="comma-separated protocol a subject indices")
     ap.add_argument("--poses", type=int, default=2, help="test poses per subject besides the rest pose")
     ap.add_argument("--repeats", type=int, default=3, help="posings of each frame whose median is taken")
-    ap.add_argument("--save", type=Path, help="write the posed meshes' vertices to this .npz")
-    ap.add_argument("--against", type=Path, help="compare the posed meshes with this .npz (from --save)")
+    ap.add_argument("--save", type=Path, help="write the posed meshes' vertices and strands' points to this .npz")
+    ap.add_argument("--against", type=Path, help="compare the posed meshes and strands with this .npz (from --save)")
     args = ap.parse_args(argv)
     try:
         subjects = [int(x) for x in args.subjects.split(",") if x]
@@ -101,7 +102,8 @@ def main(argv: list[str] | None = None) -> int:
             secs += statistics.median(times)
             fingerprint(posed, digest)
             fingerprint(posed, everything)
-            meshes = {f"{s}/{i}/{m.name}": np.asarray(m.vertices, np.float32) for m in posed if hasattr(m, "faces")}
+            meshes = {f"{s}/{i}/{m.name}": np.asarray(m.vertices if hasattr(m, "faces") else m.points,
+                                                      np.float32).reshape(-1, 3) for m in posed}
             saved.update(meshes)
             if old is not None:
                 print(f"  subject {s} frame {i}: " + "; ".join(compare(meshes, old)))

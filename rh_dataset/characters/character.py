@@ -40,7 +40,7 @@ from .drape import (BOTTOMS_UNDER, DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYE
 from .eyes import eye_geometry
 from .geometry import split_faces, unique_rows
 from .face_hair import build_brows, build_lashes
-from .hair import build_hair
+from .hair import PUSHED_GROUPS, build_hair, push_out_of_body
 from .headwear import build_headwear, press_hair
 from .hair_fibre import HairFibre, fibres_for_colour
 from .recipe import CharacterRecipe
@@ -539,8 +539,12 @@ def pose_character(
     _tuck_inner_layers(character, posed, cloth_under, verts, normals, topo.faces)
     _shell_under_panels(character, posed, cloth_under, verts, normals, topo.faces)
     _bottoms_under_shell_top(posed, cloth_under, verts, normals, topo.faces)
+    # Strands are bound, not simulated: an arm swung into hanging hair, or a trunk turned into it, is taken back out
+    # of it (`push_out_of_body`).
+    below_neck = group_mask(ANNY_TOPOLOGY, *PUSHED_GROUPS)[topo.faces].all(axis=1) if character.strands else None
     for h in character.strands:
-        pts = anchor_points(verts, normals, h.blend_vertices, h.blend_weights, h.offset).reshape(*h.radius.shape, 3)
+        pts = anchor_points(verts, normals, h.blend_vertices, h.blend_weights, h.offset)
+        pts = push_out_of_body(pts, verts, normals, topo.faces, below_neck).reshape(*h.radius.shape, 3)
         posed.append(PosedStrands(h.name, _ro(pts, np.float32), h.radius, h.fibre))
     return posed
 

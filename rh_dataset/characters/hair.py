@@ -17,7 +17,8 @@ Growth (all strands marched together, 2.5 mm steps):
 - then waves (outward only), clumping towards the guide strand nearest along the whole strand, and frizz (both
   growing towards the tip).
 The binding region is the head and neck for short styles (they move rigidly with the head) and head, neck, trunk,
-shoulders and upper arms for hanging ones (they bend with the neck and shoulders).
+shoulders and upper arms for hanging ones (they bend with the neck and shoulders). Posed, control points that an arm
+or the trunk took under the skin below the neck are put back outside it (`push_out_of_body`).
 """
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ from .body_features import BodyFeatures
 from .geometry import bind_points, smoothstep, surface_clearance
 from .scalp import Scalp, directions, hang_envelope, sample_envelope, scalp
 
-__all__ = ["StrandStyle", "STRAND_STYLES", "StrandGeometry", "build_hair", "STEP"]
+__all__ = ["StrandStyle", "STRAND_STYLES", "StrandGeometry", "build_hair", "STEP", "push_out_of_body", "PUSHED_GROUPS",
+           "BODY_CLEARANCE"]
 
 STEP = 0.0025  # metres per growth step
 _BLEND_KEEP = 16  # blend weights kept per control point (the largest; renormalised)
@@ -362,3 +364,46 @@ def build_hair(style: str, feats: BodyFeatures, rng: np.random.Generator, topolo
     bv, bw, off = _bind(pts.reshape(-1, 3), feats, region, under, 0.02 if short else 0.035)
     return StrandGeometry(style=style, rest=pts.astype(np.float32), radius=radius.astype(np.float32),
                           blend_vertices=bv, blend_weights=bw, offset=off)
+
+
+
+# Posed strands are kept out of the body below the neck (`push_out_of_body`): BODY_CLEARANCE off the skin of these
+# bone groups where a control point came under it. Head and neck are left out: roots sit on the scalp, and a strand
+# leaving it may dip a millimetre or two under the skin between its control points by design (tests/test_hair.py).
+PUSHED_GROUPS = ("torso", "shoulder", "upperarm", "lowerarm", "hand", "upperleg", "lowerleg", "foot")
+BODY_CLEARANCE = 0.002  # metres
+_UNDER_TANGENT = 0.0005  # metres over the nearest vertex's tangent plane below which a point is looked at exactly
+_REACH = 0.05  # metres around the looked-at points in which skin is searched (deeper than a point lies in a limb)
+
+
+def push_out_of_body(points: np.ndarray, vertices: np.ndarray, normals: np.ndarray, faces: np.ndarray,
+                     pushed_faces: np.ndarray, clearance: float = BODY_CLEARANCE) -> np.ndarray:
+    """Posed strands' control points (P, 3) that lie under the posed skin (`vertices`, `normals`, `faces`) where the
+    nearest skin is one of `pushed_faces` ((F,) bool over `faces`: PUSHED_GROUPS'), put back `clearance` off it
+    (`drape.push_out` over the whole body, so a point taken out of an arm pressed against the trunk does not land in
+    the trunk). Why: hanging hair is bound to head, neck, trunk, shoulders and upper arms (`build_hair`), not
+    simulated; an arm swinging forward or back (a reach, a walk) passed through the strands hanging over it, and a
+    trunk bent or turned under the neck took strands lying on the chest into it (6 December: up to 21 mm deep,
+    tests/test_hair.py). At rest no control point lies under that skin (the binding keeps them 1.5 mm off), so rest
+    frames, and every point not moved, keep their bits. Only points within _UNDER_TANGENT of their nearest body
+    vertex's tangent plane, or under it, are looked at exactly."""
+    from .drape import closest_on_surface, push_out
+
+    p = np.asarray(points, np.float64)
+    v = np.asarray(vertices, np.float64)
+    n = np.asarray(normals, np.float64)
+    f = np.asarray(faces)
+    nearest = cKDTree(v).query(p)[1]
+    pushed_vertices = np.zeros(len(v), bool)
+    pushed_vertices[f[pushed_faces].ravel()] = True
+    cand = np.flatnonzero((((p - v[nearest]) * n[nearest]).sum(1) < _UNDER_TANGENT) & pushed_vertices[nearest])
+    if not len(cand):
+        return p
+    c0, c1, c2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    lo, hi = p[cand].min(0) - _REACH, p[cand].max(0) + _REACH
+    near = ((np.maximum(np.maximum(c0, c1), c2) >= lo) & (np.minimum(np.minimum(c0, c1), c2) <= hi)).all(1)
+    depth, _, _, tri = closest_on_surface(v, f[near], p[cand], n, triangles=True)
+    inside = cand[(depth > 0.0) & pushed_faces[near][tri]]
+    if len(inside):
+        p[inside] = push_out(p[inside], v, n, f, clearance)
+    return p
