@@ -46,7 +46,8 @@ from rh_common.imageio import atomic_path
 
 from .body import PHENOTYPE_LABELS, body_topology, run_anny
 from .body_features import body_features
-from .geometry import closest_point, edge_counts, hull_anchors, metre_uvs, query_mesh, seamed_grid, smoothstep
+from .geometry import (closest_point, edge_counts, faces_in_box, hull_anchors, metre_uvs, query_mesh, seamed_grid,
+                       smoothstep)
 from .sleeves import SLEEVE_CUTS, sleeve_pattern, sleeves_render_mesh
 
 __all__ = ["DRAPED_KINDS", "DrapeSettings", "DrapedGarment", "SkinBinding", "drape_garment", "garment_pattern",
@@ -1179,9 +1180,7 @@ def push_out(points: np.ndarray, body_vertices: np.ndarray, body_normals: np.nda
         return p
     v = np.asarray(body_vertices, np.float64)
     f = np.asarray(body_faces)
-    c0, c1, c2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]  # elementwise over the corners: ~3x a reduce over axis 1
-    lo, hi = p.min(axis=0) - PUSH_REACH, p.max(axis=0) + PUSH_REACH
-    local = f[((np.maximum(np.maximum(c0, c1), c2) >= lo) & (np.minimum(np.minimum(c0, c1), c2) <= hi)).all(axis=1)]
+    local = f[faces_in_box(v, f, p.min(axis=0) - PUSH_REACH, p.max(axis=0) + PUSH_REACH)]
     if not len(local):
         return p
     mesh = query_mesh(v, local)

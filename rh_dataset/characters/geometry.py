@@ -5,7 +5,8 @@ In: anny's topology (by name), vertex/normal arrays and index selections. Out: s
 level set when asked), per-vertex distances (`boundary_distance`, `surface_clearance`), a mesh's open edges as loops and
 their roughness (`boundary_loops`, `edge_roughness`), distinct rows and each row's index among them (`unique_rows`: the
 welds of seam copies), ray distances to a mesh (`first_hit`, trimesh), a trimesh for closest-point and ray queries whose
-rays' search tree is bulk-loaded on first use (`query_mesh`), exact closest points on a mesh (`closest_point`, libigl),
+rays' search tree is bulk-loaded on first use (`query_mesh`), exact closest points on a mesh (`closest_point`, libigl)
+and the faces a box touches, to search only those (`faces_in_box`),
 blend weights that make a point follow the posed body (`hull_anchors`, `smoothing_weights`, `bind_points` -> `Binding`),
 compacted meshes (`drop_unreferenced`), the texel -> (face, barycentrics) map of anny's UV layout (`uv_raster`), capped
 tubes (`closed_tube`) and the smoothstep every cut and fade blends with (`smoothstep`). Body features (bone groups,
@@ -30,6 +31,7 @@ from .body_features import BodyFeatures
 __all__ = [
     "smoothstep",
     "closest_point",
+    "faces_in_box",
     "edge_counts",
     "unique_rows",
     "SplitMesh",
@@ -596,6 +598,15 @@ def closest_point(mesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
         mesh._cache["rh_igl_aabb"] = tree
     sq, tri, closest = tree.squared_distance(v, f, p)
     return closest, np.sqrt(sq), _facing_face(mesh, p, closest, tri)
+
+
+def faces_in_box(vertices: np.ndarray, faces: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(F,) bool: the faces whose bounding boxes meet the box [lo, hi] (3,) each. Closest-point queries of points
+    in a region search only these (with the box grown by how far the answer can lie), not the whole body."""
+    v = np.asarray(vertices)
+    f = np.asarray(faces)
+    c0, c1, c2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]  # elementwise over the corners: ~3x a reduce over axis 1
+    return ((np.maximum(np.maximum(c0, c1), c2) >= lo) & (np.minimum(np.minimum(c0, c1), c2) <= hi)).all(axis=1)
 
 
 def _facing_face(mesh, points: np.ndarray, closest: np.ndarray, tri: np.ndarray, tol: float = 1e-6) -> np.ndarray:

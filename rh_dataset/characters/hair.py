@@ -30,7 +30,7 @@ from scipy.spatial import cKDTree
 from rh_common.body_model import ANNY_TOPOLOGY
 
 from .body_features import BodyFeatures
-from .geometry import bind_points, smoothstep, surface_clearance
+from .geometry import bind_points, faces_in_box, smoothstep, surface_clearance
 from .scalp import Scalp, directions, hang_envelope, sample_envelope, scalp
 
 __all__ = ["StrandStyle", "STRAND_STYLES", "StrandGeometry", "build_hair", "STEP", "push_out_of_body", "PUSHED_GROUPS",
@@ -399,9 +399,7 @@ def push_out_of_body(points: np.ndarray, vertices: np.ndarray, normals: np.ndarr
     cand = np.flatnonzero((((p - v[nearest]) * n[nearest]).sum(1) < _UNDER_TANGENT) & pushed_vertices[nearest])
     if not len(cand):
         return p
-    c0, c1, c2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    lo, hi = p[cand].min(0) - _REACH, p[cand].max(0) + _REACH
-    near = ((np.maximum(np.maximum(c0, c1), c2) >= lo) & (np.minimum(np.minimum(c0, c1), c2) <= hi)).all(1)
+    near = faces_in_box(v, f, p[cand].min(0) - _REACH, p[cand].max(0) + _REACH)
     depth, _, _, tri = closest_on_surface(v, f[near], p[cand], n, triangles=True)
     inside = cand[(depth > 0.0) & pushed_faces[near][tri]]
     if len(inside):
