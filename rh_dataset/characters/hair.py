@@ -389,7 +389,7 @@ def push_out_of_body(points: np.ndarray, vertices: np.ndarray, normals: np.ndarr
     vertex's tangent plane, or under it, are looked at exactly."""
     from .drape import closest_on_surface, push_out
 
-    p = np.asarray(points, np.float64)
+    p = np.array(points, np.float64)  # a copy: the caller's points are not moved in place
     v = np.asarray(vertices, np.float64)
     n = np.asarray(normals, np.float64)
     f = np.asarray(faces)
