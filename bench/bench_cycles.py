@@ -11,22 +11,33 @@ filter one pixel wide, no denoiser, no adaptive sampling, no clamping, no glossy
 
 Materials: the timed comparison uses the **Lambertian variant** of the frame on both sides (every part a diffuse
 BSDF with its albedo texture, one-sided where ours is one-sided), where the physics is identical, so both renderers
-converge to the same image and one converged reference serves both: Mitsuba at --ref-spp spp (same max depth).
+should converge to the same image: Mitsuba at --ref-spp spp (same max depth) is the shared reference of the agreement
+check. They do not quite: at the silhouettes of smooth-shaded cloth seen edge-on (shading and geometric normals
+disagreeing) the two renderers shade a few pixels differently (measured 7 December 2026 on the draped dress: 1 % of
+the person's pixels held 90 % of the converged difference, Cycles 2-3x brighter on one side of the dress and up to
+10x darker on the other). That floor is a convention, not noise, so each renderer's sweep is scored against its own
+converged render (--cycles-ref-spp on each side, each with its own sampler: Mitsuba's the standard preset's, every
+pixel at full spp): the equal-error ratio compares how fast each one's noise falls, which is what the samplers and
+the focusing decide. Each reference's own noise is left in (both QMC at the same count, so both curves flatten
+alike); the Cycles errors against the shared Mitsuba reference are printed beside them.
 The principled variant (Mitsuba `principled` vs Cycles' Principled BSDF) is rendered near convergence on both
 sides and its systematic difference reported, not timed against a common reference (the two BSDF models differ).
 
 Reported, per scene:
   agreement  converged Cycles (--cycles-ref-spp) vs the Mitsuba reference: relMSE and display-space PSNR over the
              evaluator's person region (bench_tradeoff.Scorer), per-channel mean radiance over the mask (ratio),
-             the background (environment seen directly), the mask IoU (Cycles alpha vs Mitsuba coverage), and, as
-             the noise baseline, an independent Mitsuba render at the same spp against the same reference;
+             the background (environment seen directly), the mask IoU (Cycles alpha vs Mitsuba coverage), the
+             share of the person's pixels that holds 90 % of the difference, and, as the noise baseline, an
+             independent Mitsuba render at the same spp against the same reference;
   sweep      spp 1..--max-spp for both renderers, render time only (Mitsuba: the beauty pass with the standard
              preset's sampler and focusing, plus the coverage pass focusing needs, scene load excluded; Cycles:
              first sample to 'Finished', scene sync/BVH excluded, both reported apart),
-             median of --repeats, relMSE averaged over the repeats' independent seeds;
+             median of --repeats, relMSE averaged over the repeats' independent seeds, each renderer against its
+             own converged render (and Cycles also against Mitsuba's);
   ratio      the equal-error time ratio t_Mitsuba / t_Cycles at stated relMSE levels (default: the errors Mitsuba
              reaches at draft's spp, 64 and standard's spp, which the sweep includes), interpolated linearly in
-             log(time)-log(relMSE) between the measured points, and from power-law fits (spp >= 4);
+             log(time)-log(relMSE) between the measured points ("not reached" where a sweep never gets there),
+             and from power-law fits (spp >= 4);
   samples/s  pixels x spp / render time at the largest spp.
 Machine shared with other jobs: read absolute seconds as +-30 %, ratios from one run as the figure.
 """
@@ -148,6 +159,15 @@ def equal_error_time(times, errors, level: float) -> float:
     return float(t[0])
 
 
+def _finite(x: float) -> float | None:
+    """x, or None where it is NaN (a level a sweep never reached): the JSON then says null, not an invalid NaN."""
+    return None if math.isnan(x) else float(x)
+
+
+def _or_unreached(x: float):
+    return "not reached" if math.isnan(x) else x
+
+
 def power_fit(times, errors) -> tuple[float, float]:
     """(a, s) of log error = a + s log time (least squares)."""
     s, a = np.polyfit(np.log(np.asarray(times, float)), np.log(np.asarray(errors, float)), 1)
@@ -174,20 +194,26 @@ def agreement(img: np.ndarray, ref: np.ndarray, mask: np.ndarray, exposure: floa
     x, r = img.astype(np.float64) * exposure, ref.astype(np.float64) * exposure
     m_img, m_ref = x[inside].mean(0), r[inside].mean(0)
 
-    def rel(sel):
-        return float(np.mean((x[sel] - r[sel]) ** 2 / (r[sel] ** 2 + bt.RELMSE_EPS)))
+    def per_pixel(sel):
+        return np.mean((x[sel] - r[sel]) ** 2 / (r[sel] ** 2 + bt.RELMSE_EPS), axis=-1)
 
-    return {"mean_ratio_rgb": (m_img / m_ref).tolist(), "relmse_mask": rel(inside),
-            "relmse_background": rel(bg) if bg.any() else float("nan")}
+    e = np.sort(per_pixel(inside))[::-1]
+    # The fewest pixels whose errors sum to 90 % of the total, as a share of the mask: ~0.8 for noise (spread over
+    # the person), ~0.01 where a few pixels are shaded differently (a convention, not noise).
+    k = int(np.searchsorted(np.cumsum(e), 0.9 * e.sum())) + 1 if e.sum() > 0 else 0
+    return {"mean_ratio_rgb": (m_img / m_ref).tolist(), "relmse_mask": float(e.mean()),
+            "share_for_90": k / max(len(e), 1),
+            "relmse_background": float(per_pixel(bg).mean()) if bg.any() else None}
 
 
 # ------------------------------------------------------------------------------------------------- main
 
-def _mitsuba_render(scene, spp, depth, seed, args):
+def _mitsuba_render(scene, spp, depth, seed, args, chunk: int | None = None):
     """Our beauty image with the sampler and focusing of args (the `standard` preset's by default); the seconds are
-    the beauty pass plus, when focused, the coverage pass it needs (in a dataset that pass is paid anyway)."""
-    lay, b, a, _ = bt.render(scene, ["image"], spp, depth, seed=seed, chunk=args.chunk_spp, sampler=args.sampler,
-                             env_spp=args.env_spp, aov_spp=args.aov_spp)
+    the beauty pass plus, when focused, the coverage pass it needs (in a dataset that pass is paid anyway). Rendered
+    in calls of at most `chunk` spp (default --chunk-spp)."""
+    lay, b, a, _ = bt.render(scene, ["image"], spp, depth, seed=seed, chunk=chunk or args.chunk_spp,
+                             sampler=args.sampler, env_spp=args.env_spp, aov_spp=args.aov_spp)
     return lay["image"], b + a
 
 
@@ -227,7 +253,14 @@ def run_scene(name: str, args, work: Path) -> dict:
                         threads=args.threads, camera_check=True, workdir=work)
     c_img = cyc["renders"][0]["image"]
     c_mask = cyc["renders"][1]["mask"]
-    m_img, _ = _mitsuba_render(diffuse, args.cycles_ref_spp, depth, 424242, args)
+    sc_cycles = bt.Scorer({"image": c_img, "mask": ref["mask"]}, diffuse.exposure)  # Cycles' own converged render
+    # Mitsuba's own converged render at the same count, with its own sampler (a QMC one, as Cycles' Sobol) and every
+    # pixel at full spp: the shared reference is `independent`, whose noise at 4096 spp is several times a
+    # multijitter render's and would flatten our sweep's tail more than Cycles' (measured: 2.6e-4 -> 1.75e-4 from 256
+    # to 528 spp on interior-apose against it, where the slope promised 1.1e-4).
+    m_img, _ = _mitsuba_render(diffuse, args.cycles_ref_spp, depth, 424242,
+                               SimpleNamespace(**{**vars(args), "env_spp": None}))
+    sc_mitsuba = bt.Scorer({"image": m_img, "mask": ref["mask"]}, diffuse.exposure)
     ag_c = {**agreement(c_img, ref["image"], ref["mask"], diffuse.exposure), **sc.beauty(c_img)}
     ag_m = {**agreement(m_img, ref["image"], ref["mask"], diffuse.exposure), **sc.beauty(m_img)}
     R["agreement"] = {"spp": args.cycles_ref_spp, "cycles": ag_c, "mitsuba_same_spp": ag_m,
@@ -236,14 +269,17 @@ def run_scene(name: str, args, work: Path) -> dict:
                       "camera_max_px_error": cyc["camera_max_px_error"], "blender": cyc["blender"],
                       "cycles_build_s": cyc["build_s"], "cycles_sync_s": cyc["renders"][0]["sync_s"]}
     rows = [[f"Cycles {args.cycles_ref_spp} spp", ag_c["relmse"], ag_c["psnr"], ag_c["relmse_mask"],
-             " / ".join(f"{v:.4f}" for v in ag_c["mean_ratio_rgb"]), ag_c["relmse_background"]],
+             f"{100 * ag_c['share_for_90']:.2f} %", " / ".join(f"{v:.4f}" for v in ag_c["mean_ratio_rgb"]),
+             ag_c["relmse_background"]],
             [f"Mitsuba {args.cycles_ref_spp} spp (noise baseline)", ag_m["relmse"], ag_m["psnr"], ag_m["relmse_mask"],
-             " / ".join(f"{v:.4f}" for v in ag_m["mean_ratio_rgb"]), ag_m["relmse_background"]]]
+             f"{100 * ag_m['share_for_90']:.2f} %", " / ".join(f"{v:.4f}" for v in ag_m["mean_ratio_rgb"]),
+             ag_m["relmse_background"]]]
     report = [bt.table(f"{name} (Lambertian): converged agreement vs Mitsuba {args.ref_spp} spp — mask IoU "
                        f"{R['agreement']['mask_iou']:.4f}, camera max reprojection error "
                        f"{R['agreement']['camera_max_px_error']:.2e} px",
                        ["render", "relMSE (person box)", "PSNR dB (person)", "relMSE (mask)",
-                        "mean radiance ratio R/G/B (mask)", "relMSE (background)"], rows)]
+                        "pixels holding 90 % of it (mask)", "mean radiance ratio R/G/B (mask)",
+                        "relMSE (background)"], rows)]
 
     # -- principled: systematic difference of the two BSDF models (near convergence on both sides)
     if args.principled_spp:
@@ -271,18 +307,22 @@ def run_scene(name: str, args, work: Path) -> dict:
     m_e = {s: [] for s in spps}
     c_t = {s: [] for s in spps}
     c_e = {s: [] for s in spps}
+    c_x = {s: [] for s in spps}  # Cycles against the Mitsuba reference: noise plus the renderers' difference
     c_sync = []
     for rep in range(args.repeats):
         for s in spps:
-            img, sec = _mitsuba_render(diffuse, s, depth, 1000 * rep + s, args)
+            # One render call per count, as a dataset frame renders: the time of one call, and no chunk of a
+            # count the sampler would not take (multijitter renders 528 for 512, which chunks of 256 split in 176s).
+            img, sec = _mitsuba_render(diffuse, s, depth, 1000 * rep + s, args, chunk=s)
             m_t[s].append(sec)
-            m_e[s].append(sc.beauty(img)["relmse"])
+            m_e[s].append(sc_mitsuba.beauty(img)["relmse"])
         # one Blender process per repeat: a 1-spp warm-up (kernels, caches), then the sweep
         cr = render_cycles(npz, "diffuse", depth, [{"spp": 1, "seed": 0}] +
                            [{"spp": s, "seed": 1000 * rep + s + 7} for s in spps], threads=args.threads, workdir=work)
         for r in cr["renders"][1:]:
             c_t[r["spp"]].append(r["render_s"])
-            c_e[r["spp"]].append(sc.beauty(r["image"])["relmse"])
+            c_e[r["spp"]].append(sc_cycles.beauty(r["image"])["relmse"])
+            c_x[r["spp"]].append(sc.beauty(r["image"])["relmse"])
             c_sync.append(r["sync_s"])
         R.setdefault("cycles_build_s", []).append(cr["build_s"])
         print(f"  repeat {rep + 1}/{args.repeats} done (load average {os.getloadavg()[0]:.1f})", flush=True)
@@ -290,6 +330,7 @@ def run_scene(name: str, args, work: Path) -> dict:
     for s in spps:
         sweep.append({"spp": s, "mitsuba_s": float(np.median(m_t[s])), "mitsuba_relmse": float(np.mean(m_e[s])),
                       "cycles_s": float(np.median(c_t[s])), "cycles_relmse": float(np.mean(c_e[s])),
+                      "cycles_relmse_vs_mitsuba_ref": float(np.mean(c_x[s])),
                       "mitsuba_s_all": m_t[s], "cycles_s_all": c_t[s]})
     R["sweep"] = sweep
     R["cycles_sync_s_median"] = float(np.median(c_sync))
@@ -304,13 +345,14 @@ def run_scene(name: str, args, work: Path) -> dict:
     R["fits"] = {"mitsuba": {"a": fm[0], "slope": fm[1]}, "cycles": {"a": fc[0], "slope": fc[1]}}
     rows = [[r["spp"], r["mitsuba_s"], px * r["spp"] / r["mitsuba_s"] / 1e6, r["mitsuba_relmse"],
              r["cycles_s"], px * r["spp"] / r["cycles_s"] / 1e6, r["cycles_relmse"],
-             r["mitsuba_s"] / r["cycles_s"]] for r in sweep]
+             r["cycles_relmse_vs_mitsuba_ref"], r["mitsuba_s"] / r["cycles_s"]] for r in sweep]
     report.append(bt.table(
-        f"{name} (Lambertian, depth {depth}, {args.repeats} repeats): render time (median) and relMSE (mean) vs "
-        f"Mitsuba {args.ref_spp} spp — relMSE~spp slope Mitsuba {R['relmse_vs_spp_slope']['mitsuba']:.3f}, "
+        f"{name} (Lambertian, depth {depth}, {args.repeats} repeats): render time (median) and relMSE (mean), "
+        f"each against its own converged render (both {args.cycles_ref_spp} spp) — "
+        f"relMSE~spp slope Mitsuba {R['relmse_vs_spp_slope']['mitsuba']:.3f}, "
         f"Cycles {R['relmse_vs_spp_slope']['cycles']:.3f}",
         ["spp", "Mitsuba s", "Mitsuba Msamples/s", "Mitsuba relMSE", "Cycles s", "Cycles Msamples/s",
-         "Cycles relMSE", "time ratio M/C (same spp)"], rows))
+         "Cycles relMSE", "Cycles relMSE vs Mitsuba's reference", "time ratio M/C (same spp)"], rows))
 
     # -- equal-error time ratio at stated levels
     levels = args.levels or _default_levels(sweep)
@@ -319,9 +361,9 @@ def run_scene(name: str, args, work: Path) -> dict:
         tm = equal_error_time([r["mitsuba_s"] for r in sweep], [r["mitsuba_relmse"] for r in sweep], lv)
         tc = equal_error_time([r["cycles_s"] for r in sweep], [r["cycles_relmse"] for r in sweep], lv)
         tmf, tcf = fit_time(fm, lv), fit_time(fc, lv)
-        eq.append({"relmse": lv, "mitsuba_s": tm, "cycles_s": tc, "ratio": tm / tc,
+        eq.append({"relmse": lv, "mitsuba_s": _finite(tm), "cycles_s": _finite(tc), "ratio": _finite(tm / tc),
                    "mitsuba_fit_s": tmf, "cycles_fit_s": tcf, "ratio_fit": tmf / tcf})
-        rows.append([lv, tm, tc, tm / tc, tmf / tcf])
+        rows.append([lv, _or_unreached(tm), _or_unreached(tc), _or_unreached(tm / tc), tmf / tcf])
     R["equal_error"] = eq
     report.append(bt.table(f"{name}: equal-error time ratio Mitsuba/Cycles (< 1: Mitsuba faster)",
                            ["relMSE level", "Mitsuba s", "Cycles s", "ratio M/C (log-log interpolation)",
@@ -364,11 +406,11 @@ def _plot(results: dict, path: Path) -> None:
                 ax.annotate(str(r["spp"]), (r[f"{key}_s"], r[f"{key}_relmse"]), fontsize=6, color=col)
         for q in R["equal_error"]:
             ax.axhline(q["relmse"], color="grey", lw=0.5, alpha=0.6)
-            ax.annotate(f"M/C {q['ratio']:.2f}", (ax.get_xlim()[0], q["relmse"]), fontsize=7, color="grey",
-                        va="bottom")
+            label = "not reached" if q["ratio"] is None else f"{q['ratio']:.2f}"
+            ax.annotate(f"M/C {label}", (ax.get_xlim()[0], q["relmse"]), fontsize=7, color="grey", va="bottom")
         ax.set_title(f"{name} (Lambertian)", fontsize=9)
         ax.set_xlabel("render time (s), scene build excluded")
-        ax.set_ylabel(f"relMSE vs Mitsuba {results['args']['ref_spp']}-spp reference")
+        ax.set_ylabel(f"relMSE vs own converged render ({results['args']['cycles_ref_spp']} spp)")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle(f"Mitsuba vs Cycles, equal error ({results['args']['resolution']}^2, 2 threads each, "
@@ -388,7 +430,9 @@ def main(argv=None) -> dict:
                    "4 = the `standard` preset")
     p.add_argument("--ref-spp", type=int, default=4096, help="spp of the Mitsuba reference (cached in --cache)")
     p.add_argument("--ref-aov-spp", type=int, default=256, help="AOV spp of the reference (its mask sets the region)")
-    p.add_argument("--cycles-ref-spp", type=int, default=1024, help="spp of the converged Cycles render")
+    p.add_argument("--cycles-ref-spp", type=int, default=4096,
+                   help="spp of the converged Cycles render: the agreement check's, and the reference Cycles' sweep "
+                        "is scored against (default 4096, as --ref-spp)")
     p.add_argument("--principled-spp", type=int, default=256, help="Cycles spp of the principled check (Mitsuba "
                    "uses 4x); 0 skips it")
     p.add_argument("--max-spp", type=int, default=256, help="largest spp of the sweep (powers of 2 from 1)")

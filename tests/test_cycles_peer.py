@@ -175,3 +175,24 @@ def test_lambertian_variant_keeps_texture_and_sidedness(bc):
     assert d.material.specular == 0.0 and d.material.two_sided is False and d.material.roughness == 0.4
     np.testing.assert_array_equal(d.material.albedo, tex)
     assert m.material.specular == 0.35  # the original is untouched
+
+
+def test_agreement_tells_a_few_differently_shaded_pixels_from_noise(bc):
+    """The share of the mask holding 90 % of the difference: most of it for noise spread over the person, one
+    pixel's share where a single pixel differs (a shading convention at a silhouette, not noise); unreached
+    equal-error levels are null in the JSON, not an invalid NaN."""
+    rng = np.random.default_rng(0)
+    ref = np.full((40, 40, 3), 0.5)
+    mask = np.ones((40, 40))
+    mask[:, :5] = 0.0  # a strip of background
+    noisy = ref * (1 + 0.05 * rng.standard_normal(ref.shape))
+    spread = bc.agreement(noisy, ref, mask)["share_for_90"]
+    assert 0.5 < spread < 0.95
+    one = ref.copy()
+    one[20, 20] *= 3.0
+    a = bc.agreement(one, ref, mask)
+    assert a["share_for_90"] == pytest.approx(1 / mask.sum())
+    assert a["mean_ratio_rgb"][0] == pytest.approx(1 + 2.0 / mask.sum())  # one pixel of 1,400 at 3x
+    assert a["relmse_background"] == 0.0
+    assert bc.agreement(ref, ref, np.ones((40, 40)))["relmse_background"] is None
+    assert bc._finite(float("nan")) is None and bc._finite(2.0) == 2.0
