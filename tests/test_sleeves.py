@@ -91,6 +91,38 @@ def test_coarse_drape_settles_off_the_arm_and_hangs(tmp_path, monkeypatch, kind,
         assert g.vertices[grid[-1], 2].mean() < g.pattern[grid[-1], 2].mean() - fall
 
 
+def test_coat_sleeves_share_a_bent_elbow_along_the_sleeve(tmp_path, monkeypatch):
+    """The coat's sleeves (16 mm off the arm) are bound with the weights diffused along the sleeve
+    (`drape.LOOSE_EVERYWHERE`, 8 cm: `LOOSE_REACHES`): at an elbow bent 120 degrees the closest point's weights fold
+    the tube through itself (31-190 crossing edges on the slim and heavy builds, either drape level, 7 December), the
+    diffused ones not at all; the pinned rings keep the closest point's weights exactly, and the rest pose is the
+    drape."""
+    from scipy.spatial.transform import Rotation
+
+    from rh_dataset.characters.cloth_pose import self_crossings
+    from rh_dataset.characters.drape import LOOSE_EVERYWHERE, bind_loose, loose_iterations, skin_points
+
+    kind = "draped_coat_sleeves"
+    assert kind in LOOSE_EVERYWHERE
+    monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
+    g = drape_garment(kind, PHENO, drape_settings(kind, "coarse"))
+    closest, diffused = bind_loose(g, PHENO, iterations=0), bind_loose(g, PHENO)
+    assert loose_iterations(g) >= 3
+    pin = np.asarray(g.pinned, bool)
+    np.testing.assert_array_equal(diffused.weights[pin], closest.weights[pin])
+    np.testing.assert_array_equal(diffused.bones[pin], closest.bones[pin])
+    assert not np.array_equal(diffused.weights[~pin], closest.weights[~pin])
+    rest = run_anny(PHENO)
+    np.testing.assert_allclose(skin_points(diffused, rest["bone_poses"], rest["rest_bone_poses"]), g.vertices,
+                               atol=1e-5)
+    bend = np.eye(4)
+    bend[:3, :3] = Rotation.from_euler("x", 120, degrees=True).as_matrix()
+    run = run_anny(PHENO, {"lowerarm01.R": bend, "lowerarm01.L": bend})
+    crossings = [self_crossings(skin_points(b, run["bone_poses"], run["rest_bone_poses"]), g.faces)
+                 for b in (closest, diffused)]
+    assert crossings[0] > 10 and crossings[1] == 0, crossings
+
+
 @pytest.mark.parametrize("shell, top, kind", [("tee", "draped_tshirt", KIND),
                                                ("longtop", "draped_longsleeve", "draped_long_sleeves"),
                                                ("hoodie", "draped_hoodie_body", "draped_hoodie_sleeves"),

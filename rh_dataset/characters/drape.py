@@ -1426,7 +1426,18 @@ LOOSE_FADE = 0.15
 # Kinds whose weights are diffused over the whole cloth but its pinned ring, wherever it hangs: the hood, whose
 # particles lie nearest the neck, the head or the upper back by turns (binding each to its own nearest bone would tear
 # the hood where the head turns); the ring keeps the neckline's weights and the diffusion carries them into the hood.
-LOOSE_EVERYWHERE = ("draped_hoodie",)
+# And the open jacket's and coat's sleeves, which stand 16 mm off the arm: bound to the closest point of the arm, the
+# upper arm's and the forearm's weights meet in a band as narrow as the skin's crease, and at a bent elbow the wide
+# tube folded through itself there (benchmark subject 25's `random` poses: 81-90 crossing edges, 66-76 crossing points
+# a camera around could see). Spread along the sleeve the bend is shared by a longer stretch of cloth: 0-3 crossing
+# edges there, and over 8 posed frames of 4 wearers 773 -> 567 crossing edges, 179 -> 33 crossing points in view
+# (docs/ARCHITECTURE.md, "The open jacket's sleeves"). The narrower sleeves gained nothing measurable from it (tried
+# on 4 wearers, 8 posed frames) and keep the closest point's weights.
+LOOSE_EVERYWHERE = ("draped_hoodie", "draped_coat_sleeves")
+# The reach of the diffusion where a kind's differs from LOOSE_REACH (metres, `loose_iterations`): 8 cm along the
+# coat's sleeves, about the 30 steps of its full drape's ~14 mm edges first tried (11 cm, 60 steps, did no better on
+# subject 14; 10 steps about half as well).
+LOOSE_REACHES = {"draped_coat_sleeves": 0.08}
 
 
 def _edges(faces: np.ndarray) -> np.ndarray:
@@ -1435,10 +1446,12 @@ def _edges(faces: np.ndarray) -> np.ndarray:
 
 
 def loose_iterations(garment: DrapedGarment) -> int:
-    """The diffusion steps `bind_loose` takes for this garment's mesh by default (`LOOSE_REACH`)."""
+    """The diffusion steps `bind_loose` takes for this garment's mesh by default (its kind's `LOOSE_REACHES`, else
+    `LOOSE_REACH`)."""
     v = np.asarray(garment.vertices, np.float64)
     e = _edges(garment.faces)
-    return int(round((LOOSE_REACH / float(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean())) ** 2))
+    reach = LOOSE_REACHES.get(garment.kind, LOOSE_REACH)
+    return int(round((reach / float(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean())) ** 2))
 
 
 def bind_loose(garment: DrapedGarment, phenotype: dict[str, float], max_bones: int = 8,
@@ -1450,8 +1463,8 @@ def bind_loose(garment: DrapedGarment, phenotype: dict[str, float], max_bones: i
     neighbours' W - W), a per vertex: 0 on the pinned top ring and from `LOOSE_FADE` - `LOOSE_BELOW` above the
     A-pose hip joints up, rising by a smoothstep to 1 at `LOOSE_BELOW` under them), so the front and back of the
     hem blend both thighs and the pelvis and the forward leg carries the cloth in front of it with its neighbours;
-    `push_out` keeps the legs inside afterwards. Kinds in LOOSE_EVERYWHERE (the hood) diffuse everywhere but on the
-    pinned ring. Deterministic (fixed-order sparse products).
+    `push_out` keeps the legs inside afterwards. Kinds in LOOSE_EVERYWHERE (the hood, the coat's sleeves) diffuse
+    everywhere but on the pinned ring. Deterministic (fixed-order sparse products).
     `iterations`: default `loose_iterations(garment)`; 0 is `bind_to_skeleton` (the binding of before)."""
     import trimesh
     from scipy.sparse import coo_matrix, diags
