@@ -196,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
                   "draped_jacket": "jacket", "draped_tshirt": "tshirt",
                   "draped_longsleeve": "longsleeve"}.get(kind, "skirt")
     shell = build_garments((Garment(shell_kind, (0.5, 0.5, 0.5)),), body_features(ph))[0]
-    from rh_dataset.characters.body import vertex_normals
+    from rh_dataset.mesh import vertex_normals
 
     raw_worst = -np.inf
     poses = sample_poses(np.random.default_rng(7), load_anny(), args.poses)

@@ -108,7 +108,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from bench_cloth_pose import seen_around
 
-    from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+    from rh_dataset.characters.body import body_topology, run_anny
+    from rh_dataset.mesh import vertex_normals
     from rh_dataset.characters.cloth_pose import (LIFT_REACH, LIFT_WAYS, layer_depth, lift_over_skin,
                                                   self_crossings, skin_inside)
     from rh_dataset.characters.drape import bind_loose, push_clearance, push_out, skin_points

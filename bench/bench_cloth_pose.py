@@ -209,7 +209,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from rh_common.body_model import load_anny
     from rh_dataset.characters import build_character, pose_character
-    from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+    from rh_dataset.characters.body import body_topology, run_anny
+    from rh_dataset.mesh import vertex_normals
     from rh_dataset.characters.cloth_pose import covers, layer_depth, self_crossings, skin_inside
     from rh_dataset.characters.drape import DRAPED_KINDS, penetration
     from rh_dataset.cli import render_settings

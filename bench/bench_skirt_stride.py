@@ -156,7 +156,8 @@ def main(argv: list[str] | None = None) -> int:
         return figure(args)
 
     from rh_dataset.characters import sample_recipe
-    from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+    from rh_dataset.characters.body import body_topology, run_anny
+    from rh_dataset.mesh import vertex_normals
     from rh_dataset.characters.cloth_pose import hem_split, simulate_into_pose
     from rh_dataset.characters.drape import (DRAPED_KINDS, bind_loose, drape_garment, loose_iterations,
                                              drape_settings, penetration, push_out, skin_points)

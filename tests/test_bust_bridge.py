@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from rh_common.body_model import ANNY_TOPOLOGY
-from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+from rh_dataset.characters.body import body_topology, run_anny
+from rh_dataset.mesh import vertex_normals
 from rh_dataset.characters.body_features import body_features
 from test_drape_coat import HEAVY, PHENO, _heads
 

@@ -23,7 +23,8 @@ from rh_dataset.characters import (
     sample_recipe,
 )
 from rh_dataset.characters import character as character_module
-from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+from rh_dataset.characters.body import body_topology, run_anny
+from rh_dataset.mesh import vertex_normals
 from rh_dataset.characters.body_features import GROUPS, body_features
 
 RES = 128  # texture resolution for tests: geometry is resolution-independent, textures are checked small

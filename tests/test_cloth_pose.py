@@ -442,7 +442,7 @@ def _spheres(radius: float = 0.104):
     11 cm the skin lies inside it (the rest pose)."""
     import trimesh
 
-    from rh_dataset.characters.body import vertex_normals
+    from rh_dataset.mesh import vertex_normals
 
     skin = trimesh.creation.icosphere(subdivisions=4, radius=0.1)
     cloth = trimesh.creation.icosphere(subdivisions=1, radius=radius)
@@ -490,7 +490,7 @@ def test_lift_over_skin_leaves_skin_inside_the_body():
     was, bit for bit."""
     import trimesh
 
-    from rh_dataset.characters.body import vertex_normals
+    from rh_dataset.mesh import vertex_normals
     from rh_dataset.characters.cloth_pose import layer_depth, lift_over_skin
 
     sv, sf, sn, cv, cf = _spheres()
@@ -510,7 +510,7 @@ def test_skin_inside_is_not_a_hand_beside_the_cloth():
     cloth) but none of it is inside; the sphere of skin in the cloth is, all of it."""
     import trimesh
 
-    from rh_dataset.characters.body import vertex_normals
+    from rh_dataset.mesh import vertex_normals
     from rh_dataset.characters.cloth_pose import covers, skin_inside
 
     sv, sf, _, cv, cf = _spheres(0.11)
@@ -572,7 +572,7 @@ def test_a_sitting_thigh_stays_in_its_trouser_leg(tmp_path, monkeypatch):
     at rest, measured still covered: 12 % in the drape's fabric, 76 % in the pose fabric, 83 % skinned; the cloth
     before push_out 30.6 mm deep in the body at most (bench_cloth_pose.py, full drapes: 65 mm before, 15 mm now).
     Bounds: 65 % and 40 points above the drape's fabric; 4 cm deep."""
-    from rh_dataset.characters.body import vertex_normals
+    from rh_dataset.mesh import vertex_normals
     from rh_dataset.characters.cloth_pose import covers, pose_fabric
     from rh_dataset.characters.drape import drape_garment, drape_settings
 
@@ -610,7 +610,7 @@ def test_skinned_trousers_keep_a_bent_knee_under_them(tmp_path, monkeypatch):
     vertex is in the body; at rest it changes nothing. Measured (4 December): 64 skin vertices through without the
     lift, 17 with it (53 and 13 of them within LIFT_REACH; the others lie deeper, most inside the body itself, and
     are not lifted over)."""
-    from rh_dataset.characters.body import vertex_normals
+    from rh_dataset.mesh import vertex_normals
     from rh_dataset.characters.cloth_pose import LIFT_REACH, layer_depth, skin_inside
     from rh_dataset.characters.drape import bind_loose, drape_garment, drape_settings, push_clearance, push_out
 
@@ -679,7 +679,7 @@ def test_loose_binding_keeps_a_skirt_one_piece_in_a_stride():
     POSED_BOUND_M; same bits twice; the rest pose round-trips; the waistband keeps its weights."""
     from rh_common.body_model import load_anny
     from rh_dataset.characters import sample_recipe
-    from rh_dataset.characters.body import vertex_normals
+    from rh_dataset.mesh import vertex_normals
     from rh_dataset.characters.cloth_pose import hem_split
     from rh_dataset.characters.drape import bind_loose, drape_garment, drape_settings, push_out
     from rh_dataset.generate import rng_for

@@ -7,7 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+from rh_dataset.characters.body import body_topology, run_anny
+from rh_dataset.mesh import vertex_normals
 from rh_dataset.characters.drape import (DRAPED_KINDS, PROFILES, PUSH_CLEARANCE, bind_loose, bind_to_skeleton,
                                          collider_faces, drape_garment, drape_settings, garment_pattern, penetration,
                                          push_out, skin_points)

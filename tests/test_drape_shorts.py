@@ -10,7 +10,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+from rh_dataset.characters.body import body_topology, run_anny
+from rh_dataset.mesh import vertex_normals
 from rh_dataset.characters.drape import (DRAPE_LEVELS, PROFILES, SHORTS_HEM, bind_loose, drape_garment,
                                          drape_settings, penetration, push_out, skin_points)
 from rh_dataset.characters.geometry import edge_counts

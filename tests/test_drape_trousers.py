@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+from rh_dataset.characters.body import body_topology, run_anny
+from rh_dataset.mesh import vertex_normals
 from rh_dataset.characters.cloth_pose import self_crossings
 from rh_dataset.characters.drape import (DRAPE_LEVELS, PROFILES, bind_loose, drape_garment, drape_settings,
                                          garment_pattern, penetration, push_out, skin_points)

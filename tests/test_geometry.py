@@ -158,10 +158,10 @@ def test_unique_rows_is_numpys_unique_over_rows():
 
 
 def test_vertex_normals_sum_as_add_at_did_to_the_bit():
-    """body.vertex_normals adds each vertex's face normals by one bincount over corner 0, 1, then 2 of every face:
+    """mesh.vertex_normals adds each vertex's face normals by one bincount over corner 0, 1, then 2 of every face:
     the same order, so the same bits, as the np.add.at loop it replaced, on the body's topology (random vertices,
     and an isolated vertex, which gets +Z) and with no faces."""
-    from rh_dataset.characters.body import vertex_normals
+    from rh_dataset.mesh import vertex_normals
 
     def add_at(vertices, faces):
         v = np.asarray(vertices, dtype=np.float64)

@@ -306,7 +306,8 @@ def test_posed_strands_under_the_skin_below_the_neck_are_pushed_out_and_no_other
     in the trunk); points under the scalp (a strand's root dips under it by design) and points outside the body keep
     their bits."""
     from rh_common.body_model import load_anny
-    from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+    from rh_dataset.characters.body import body_topology, run_anny
+    from rh_dataset.mesh import vertex_normals
     from rh_common.body_model import ANNY_TOPOLOGY
     from rh_dataset.characters.body_features import GROUPS, body_features, group_mask
     from rh_dataset.characters.drape import penetration

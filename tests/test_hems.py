@@ -146,7 +146,8 @@ def test_posed_edges_stay_closed_onto_the_skin(phenotype, feats):
     """In a pose (elbow and knee bent, shoulder raised), every cut vertex of a sleeve and a trouser leg is outside
     the posed skin and within the taper's minimum (+ 0.5 mm) of it: the blend along the body edge moves with it
     (measured: 1.8-2.1 mm off the skin, the minimum, and at least 0.85 mm outside it along the face normal)."""
-    from rh_dataset.characters.body import run_anny, vertex_normals
+    from rh_dataset.characters.body import run_anny
+    from rh_dataset.mesh import vertex_normals
     from rh_dataset.characters.body import anchor_points
 
     def rot(axis, deg):

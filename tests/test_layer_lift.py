@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from rh_dataset.characters.body import body_topology, run_anny, vertex_normals
+from rh_dataset.characters.body import body_topology, run_anny
+from rh_dataset.mesh import vertex_normals
 from rh_dataset.characters.drape import LAYER_GAP_DRAPE, LIFT_SLOPE, NEAR_BODY, cloth_height, layer_lift
 from rh_dataset.characters.geometry import edge_counts
 

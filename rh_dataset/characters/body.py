@@ -14,7 +14,7 @@ import numpy as np
 from rh_common.body_model import ANNY_TOPOLOGY, load_anny
 from rh_common.threads import torch_threads
 
-__all__ = ["BodyTopology", "body_topology", "run_anny", "vertex_normals", "sample_phenotype", "PHENOTYPE_LABELS"]
+__all__ = ["BodyTopology", "body_topology", "run_anny", "sample_phenotype", "PHENOTYPE_LABELS"]
 
 PHENOTYPE_LABELS = ("gender", "age", "muscle", "weight", "height", "proportions")
 
@@ -90,22 +90,6 @@ def run_anny(
         out = model(pose_parameters=pose, phenotype_kwargs=pheno, pose_parameterization="local-ref")
     keys = ("vertices", "rest_vertices", "bone_poses", "rest_bone_poses", "rest_bone_heads")
     return {k: out[k][0].cpu().numpy().astype(np.float64) for k in keys}
-
-
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted vertex normals (unit length; an isolated vertex gets +Z so nothing is NaN)."""
-    v = np.asarray(vertices, dtype=np.float64)
-    tri = v[faces]
-    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # length = 2 * area: area weighting for free
-    # Each vertex sums its faces' normals in the order np.add.at took them, corner 0 of every face, then corner 1,
-    # then corner 2 (bincount adds a bin's weights in input order): the same bits, in about 2/3 of the time.
-    corners = np.asarray(faces).T.ravel()
-    n = np.stack([np.bincount(corners, weights=np.tile(fn[:, a], 3), minlength=len(v)) for a in range(3)], 1)
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    bad = length[:, 0] < 1e-20
-    n[bad] = (0.0, 0.0, 1.0)
-    length[bad] = 1.0
-    return n / length
 
 
 @functools.lru_cache(maxsize=4)

@@ -19,7 +19,9 @@ from PIL import Image
 
 from rh_common.body_model import ANNY_TOPOLOGY
 
-from .body import BodyTopology, body_topology, run_anny, vertex_normals
+from rh_dataset.mesh import vertex_normals
+
+from .body import BodyTopology, body_topology, run_anny
 
 __all__ = ["BodyFeatures", "body_features", "group_mask", "mask_image", "anny_data_dir", "GROUPS"]
 

@@ -28,7 +28,9 @@ import numpy as np
 from rh_common.body_model import ANNY_TOPOLOGY
 from rh_common.colourspace import srgb_decode
 
-from .body import anchor_points, blended_normals, body_topology, run_anny, smoothed_normals, vertex_normals
+from rh_dataset.mesh import vertex_normals
+
+from .body import anchor_points, blended_normals, body_topology, run_anny, smoothed_normals
 from .garments import (BASE_OFFSET, BRIDGED, LAYER_GAP, LIFT_SMOOTH_ROUNDS, PartGeometry, build_garments, garment_parts,
                        lift_directions, lift_turn, shoe_height_map)
 from .body_features import body_features, group_mask

@@ -36,7 +36,9 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .body import body_topology, run_anny, vertex_normals
+from rh_dataset.mesh import vertex_normals
+
+from .body import body_topology, run_anny
 from .drape import (DrapedGarment, DrapeSettings, bind_loose, bind_to_skeleton, cloth_model, cloth_solver,
                     collider_faces, drape_garment, draped_over, push_clearance, push_out, skin_points)
 from .geometry import edge_counts, query_mesh, smoothstep, unique_rows
@@ -472,7 +474,7 @@ RIM_TOLERANCE = 1e-6  # metres: a closest surface point this near an open edge i
 @dataclasses.dataclass(frozen=True)
 class _Surface:
     """A garment surface prepared once for `_layer_closest`'s queries: its vertices (float64), faces and vertex
-    normals (`body.vertex_normals`), the trimesh whose search tree answers them (`geometry.query_mesh`), and its
+    normals (`mesh.vertex_normals`), the trimesh whose search tree answers them (`geometry.query_mesh`), and its
     open edges as segments (start `rim_a`, start-to-end `rim_d`, (R, 3)) with a k-d tree of their midpoints and
     their longest half length. Why: the pushes query the same surface two rounds, and `push_over_layers` the same
     layers every cycle; building the tree and finding the open edges (a sort of every edge) each time, and measuring

@@ -44,6 +44,8 @@ import numpy as np
 from rh_common.body_model import ANNY_TOPOLOGY
 from rh_common.imageio import atomic_path
 
+from rh_dataset.mesh import vertex_normals
+
 from .body import PHENOTYPE_LABELS, body_topology, run_anny
 from .body_features import body_features
 from .geometry import (closest_point, edge_counts, faces_in_box, hull_anchors, metre_uvs, query_mesh, seamed_grid,
@@ -1513,7 +1515,6 @@ def cloth_height(body: np.ndarray, cloth: np.ndarray, cloth_faces: np.ndarray, r
     """Per body vertex (`body`: anny's vertices in the pose the cloth was draped in), how far out along its normal the
     cloth (`cloth`, `cloth_faces`) first lies, in metres (negative where it dips into the skin); inf where it lies
     farther than `reach` or not over that vertex at all."""
-    from .body import vertex_normals
     from .geometry import first_hit
 
     normals = vertex_normals(body, body_topology().faces)
@@ -1652,8 +1653,6 @@ def closest_on_surface(body_vertices, body_faces, points, body_normals=None, mes
     `triangles` the index of the face each closest point lies on (P,) as a fourth. `mesh`: the trimesh of
     (body_vertices, body_faces) if the caller has one (its search tree is reused)."""
     import trimesh
-
-    from .body import vertex_normals
 
     v = np.asarray(body_vertices, np.float64)
     f = np.asarray(body_faces)

@@ -30,7 +30,9 @@ from scipy.sparse import csgraph
 
 from rh_common.body_model import ANNY_TOPOLOGY
 
-from .body import anchor_points, blended_normals, body_topology, run_anny, smoothed_normals, vertex_normals
+from rh_dataset.mesh import vertex_normals
+
+from .body import anchor_points, blended_normals, body_topology, run_anny, smoothed_normals
 from .body_features import BodyFeatures
 from .drape import (BRIDGE_BAND, BRIDGE_CAP_OVER, DRAPED_KINDS, FRONT_OPENING, SHELL_KINDS_OVER, SHELL_OVERLAP,
                     SHELLS_UNDER, SLEEVE_GROUPS, DrapeSettings, SkinBinding, drape_garment, draped_over, draped_part,
@@ -612,8 +614,6 @@ def _shoes(feats: BodyFeatures, under: np.ndarray) -> PartGeometry:
         # shoe vertices around it outwards from their section's axis (the toe tips are the usual culprits).
         from scipy.spatial import cKDTree
 
-        from .body import vertex_normals
-
         inner = v[cand[v[cand, 2] < z_floor + SHOE_COLLAR - 0.01]]
         axis_pt = np.concatenate([np.repeat(heel[None], K + 1, 0), np.repeat(ring.mean(1), K + 1, 0),
                                   np.repeat(tip[None], K + 1, 0)])
@@ -643,8 +643,6 @@ def _shoes(feats: BodyFeatures, under: np.ndarray) -> PartGeometry:
         uvs.append(uv)
         # Register the shoe as the layer under the trouser hems: body vertices inside it get its clearance.
         inside = cand[v[cand, 2] < z_floor + SHOE_COLLAR]
-        from scipy.spatial import cKDTree
-
         _, nn = cKDTree(pv).query(v[inside])
         h = ((pv[nn] - v[inside]) * nrm[inside]).sum(1)
         under[inside] = np.maximum(under[inside], np.clip(h, 0.0, 0.05))
@@ -655,8 +653,6 @@ def _shoes(feats: BodyFeatures, under: np.ndarray) -> PartGeometry:
     # The binding reproduces the design to within millimetres; re-check that the foot is inside the reconstructed
     # shoe and raise the offsets of the shoe vertices around any foot vertex that is not.
     from scipy.spatial import cKDTree
-
-    from .body import vertex_normals
 
     w = b.blend_weights.astype(np.float64)[..., None]
     base = (v[b.blend_vertices] * w).sum(1)

@@ -27,8 +27,10 @@ from collections.abc import Mapping
 import numpy as np
 from scipy.spatial import cKDTree
 
+from rh_dataset.mesh import vertex_normals
+
 from .pose import BodyPose
-from .rig import Rig, rig_for, vertex_normals
+from .rig import Rig, rig_for
 
 __all__ = ["Intersection", "find_intersections", "intersects", "SEGMENTS", "DEPTH_TOL_M", "MIN_POINTS",
            "REST_CONTACT_M"]

@@ -22,7 +22,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-__all__ = ["Rig", "rig_for", "vertex_normals"]
+__all__ = ["Rig", "rig_for"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -84,17 +84,6 @@ class Rig:
             return points, None
         n = np.einsum("vab,vb->va", blended[:, :, :3], normals)
         return points, n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-
-
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted vertex normals (anny does not provide normals)."""
-    tri = vertices[faces]
-    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    n = np.zeros_like(vertices)
-    for k in range(3):
-        for a in range(3):
-            n[:, a] += np.bincount(faces[:, k], weights=fn[:, a], minlength=len(vertices))
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
 
 def _phenotype_key(phenotype: Mapping[str, float] | None) -> tuple[tuple[str, float], ...]:

@@ -33,6 +33,7 @@ import numpy as np
 
 from rh_common.threads import torch_threads
 
+from rh_dataset.mesh import vertex_normals
 from rh_dataset.poses.joints import axis_angle, axis_angle_matrix
 
 from .model import BodyModel, forward, model_tensors, rodrigues
@@ -188,12 +189,6 @@ def _initial_pose(rest_joints: np.ndarray, target: np.ndarray, parents: np.ndarr
         G[j] = Gp @ local[j]
     pose = np.concatenate([axis_angle(local[j]) for j in range(1, n)])
     return axis_angle(local[0]), pose, target[0].copy()
-
-
-def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    import trimesh
-
-    return np.asarray(trimesh.Trimesh(vertices, faces, process=False).vertex_normals, np.float64)
 
 
 def measure_quality(model_vertices, model_faces, model_joints, target: FrameTarget) -> FitQuality:
@@ -364,7 +359,7 @@ def _optimise(inp: FitInput):
     # Surface rounds: correspondences fixed within a round (nearest vertices, scipy's KD-tree), refreshed between.
     t_full = model_tensors(model, dt)
     trees = [cKDTree(f.vertices) for f in inp.frames]
-    normals = [_vertex_normals(f.vertices, f.faces) for f in inp.frames]
+    normals = [vertex_normals(f.vertices, f.faces) for f in inp.frames]
     fwd_ids = np.arange(0, model.n_vertices, max(1, model.n_vertices // s.model_points))
     rev_ids = [np.arange(0, len(f.vertices), max(1, len(f.vertices) // s.anny_points)) for f in inp.frames]
     n_rev = min(len(r) for r in rev_ids)
@@ -378,7 +373,7 @@ def _optimise(inp: FitInput):
         p = torch.tensor(np.stack([f.vertices[k] for f, k in zip(inp.frames, near)]), dtype=dt)
         n = torch.tensor(np.stack([nm[k] for nm, k in zip(normals, near)]), dtype=dt)
         back = np.stack([cKDTree(Vn[i]).query(rev_pts[i].numpy())[1] for i in range(B)])
-        back_n = torch.tensor(np.stack([_vertex_normals(Vn[i], model.faces)[back[i]] for i in range(B)]), dtype=dt)
+        back_n = torch.tensor(np.stack([vertex_normals(Vn[i], model.faces)[back[i]] for i in range(B)]), dtype=dt)
         ids, inverse = np.unique(np.concatenate([fwd_ids, back.ravel()]), return_inverse=True)
         t_round = model_tensors(model, dt, vertex_ids=ids)
         fwd_pos = torch.as_tensor(inverse[:len(fwd_ids)])
