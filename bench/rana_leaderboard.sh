@@ -8,7 +8,9 @@
 # The repository keeps leaderboard.md, screenshot.png (the tables) and pictures.png (the test split's image
 # strips) per protocol; index.html and its pictures stay in $WORK/board_<p>.
 # SKIP_DATA=1 reuses existing datasets as they are (rh-generate refuses to resume a folder made by another version
-# of the generator). Benchmark: 2 subjects x protocols a and b, 20 train + 20 test frames at 128 px, draft render preset.
+# of the generator). Benchmark: 2 subjects x protocols a and b, 20 train + 20 test frames at 128 px, PRESET render preset
+# (default standard, the full benchmark's: at draft's 16 spp a fifth of the oracle bound's squared error was the
+# ground truth's own noise, leaderboards/small/README.md; at 128 px standard costs ~15 s more per protocol).
 # Rows, as in the paper's Table 1 (the full method and its ablations, same schedule):
 #   RANA                         cpu preset, STEPS personalization steps, pretrained (PRE_SUBJECTS characters x
 #                                PRE_FRAMES AOV-only frames; TextureNet TEX_STEPS and G_N/G_A PRE_STEPS steps)
@@ -34,6 +36,7 @@ FREEZE=${FREEZE:-10}
 OLAT=${OLAT:-1}
 PRETRAIN=${PRETRAIN:-1}   # 0 = leave out the "RANA + pretraining" row (and the pretraining)
 THREADS=${THREADS:-1}
+PRESET=${PRESET:-standard}         # rh-generate --preset of every dataset the board makes
 PRE_SUBJECTS=${PRE_SUBJECTS:-6}    # pretraining characters (the paper: 400)
 PRE_FRAMES=${PRE_FRAMES:-20}       # AOV-only frames per pretraining character (the paper: 150)
 PRE_STEPS=${PRE_STEPS:-400}        # G_N/G_A pretraining steps
@@ -52,12 +55,12 @@ if [ "${SKIP_DATA:-0}" = 1 ]; then
 else
   for p in a b; do
     scene=$p; [ "$OLAT" = 1 ] && scene=olat_$p
-    rh-generate --protocol $scene --out "$DATA" --subjects 2 --frames 20 --resolution 128 --preset draft --no-progress
+    rh-generate --protocol $scene --out "$DATA" --subjects 2 --frames 20 --resolution 128 --preset "$PRESET" --no-progress
   done
   # The pretraining frames only feed the pretraining: PRETRAIN=0 makes none (they were 1485 s of the last board).
   if [ "$PRETRAIN" = 1 ]; then
     rh-generate --protocol rana_pretrain --out "$PRE_DATA" --subjects "$PRE_SUBJECTS" --frames "$PRE_FRAMES" \
-      --resolution 128 --preset draft --no-progress
+      --resolution 128 --preset "$PRESET" --no-progress
   fi
 fi
 
