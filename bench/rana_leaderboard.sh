@@ -10,7 +10,8 @@
 # SKIP_DATA=1 reuses existing datasets as they are (rh-generate refuses to resume a folder made by another version
 # of the generator). Benchmark: 2 subjects x protocols a and b, 20 train + 20 test frames at 128 px, PRESET render preset
 # (default standard, the full benchmark's: at draft's 16 spp a fifth of the oracle bound's squared error was the
-# ground truth's own noise, leaderboards/small/README.md; at 128 px standard costs ~15 s more per protocol).
+# ground truth's own noise, leaderboards/small/README.md; the three datasets took 745 s at standard against 256 s at
+# draft, each beside the fresh-clone CI at load 2.4-4.6, of a board of ~45-55 min).
 # Rows, as in the paper's Table 1 (the full method and its ablations, same schedule):
 #   RANA                         cpu preset, STEPS personalization steps, pretrained (PRE_SUBJECTS characters x
 #                                PRE_FRAMES AOV-only frames; TextureNet TEX_STEPS and G_N/G_A PRE_STEPS steps)
