@@ -1,0 +1,209 @@
+"""Skin a camera sees through draped cloth, counted in pixels: the image-space check of issue 17's "no cloth passes
+through the body visibly".
+
+    python bench/skin_seen.py --subjects 14,18 --poses 3 [--size 512] [--views 4] [--figure out.png]
+
+In: seed `--seed`'s benchmark subjects (protocol a's test split, built as at the `standard` preset: full drapes) and
+their first `--poses` test poses, skinned as `rh-generate` poses them. The body's skin that lies inside a draped
+garment at rest (`cloth_pose.skin_inside` of every draped part, the cloth as posing leaves it at rest) and outside
+its posed surface in the frame (`cloth_pose.layer_depth` < 0 within `bench_cloth_pose.THROUGH_REACH`: skin come
+out through the cloth, the `through` of bench_cloth_pose.py) gets a pure green albedo on every face it touches, and
+the posed character's albedo AOV is rendered (`preview.render_preview`, 4 spp) from `--views` directions around it
+(the character turned about the vertical), twice with the same samples, that skin green and then magenta. Out, per
+frame: the body faces through, and the pixels where at least a quarter of the samples saw that skin (their green
+differs between the two renders by that much), per view and in all; the rest pose first as the check (0
+expected). Skin seen through a hem or a sleeve's opening lies inside the cloth and is not counted; skin under
+shell garments is culled by the renderer. `bench_cloth_pose.py`'s `seen_around` says which vertices could be seen
+(a ray to 8 cameras); this says how many pixels of them are. `--figure`: the posed frame and view with the most
+pixels of skin through the cloth, those ringed in magenta and the other skin from under the cloth in cyan.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+GREEN = np.array([0.0, 1.0, 0.0], np.float32)
+MAGENTA = np.array([1.0, 0.0, 1.0], np.float32)
+SHARE = 0.25  # a pixel counts when at least this share of its samples saw skin through the cloth
+
+
+def covered_skin(character, rest_meshes) -> dict[str, np.ndarray]:
+    """{draped part: anny body vertex indices inside it at rest}: the part's own `inside_skin` where posing keeps one
+    (`cloth_pose.LIFT_KINDS`), else `cloth_pose.skin_inside` of the cloth as posing leaves it at rest."""
+    from rh_dataset.characters.body import body_topology, run_anny
+    from rh_dataset.characters.cloth_pose import skin_inside
+    from rh_dataset.characters.drape import DRAPED_KINDS
+    from rh_dataset.mesh import vertex_normals
+
+    rest = run_anny(character.phenotype, None)["vertices"]
+    normals = vertex_normals(rest, body_topology().faces)
+    out = {}
+    for part in character.parts:
+        if part.name not in DRAPED_KINDS:
+            continue
+        if part.inside_skin is not None:
+            out[part.name] = np.asarray(part.inside_skin, np.int64)
+            continue
+        v = next(m for m in rest_meshes if m.name == part.name).vertices.astype(np.float64)
+        out[part.name] = skin_inside(v, part.faces, rest, normals)
+    return out
+
+
+def under_faces(covered: dict[str, np.ndarray]) -> np.ndarray:
+    """(F,) bool over anny's body faces whose three corners lie inside some draped part at rest."""
+    from rh_dataset.characters.body import body_topology
+
+    faces = body_topology().faces
+    inside = np.zeros(int(faces.max()) + 1, bool)
+    for v in covered.values():
+        inside[v] = True
+    return inside[faces].all(axis=1)
+
+
+def through_faces(character, bones, root, posed: list, covered: dict[str, np.ndarray]) -> np.ndarray:
+    """(F,) bool over anny's body faces (the render mesh's, in the same order) with a corner that lies inside a
+    draped part at rest and outside its posed surface now (`cloth_pose.layer_depth` < 0 within bench_cloth_pose's
+    THROUGH_REACH): skin come out through it."""
+    from bench_cloth_pose import THROUGH_REACH
+
+    from rh_dataset.characters.body import body_topology, run_anny
+    from rh_dataset.characters.cloth_pose import layer_depth
+
+    faces = body_topology().faces
+    body = run_anny(character.phenotype, bones)["vertices"]
+    if root is not None:
+        body = body @ np.asarray(root)[:3, :3].T + np.asarray(root)[:3, 3]
+    out = np.zeros(len(body), bool)
+    for part in character.parts:
+        inside = covered.get(part.name)
+        if inside is None or not len(inside):
+            continue
+        v = next(m for m in posed if m.name == part.name).vertices.astype(np.float64)
+        d = layer_depth(body[inside], v, part.faces, near=THROUGH_REACH)
+        out[inside[np.isfinite(d) & (d < 0)]] = True
+    return out[faces].any(axis=1)
+
+
+def coloured_split(posed: list, classes: list[tuple[np.ndarray, np.ndarray]]) -> list:
+    """The posed meshes with the body's faces of each class ((F,) bool, disjoint) moved to a mesh of their own, albedo
+    the class's colour."""
+    out = []
+    for m in posed:
+        if m.name != "body":  # its faces are anny's, in anny's order (seam vertices split)
+            out.append(m)
+            continue
+        rest = np.ones(len(m.faces), bool)
+        for mask, _ in classes:
+            rest &= ~mask
+        out.append(dataclasses.replace(m, faces=m.faces[rest]))
+        for k, (mask, colour) in enumerate(classes):
+            if mask.any():  # Mitsuba refuses a mesh without faces
+                albedo = np.broadcast_to(np.asarray(colour, np.float32), (1, 1, 3)).copy()
+                out.append(dataclasses.replace(m, name=f"body_class_{k}", faces=m.faces[mask],
+                                               material=dataclasses.replace(m.material, albedo=albedo)))
+    return out
+
+
+def seen_pixels(character, bones, root, covered: dict[str, np.ndarray], body_faces: np.ndarray, size: int,
+                views: int) -> tuple[list[tuple[int, int]], int, tuple]:
+    """Per view (the character turned about the vertical by 360 / views degrees each) the pixels that saw skin come
+    out through the cloth and those that saw other skin from under the cloth; the body faces through; and the view
+    with the most of the first kind: its index, both masks and its albedo image."""
+    from rh_dataset.characters import pose_character
+    from rh_dataset.characters.preview import render_preview
+    from rh_dataset.poses.pose import rotation_about_z
+
+    counts, shown, n_faces = [], None, 0
+    for k in range(views):
+        R = rotation_about_z(360.0 * k / views)
+        turned = R if root is None else R @ root
+        posed = pose_character(character, bones, turned)
+        through = through_faces(character, bones, turned, posed, covered)
+        under = body_faces & ~through
+        n_faces = int(through.sum())
+        # The same samples twice, the two kinds of skin coloured (green, blue) and then black: a pixel's green and
+        # blue differences are the shares of its samples that saw each, whatever the garments' own colours.
+        a = render_preview(coloured_split(posed, [(through, (0, 1, 0)), (under, (0, 0, 1))]), width=size,
+                           height=size, spp=4, seed=k, albedo=True)
+        b = render_preview(coloured_split(posed, [(through, (0, 0, 0)), (under, (0, 0, 0))]), width=size,
+                           height=size, spp=4, seed=k, albedo=True)
+        seen_through, seen_under = (a[..., 1] - b[..., 1]) >= SHARE, (a[..., 2] - b[..., 2]) >= SHARE
+        counts.append((int(seen_through.sum()), int(seen_under.sum())))
+        if shown is None or counts[-1][0] > counts[shown[0]][0]:
+            shown = (k, seen_through, seen_under, a)
+    return counts, n_faces, shown
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--subjects", required=True, help="comma-separated benchmark subject indices of seed --seed")
+    ap.add_argument("--poses", type=int, default=3, help="test poses per subject besides the rest pose (default 3)")
+    ap.add_argument("--seed", type=int, default=0, help="dataset seed whose subjects are used (default 0)")
+    ap.add_argument("--size", type=int, default=512, help="square render size in pixels (default 512)")
+    ap.add_argument("--views", type=int, default=4, help="directions around the subject (default 4)")
+    ap.add_argument("--figure", type=Path, default=None,
+                    help="PNG of the posed frame and view with the most pixels of skin through the cloth")
+    args = ap.parse_args(argv)
+    try:
+        subjects = [int(s) for s in args.subjects.split(",") if s.strip()]
+    except ValueError:
+        raise SystemExit(f"--subjects: comma-separated integers, got {args.subjects!r}") from None
+    if not subjects or args.poses < 0 or args.size < 16 or args.views < 1:
+        raise SystemExit("--subjects: at least one; --poses >= 0, --size >= 16 and --views >= 1")
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bench_cloth_pose import load, test_source
+
+    from rh_dataset.characters import pose_character
+
+    source, split = test_source(args.seed)
+    print(f"{args.size}x{args.size}, {args.views} views, a pixel counted where >= {SHARE:.0%} of its samples saw the "
+          f"skin; load {load()}")
+    print("| subject | pose | skin faces through | pixels, skin through the cloth, per view | all | pixels, other "
+          "skin from under the cloth, per view | all |\n|---|---|---:|---|---:|---|---:|")
+    worst, totals = None, [0, 0]
+    for s in subjects:
+        subject = source.subject(s)
+        ch = subject.character
+        covered = covered_skin(ch, pose_character(ch, None, None))
+        body_faces = under_faces(covered)
+        frames = [("rest", None, None)] + [(p.label, dict(p.bones), p.root_transform)
+                                           for p in (source.pose(subject, split, j) for j in range(args.poses))]
+        for j, (label, bones, root) in enumerate(frames):
+            t = time.perf_counter()
+            counts, n_faces, first = seen_pixels(ch, bones, root, covered, body_faces, args.size, args.views)
+            n_t, n_u = sum(c[0] for c in counts), sum(c[1] for c in counts)
+            if bones is not None:
+                totals[0] += n_t
+                totals[1] += n_u
+            print(f"| {s} | {j - 1 if j else '-'} {label} | {n_faces} | {' / '.join(str(c[0]) for c in counts)} | "
+                  f"{n_t} | {' / '.join(str(c[1]) for c in counts)} | {n_u} |  ({time.perf_counter() - t:.1f} s)",
+                  flush=True)
+            if bones is not None and (worst is None or n_t > worst[0]):
+                worst = (n_t, s, label, first)
+    print(f"\nposed frames: {totals[0]} pixels of skin through the cloth, {totals[1]} of other skin from under it "
+          f"(through openings or folds); load {load()}")
+    if args.figure is not None and worst is not None:
+        from rh_common.colourspace import quantize8, srgb_encode
+        from rh_common.imageio import write_png
+
+        n, s, label, (view, seen_through, seen_under, albedo) = worst
+        img = quantize8(srgb_encode(np.clip(albedo, 0.0, 1.0)))
+        for mask, colour in ((seen_under, (0, 255, 255)), (seen_through, (255, 0, 255))):
+            ring = mask.copy()
+            for dy in range(-3, 4):
+                for dx in range(-3, 4):
+                    ring |= np.roll(np.roll(mask, dy, 0), dx, 1)
+            img[ring & ~mask] = colour
+        write_png(args.figure, img)
+        print(f"wrote {args.figure}: subject {s}, {label}, view {view} ({360 * view // args.views} degrees); skin "
+              f"through the cloth (green) ringed in magenta, other skin from under it (blue) in cyan")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
