@@ -4,18 +4,19 @@ through the body visibly".
     python bench/skin_seen.py --subjects 14,18 --poses 3 [--size 512] [--views 4] [--figure out.png]
 
 In: seed `--seed`'s benchmark subjects (protocol a's test split, built as at the `standard` preset: full drapes) and
-their first `--poses` test poses, skinned as `rh-generate` poses them. The body's skin that lies inside a draped
-garment at rest (`cloth_pose.skin_inside` of every draped part, the cloth as posing leaves it at rest) and outside
-its posed surface in the frame (`cloth_pose.layer_depth` < 0 within `bench_cloth_pose.THROUGH_REACH`: skin come
-out through the cloth, the `through` of bench_cloth_pose.py) gets a pure green albedo on every face it touches, and
-the posed character's albedo AOV is rendered (`preview.render_preview`, 4 spp) from `--views` directions around it
-(the character turned about the vertical), twice with the same samples, that skin green and then magenta. Out, per
-frame: the body faces through, and the pixels where at least a quarter of the samples saw that skin (their green
-differs between the two renders by that much), per view and in all; the rest pose first as the check (0
-expected). Skin seen through a hem or a sleeve's opening lies inside the cloth and is not counted; skin under
-shell garments is culled by the renderer. `bench_cloth_pose.py`'s `seen_around` says which vertices could be seen
-(a ray to 8 cameras); this says how many pixels of them are. `--figure`: the posed frame and view with the most
-pixels of skin through the cloth, those ringed in magenta and the other skin from under the cloth in cyan.
+their first `--poses` test poses, skinned as `rh-generate` poses them. The body's faces that lie inside a draped
+garment at rest (`cloth_pose.skin_inside` of every draped part, or the part's own `inside_skin`) are coloured: green
+where a corner came out through the posed cloth (`cloth_pose.layer_depth` < 0 within
+`bench_cloth_pose.THROUGH_REACH`, the `through` of bench_cloth_pose.py), blue where all lie under it still. The
+posed character's albedo AOV is rendered (`preview.render_preview`, 4 spp) from `--views` directions around it (the
+character turned about the vertical), twice with the same samples: those colours, then black. Out, per frame: the
+body faces through, and per view and in all the pixels where at least a quarter of the samples saw each kind (the
+green, resp. blue, difference of the two renders), whatever the garments' own colours; the rest pose first as the
+check (none through expected). Blue pixels are skin seen from under the cloth: through a hem, a cuff or a neckline
+(legitimately), or through gaps where the skinned cloth folds through itself. Skin under shell garments is culled
+by the renderer and not counted. `bench_cloth_pose.py`'s `seen_around` says which vertices could be seen (a ray to
+8 cameras); this says how many pixels are. `--figure`: the posed frame and view with the most green pixels, those
+ringed in magenta and the blue ones in cyan.
 """
 from __future__ import annotations
 
@@ -27,9 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-GREEN = np.array([0.0, 1.0, 0.0], np.float32)
-MAGENTA = np.array([1.0, 0.0, 1.0], np.float32)
-SHARE = 0.25  # a pixel counts when at least this share of its samples saw skin through the cloth
+SHARE = 0.25  # a pixel counts when at least this share of its samples saw the skin
 
 
 def covered_skin(character, rest_meshes) -> dict[str, np.ndarray]:
