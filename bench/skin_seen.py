@@ -117,14 +117,15 @@ def seen_pixels(character, bones, root, covered: dict[str, np.ndarray], body_fac
     from rh_dataset.characters.preview import render_preview
     from rh_dataset.poses.pose import rotation_about_z
 
-    counts, shown, n_faces = [], None, 0
+    counts, shown = [], None
+    # Which skin came through depends on the pose, not on the turn (a rigid motion of body and cloth together):
+    # found once, in the unturned frame.
+    through = through_faces(character, bones, root, pose_character(character, bones, root), covered)
+    under = body_faces & ~through
+    n_faces = int(through.sum())
     for k in range(views):
         R = rotation_about_z(360.0 * k / views)
-        turned = R if root is None else R @ root
-        posed = pose_character(character, bones, turned)
-        through = through_faces(character, bones, turned, posed, covered)
-        under = body_faces & ~through
-        n_faces = int(through.sum())
+        posed = pose_character(character, bones, R if root is None else R @ root)
         # The same samples twice, the two kinds of skin coloured (green, blue) and then black: a pixel's green and
         # blue differences are the shares of its samples that saw each, whatever the garments' own colours.
         a = render_preview(coloured_split(posed, [(through, (0, 1, 0)), (under, (0, 0, 1))]), width=size,
