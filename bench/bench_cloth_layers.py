@@ -169,8 +169,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"{unders(g.vertices, {c.kind: (c.vertices, c.faces) for c in clothes})}  (load {load()})")
         character = build_character(recipe, 512, drape=args.drape)
         if args.no_lift:
-            character = dataclasses.replace(character, parts=[dataclasses.replace(p, inside_skin=None)
-                                                              for p in character.parts])
+            character = dataclasses.replace(character, parts=[
+                dataclasses.replace(p, inside_skin=None, inside_depth=None) for p in character.parts])
         poses = [("rest", {})] + [(f"test {j} ({p.label})", dict(p.bones)) for j, p in enumerate(
             sample_pose(rng_for(args.seed, "pose", s, "test", j), load_anny()) for j in range(args.poses))]
         print(f"  {'pose':22s} {'mode':9s}  vertices > 1 mm under (worst mm): without push_over | with push_over | "

@@ -80,7 +80,8 @@ def cases(args):
         recipe = draped_recipe(index, 0, args.kind)
         index = recipe.index + 1
         ch = build_character(recipe, 512)
-        ch = dataclasses.replace(ch, parts=[dataclasses.replace(p, inside_skin=None) for p in ch.parts])
+        ch = dataclasses.replace(ch, parts=[dataclasses.replace(p, inside_skin=None, inside_depth=None)
+                                            for p in ch.parts])
         part = next(p for p in ch.parts if p.name == args.kind)
         g = drape_garment(args.kind, ch.phenotype, part.drape)
         for j in args.poses:
@@ -188,7 +189,8 @@ def figure(path: Path, kind: str, subjects: int, bones) -> None:
     test = next(x for x in load_protocol("protocol_a").splits if x.name == "test")
     settings = render_settings("standard", spp=64, aov_spp=4).for_split(test)
     lifted = build_character(recipe, 1024)
-    plain = dataclasses.replace(lifted, parts=[dataclasses.replace(p, inside_skin=None) for p in lifted.parts])
+    plain = dataclasses.replace(lifted, parts=[dataclasses.replace(p, inside_skin=None, inside_depth=None)
+                                               for p in lifted.parts])
     rows = []
     for character in (plain, lifted):
         posed = pose_character(character, bones, None, "skinned")

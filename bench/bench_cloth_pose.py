@@ -243,8 +243,8 @@ def main(argv: list[str] | None = None) -> int:
         index = recipe.index + 1
         character = build_character(recipe, 512)
         if args.no_lift:  # the draped parts posed without cloth_pose.lift_over_skin
-            character = dataclasses.replace(character, parts=list(dataclasses.replace(p, inside_skin=None)
-                                                                   for p in character.parts))
+            character = dataclasses.replace(character, parts=list(
+                dataclasses.replace(p, inside_skin=None, inside_depth=None) for p in character.parts))
         kinds = [p.name for p in character.parts if p.name in DRAPED_KINDS]
         assert args.kind in kinds, (args.kind, kinds)
         rest = pose_character(character, None, None, "simulated")  # the drape (cached on disk) and kernels, not timed

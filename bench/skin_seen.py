@@ -1,7 +1,8 @@
 """Skin a camera sees through draped cloth, counted in pixels: the image-space check of issue 17's "no cloth passes
 through the body visibly".
 
-    python bench/skin_seen.py --subjects 14,18 --poses 3 [--size 512] [--views 4] [--figure out.png]
+    python bench/skin_seen.py --subjects 14,18 --poses 3 [--size 512] [--views 4] [--tuck-depth M]
+                               [--figure out.png]
 
 In: seed `--seed`'s benchmark subjects (protocol a's test split, built as at the `standard` preset: full drapes) and
 their first `--poses` test poses, skinned as `rh-generate` poses them. The body's faces that lie inside a draped
@@ -12,8 +13,11 @@ posed character's albedo AOV is rendered (`preview.render_preview`, 4 spp) from 
 character turned about the vertical), twice with the same samples: those colours, then black. Out, per frame: the
 body faces through, and per view and in all the pixels where at least a quarter of the samples saw each kind (the
 green, resp. blue, difference of the two renders), whatever the garments' own colours; the rest pose first as the
-check (none through expected). Blue pixels are skin seen from under the cloth: through a hem, a cuff or a neckline
-(legitimately), or through gaps where the skinned cloth folds through itself. Skin under shell garments is culled
+check (none through expected). Which faces are coloured is decided on anny's posed body; the render shows the
+body as posing leaves it, its skin out through the cloth tucked `--tuck-depth` under it (`cloth_pose.tuck_skin`;
+0: as the cloth leaves it), so green pixels are skin the tuck left out, or skin seen through a gap. Blue pixels
+are skin seen from under the cloth: through a hem, a cuff or a neckline (legitimately), or through gaps where the
+skinned cloth folds through itself. Skin under shell garments is culled
 by the renderer and not counted. `bench_cloth_pose.py`'s `seen_around` says which vertices could be seen (a ray to
 8 cameras); this says how many pixels are. `--figure`: the posed frame and view with the most green pixels, those
 ringed in magenta and the blue ones in cyan.
@@ -109,7 +113,7 @@ def coloured_split(posed: list, classes: list[tuple[np.ndarray, np.ndarray]]) ->
 
 
 def seen_pixels(character, bones, root, covered: dict[str, np.ndarray], body_faces: np.ndarray, size: int,
-                views: int) -> tuple[list[tuple[int, int]], int, tuple]:
+                views: int, tuck_depth: float) -> tuple[list[tuple[int, int]], int, tuple]:
     """Per view (the character turned about the vertical by 360 / views degrees each) the pixels that saw skin come
     out through the cloth and those that saw other skin from under the cloth; the body faces through; and the view
     with the most of the first kind: its index, both masks and its albedo image."""
@@ -125,7 +129,7 @@ def seen_pixels(character, bones, root, covered: dict[str, np.ndarray], body_fac
     n_faces = int(through.sum())
     for k in range(views):
         R = rotation_about_z(360.0 * k / views)
-        posed = pose_character(character, bones, R if root is None else R @ root)
+        posed = pose_character(character, bones, R if root is None else R @ root, tuck_depth=tuck_depth)
         # The same samples twice, the two kinds of skin coloured (green, blue) and then black: a pixel's green and
         # blue differences are the shares of its samples that saw each, whatever the garments' own colours.
         a = render_preview(coloured_split(posed, [(through, (0, 1, 0)), (under, (0, 0, 1))]), width=size,
@@ -146,6 +150,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="dataset seed whose subjects are used (default 0)")
     ap.add_argument("--size", type=int, default=512, help="square render size in pixels (default 512)")
     ap.add_argument("--views", type=int, default=4, help="directions around the subject (default 4)")
+    ap.add_argument("--tuck-depth", type=float, default=None,
+                    help="metres under the cloth that posing tucks skin come out through it (default "
+                         "cloth_pose.TUCK_DEPTH; 0: not tucked)")
     ap.add_argument("--figure", type=Path, default=None,
                     help="PNG of the posed frame and view with the most pixels of skin through the cloth")
     args = ap.parse_args(argv)
@@ -155,14 +162,18 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"--subjects: comma-separated integers, got {args.subjects!r}") from None
     if not subjects or args.poses < 0 or args.size < 16 or args.views < 1:
         raise SystemExit("--subjects: at least one; --poses >= 0, --size >= 16 and --views >= 1")
+    if args.tuck_depth is not None and not (np.isfinite(args.tuck_depth) and args.tuck_depth >= 0):
+        raise SystemExit(f"--tuck-depth: metres >= 0, got {args.tuck_depth}")
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_cloth_pose import load, test_source
 
     from rh_dataset.characters import pose_character
+    from rh_dataset.characters.cloth_pose import TUCK_DEPTH
 
+    tuck = TUCK_DEPTH if args.tuck_depth is None else args.tuck_depth
     source, split = test_source(args.seed)
     print(f"{args.size}x{args.size}, {args.views} views, a pixel counted where >= {SHARE:.0%} of its samples saw the "
-          f"skin; load {load()}")
+          f"skin; skin through the cloth tucked {1e3 * tuck:g} mm under it; load {load()}")
     print("| subject | pose | skin faces through | pixels, skin through the cloth, per view | all | pixels, other "
           "skin from under the cloth, per view | all |\n|---|---|---:|---|---:|---|---:|")
     worst, totals = None, [0, 0]
@@ -175,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
                                            for p in (source.pose(subject, split, j) for j in range(args.poses))]
         for j, (label, bones, root) in enumerate(frames):
             t = time.perf_counter()
-            counts, n_faces, first = seen_pixels(ch, bones, root, covered, body_faces, args.size, args.views)
+            counts, n_faces, first = seen_pixels(ch, bones, root, covered, body_faces, args.size, args.views, tuck)
             n_t, n_u = sum(c[0] for c in counts), sum(c[1] for c in counts)
             if bones is not None:
                 totals[0] += n_t

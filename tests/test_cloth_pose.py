@@ -318,6 +318,35 @@ def test_push_over_lifts_what_lies_under_the_inner_layer():
     assert push_over(np.zeros((0, 3)), sheet, quads, 0.004).shape == (0, 3)
 
 
+def test_tuck_skin_puts_skin_out_through_the_cloth_back_deep_under_it():
+    """tuck_skin under an outward (+Z) square sheet: skin out through it, and farther out than at rest by more than
+    TUCK_TOLERANCE, goes TUCK_DEPTH under its closest point; skin under it (however near), out no farther than at
+    rest, beyond the sheet's edge or farther out than TUCK_REACH keeps its bits. Skin at its rest depths (a
+    rest-pose frame) does not move at all."""
+    from rh_dataset.characters.cloth_pose import TUCK_DEPTH, TUCK_REACH, TUCK_TOLERANCE, layer_depth, tuck_skin
+
+    sheet = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    quads = np.array([[0, 1, 2], [0, 2, 3]])
+    pts = np.array([[0.2, 0.1, 0.005],     # out through it: tucked
+                    [0.1, 0.0, -0.001],    # 1 mm under it, 10 mm at rest: left
+                    [0.1, 0.1, 0.006],     # 6 mm out, 3 mm out at rest: tucked
+                    [0.0, 0.1, 0.0035],    # 3.5 mm out, 3 mm out at rest (within the tolerance): left
+                    [1.5, 0.0, 0.010],     # beyond the sheet's edge: left
+                    [0.0, 0.0, 2 * TUCK_REACH]])  # far out (a limb swung across the cloth): left
+    rest = np.array([0.003, 0.010, -0.003, -0.003, 0.010, 0.010])
+    assert TUCK_TOLERANCE > 0.0005
+    out, moved = tuck_skin(pts, rest, sheet, quads)
+    assert moved.tolist() == [0, 2]
+    np.testing.assert_allclose(out[[0, 2]], [[0.2, 0.1, -TUCK_DEPTH], [0.1, 0.1, -TUCK_DEPTH]], atol=1e-12)
+    keep = np.setdiff1d(np.arange(len(pts)), moved)
+    assert out[keep].tobytes() == pts[keep].tobytes()
+    # A rest-pose frame: every point at its own rest depth, out through the cloth or not.
+    still, none = tuck_skin(pts[:4], layer_depth(pts[:4], sheet, quads), sheet, quads)
+    assert len(none) == 0 and still.tobytes() == pts[:4].tobytes()
+    with pytest.raises(ValueError, match="rest_depth"):
+        tuck_skin(pts, rest[:3], sheet, quads)
+
+
 def test_layer_depth_finds_the_open_edge_as_a_test_of_every_edge_would():
     """layer_depth's open-edge rule (NaN where the closest surface point lies on a hem) tests only the closest points
     near an open edge's midpoint, each against only the open edges whose midpoints lie that near
@@ -609,9 +638,10 @@ def test_skinned_trousers_keep_a_bent_knee_under_them(tmp_path, monkeypatch):
     comes out through them; with it (what `skin_into_pose` and pose_character do) much less does, and no cloth
     vertex is in the body; at rest it changes nothing. Measured (4 December): 64 skin vertices through without the
     lift, 17 with it (53 and 13 of them within LIFT_REACH; the others lie deeper, most inside the body itself, and
-    are not lifted over)."""
+    are not lifted over). Then `tuck_skin` (pose_character's, on the rendered body) leaves 3 (7 December), 0.3-9.1 mm
+    out: tucked under one fold of the cloth, out of the one facing it; at rest it moves nothing."""
     from rh_dataset.mesh import vertex_normals
-    from rh_dataset.characters.cloth_pose import LIFT_REACH, layer_depth, skin_inside
+    from rh_dataset.characters.cloth_pose import LIFT_REACH, TUCK_DEPTH, layer_depth, skin_inside, tuck_skin
     from rh_dataset.characters.drape import bind_loose, drape_garment, drape_settings, push_clearance, push_out
 
     monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
@@ -632,15 +662,26 @@ def test_skinned_trousers_keep_a_bent_knee_under_them(tmp_path, monkeypatch):
         return depth[np.isfinite(depth) & (depth < 0)]
 
     before, after = through(plain), through(lifted)
+    # Then pose_character tucks the rendered skin back under the cloth where it came out (tuck_skin).
+    inside_d = layer_depth(rest["vertices"][inside], g.vertices, g.faces, near=0.1)
+    skin, moved = tuck_skin(posed["vertices"][inside], inside_d, lifted, g.faces)
+    depth = layer_depth(skin, lifted, g.faces, near=0.03)
+    tucked = depth[np.isfinite(depth) & (depth < 0)]
     print(f"skin through the trousers: {len(before)} vertices without the lift, {len(after)} with it; shallower "
-          f"than LIFT_REACH: {int((before > -LIFT_REACH).sum())} / {int((after > -LIFT_REACH).sum())}")
+          f"than LIFT_REACH: {int((before > -LIFT_REACH).sum())} / {int((after > -LIFT_REACH).sum())}; after "
+          f"tuck_skin {len(tucked)} (it moved {len(moved)}; mm out: {np.round(-1e3 * np.sort(tucked), 1).tolist()})")
     assert len(before) >= 20 and len(after) <= len(before) // 2
+    # What the tuck leaves out lies at most TUCK_DEPTH out: skin tucked under one fold and out of the fold facing it.
+    assert len(tucked) <= len(after) // 2 and tucked.min() >= -TUCK_DEPTH - 1e-9
     assert penetration(posed["vertices"], faces, lifted).max() <= 0.0
     # In the rest pose no skin is out through the cloth: the lift leaves it bit for bit.
     rest_normals = vertex_normals(rest["vertices"], faces)
     still = push_out(skin_points(bind_loose(g, PHENO), rest["bone_poses"], rest["rest_bone_poses"]),
                      rest["vertices"], rest_normals, faces, push_clearance("draped_trousers"))
     assert skin_into_pose([g], PHENO, None)[0].tobytes() == still.tobytes()
+    # ... and the tuck moves no skin.
+    at_rest = layer_depth(rest["vertices"][inside], still, g.faces, near=0.1)
+    assert len(tuck_skin(rest["vertices"][inside], at_rest, still, g.faces)[1]) == 0
 
 
 def test_loose_binding_is_the_closest_points_above_the_hips_and_reruns_bit_identically():

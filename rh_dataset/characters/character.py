@@ -16,7 +16,8 @@ eyeballs (eyes.py) are rigid with anny's eye joints and, alone among skinned par
 (they sit in the sockets, inside the head). Hair is
 strands (`hair.py`), and so are the brows (`face_hair.py`, of the hair's fibres): every control point is anchored
 the same way as a shell vertex, and posing gives `PosedStrands` (control points and radii, one `HairFibre` per set
-of strands) beside the `PosedMesh`es.
+of strands) beside the `PosedMesh`es. Last, where skin came out through a lifted draped garment, the body's own
+mesh (as rendered, not anny's body, which the pose describes) is tucked back under the cloth (`_tuck_skin`).
 """
 from __future__ import annotations
 
@@ -34,8 +35,8 @@ from .body import anchor_points, blended_normals, body_topology, run_anny, smoot
 from .garments import (BASE_OFFSET, BRIDGED, LAYER_GAP, LIFT_SMOOTH_ROUNDS, PartGeometry, build_garments, garment_parts,
                        lift_directions, lift_turn, shoe_height_map)
 from .body_features import body_features, group_mask
-from .cloth_pose import (CLOTH_MODES, ClothPoseSettings, lift_over_skin, push_over_layers, push_under,
-                         simulated_parts)
+from .cloth_pose import (CLOTH_MODES, INSIDE_NEAR, TUCK_DEPTH, ClothPoseSettings, layer_depth, lift_over_skin,
+                         push_over_layers, push_under, simulated_parts, tuck_skin)
 from .drape import (BOTTOMS_UNDER, DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, SHELL_TOPS, SHELLS_UNDER,
                     DrapeSettings, SkinBinding, penetration, SLEEVE_GROUPS, push_clearance, push_out, shells_under,
                     skin_points)
@@ -131,6 +132,9 @@ class CharacterPart:
     collide: bool = True
     drape: DrapeSettings | None = None  # draped garments: the simulation they were draped with (drape.py)
     inside_skin: np.ndarray | None = None  # draped LIFT_KINDS: body vertices kept under the cloth (cloth_pose.py)
+    # (len(inside_skin),) metres: their depths under the cloth as posed at rest (`_with_rest_depths`); with them,
+    # posing tucks the rendered skin back under the cloth where it came nearer (`_tuck_skin`).
+    inside_depth: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         faces = _ro(self.faces, np.int32)
@@ -177,6 +181,11 @@ class CharacterPart:
                 raise ValueError(f"CharacterPart {self.name}: inside_skin must be body vertex indices (N,) of a "
                                  "skinned (draped) part")
             object.__setattr__(self, "inside_skin", inside)
+        if self.inside_depth is not None and (self.inside_skin is None or
+                                              np.shape(self.inside_depth) != (len(self.inside_skin),)):
+            raise ValueError(f"CharacterPart {self.name}: inside_depth must be one depth per inside_skin vertex")
+        if self.inside_depth is not None:
+            object.__setattr__(self, "inside_depth", _ro(self.inside_depth, np.float64))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -398,7 +407,23 @@ def _build_cached(recipe_json: str, res: int, drape: str = "full") -> Character:
     rng = np.random.default_rng([seed, _STREAM_FACE_HAIR])
     for kind in FACE_HAIR:
         strands += _split_fibres(FACE_HAIR_BUILDERS[kind](feats, rng), fibres, rng, kind)
-    return Character(recipe=recipe, parts=parts, phenotype=dict(recipe.phenotype), strands=strands)
+    return _with_rest_depths(Character(recipe=recipe, parts=parts, phenotype=dict(recipe.phenotype),
+                                       strands=strands))
+
+
+def _with_rest_depths(character: Character) -> Character:
+    """`character` with each lifted draped part's `inside_depth`: its inside skin's depths under the cloth as
+    `pose_character` poses it at rest (after the layers' pushes: a shell top over draped trousers presses their
+    waist nearer the skin than the drape lies), which `_tuck_skin` compares a frame's with, so that a rest-pose
+    frame tucks nothing. 0.1 s a character (one rest posing)."""
+    if not any(p.inside_skin is not None for p in character.parts):
+        return character
+    rest = run_anny(character.phenotype, None)["vertices"]
+    posed = {m.name: m for m in pose_character(character, None, None)}
+    return dataclasses.replace(character, parts=[
+        p if p.inside_skin is None else dataclasses.replace(p, inside_depth=layer_depth(
+            rest[p.inside_skin], posed[p.name].vertices.astype(np.float64), p.faces, near=INSIDE_NEAR))
+        for p in character.parts])
 
 
 def _nearest_body_vertex(feats, points: np.ndarray) -> np.ndarray:
@@ -459,6 +484,7 @@ def pose_character(
     cloth: str = "skinned",
     cloth_stats: dict | None = None,
     cloth_settings: ClothPoseSettings = ClothPoseSettings(),
+    tuck_depth: float = TUCK_DEPTH,
 ) -> list[PosedMesh | PosedStrands]:
     """Pose every part. `bone_deltas`: bone label -> 4x4 local-ref delta (None or identities = anny's rest A-pose).
     `root_transform`: a rigid world 4x4 applied after skinning (the turntable's rotation about +Z through the
@@ -470,8 +496,9 @@ def pose_character(
     (`drape.DRAPED_OVER`: a loose top, an open jacket or coat) is then pushed out over that cloth's posed surface
     (`cloth_pose.push_over_layers`, keeping `drape.LAYER_GAP_DRAPE`). `cloth_stats`, if given, receives the
     simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
-    (benches; costs a closest-point query). The meshes come first, in part order, then one `PosedStrands` per
-    `character.strands`."""
+    (benches; costs a closest-point query). `tuck_depth`: how far under draped cloth the rendered skin that came
+    out through it is put (`cloth_pose.tuck_skin`; 0: not tucked, as bench/skin_seen.py compares). The meshes come
+    first, in part order, then one `PosedStrands` per `character.strands`."""
     topo = body_topology()
     out = run_anny(character.phenotype, bone_deltas)
     verts = out["vertices"]
@@ -482,6 +509,8 @@ def pose_character(
         normals = normals @ m[:3, :3].T
     if cloth not in CLOTH_MODES:
         raise ValueError(f"pose_character: cloth must be one of {CLOTH_MODES}, got {cloth!r}")
+    if not (np.isfinite(tuck_depth) and tuck_depth >= 0):
+        raise ValueError(f"pose_character: tuck_depth must be a depth in metres >= 0, got {tuck_depth!r}")
     simulated = (simulated_parts(character, bone_deltas, cloth_settings, stats=cloth_stats) if cloth == "simulated"
                  else {})
     posed = []
@@ -541,6 +570,8 @@ def pose_character(
     _tuck_inner_layers(character, posed, cloth_under, verts, normals, topo.faces)
     _shell_under_panels(character, posed, cloth_under, verts, normals, topo.faces)
     _bottoms_under_shell_top(posed, cloth_under, verts, normals, topo.faces)
+    if tuck_depth > 0:
+        _tuck_skin(character, posed, cloth_under, verts, topo.faces, tuck_depth)
     # Strands are bound, not simulated: an arm swung into hanging hair, or a trunk turned into it, is taken back out
     # of it (`push_out_of_body`).
     below_neck = group_mask(ANNY_TOPOLOGY, *PUSHED_GROUPS)[topo.faces].all(axis=1) if character.strands else None
@@ -549,6 +580,31 @@ def pose_character(
         pts = push_out_of_body(pts, verts, normals, topo.faces, below_neck).reshape(*h.radius.shape, 3)
         posed.append(PosedStrands(h.name, _ro(pts, np.float32), h.radius, h.fibre))
     return posed
+
+
+def _tuck_skin(character: Character, posed: list, cloth_under: dict, verts: np.ndarray, faces: np.ndarray,
+               depth: float) -> None:
+    """In place: the body's render mesh with the skin inside each lifted draped part (`inside_skin`, with its rest
+    depths `inside_depth`) tucked back `depth` under its posed cloth where it came out through it
+    (`cloth_pose.tuck_skin`), its normals recomputed. Only the rendered body moves: the cloth was posed, and the
+    hair and shells anchored, on anny's posed body (`verts`), which the frame's pose and every fit and export keep.
+    Where no skin came out farther than at rest (a rest-pose frame), nothing changes."""
+    tucked = None
+    for part in character.parts:
+        if part.inside_depth is None or part.name not in cloth_under:
+            continue
+        w, moved = tuck_skin((verts if tucked is None else tucked)[part.inside_skin], part.inside_depth,
+                             *cloth_under[part.name], depth=depth)
+        if len(moved):
+            tucked = verts.copy() if tucked is None else tucked
+            tucked[part.inside_skin[moved]] = w[moved]
+    if tucked is None:
+        return
+    at, body = next((j, p) for j, p in enumerate(character.parts) if p.name == "body")
+    # The body's mesh comes first among the posed meshes, in part order; its vertices are anny's, seams split.
+    n = vertex_normals(tucked, faces)
+    posed[at] = dataclasses.replace(posed[at], vertices=_ro(tucked[body.body_vertex], np.float32),
+                                    normals=_ro(_unit(n[body.body_vertex]), np.float32))
 
 
 def _lift_weight(part: CharacterPart) -> np.ndarray | None:
