@@ -75,8 +75,14 @@ def test_vertices_project_onto_the_mask_and_params_rebuild_them(exported):
         bones.pop("root", None)
         local = run_anny(dict(zip(params["shape_labels"], params["shapes"][0])), bones)["vertices"]
         np.testing.assert_allclose(local @ axis_angle_matrix(params["Rh"][0]).T + params["Th"][0], xyz, atol=1e-5)
-        # ... and they are exactly the skin the renderer drew (the body part of the posed character).
+        # ... and they are exactly the skin the renderer drew (the body part of the posed character), but where
+        # posing tucked skin that came out through draped cloth back under it (`cloth_pose.tuck_skin`: hidden).
         character = build_character(CharacterRecipe.from_json(read_json(ds / "subject_000" / "character.json")),
-                                drape="coarse")  # export_data generates with --drape coarse
-        body = pose_character(character, dict(pose.bones), pose.root_transform)[0]
-        np.testing.assert_allclose(xyz[character.part("body").body_vertex], body.vertices, atol=1e-6)
+                                    drape="coarse")  # export_data generates with --drape coarse
+        split = character.part("body").body_vertex
+        body = pose_character(character, dict(pose.bones), pose.root_transform, tuck_depth=0.0)[0]
+        np.testing.assert_allclose(xyz[split], body.vertices, atol=1e-6)
+        drawn = pose_character(character, dict(pose.bones), pose.root_transform)[0]
+        tucked = np.unique(split[np.any(drawn.vertices != body.vertices, axis=1)])
+        inside = [p.inside_skin for p in character.parts if p.inside_depth is not None]
+        assert np.isin(tucked, np.concatenate(inside) if inside else []).all()
