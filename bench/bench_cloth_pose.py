@@ -35,7 +35,10 @@ Per (subject, pose), both ways of `pose_character(..., cloth=)`:
             through the cloth, which a camera on that side sees in place of the fabric (it is not culled under draped
             cloth); and of those, how many a camera sees ("seen": from 2 mm off the skin along its normal, the ray
             towards at least one of 8 cameras around the subject at the height of the point meets none of the
-            posed character's meshes; trimesh). Skin pressed into a crease counts as through, but not as seen;
+            posed character's meshes; trimesh). Skin pressed into a crease counts as through, but not as seen.
+            Both measure the cloth against anny's posed body: for the lifted kinds, posing then tucks the rendered
+            body's skin that is out back under the cloth (`cloth_pose.tuck_skin`), which bench/skin_seen.py counts
+            in pixels;
   image     512x512 renders at the standard preset (its sampler, spp, env_spp, the pose's scene-class depth, skin
             under clothes culled) under the bundled `interior` map (mean luminance 1), camera framed as the generator
             frames the subject: rh-eval's PSNR (display space over the person's dilated box, over white) of the
