@@ -133,7 +133,7 @@ class CharacterPart:
     drape: DrapeSettings | None = None  # draped garments: the simulation they were draped with (drape.py)
     inside_skin: np.ndarray | None = None  # draped LIFT_KINDS: body vertices kept under the cloth (cloth_pose.py)
     # (len(inside_skin),) metres: their depths under the cloth as posed at rest (`_with_rest_depths`); with them,
-    # posing tucks the rendered skin back under the cloth where it came nearer (`_tuck_skin`).
+    # posing tucks the rendered skin back under the cloth where it came out through it (`_tuck_skin`).
     inside_depth: np.ndarray | None = None
 
     def __post_init__(self) -> None:
