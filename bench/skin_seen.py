@@ -11,9 +11,10 @@ where a corner came out through the posed cloth (`cloth_pose.layer_depth` < 0 wi
 `bench_cloth_pose.THROUGH_REACH`, the `through` of bench_cloth_pose.py), blue where all lie under it still. The
 posed character's albedo AOV is rendered (`preview.render_preview`, 4 spp) from `--views` directions around it (the
 character turned about the vertical), twice with the same samples: those colours, then black. Out, per frame: the
-body faces through, and per view and in all the pixels where at least a quarter of the samples saw each kind (the
-green, resp. blue, difference of the two renders), whatever the garments' own colours; the rest pose first as the
-check (none through expected). Which faces are coloured is decided on anny's posed body; the render shows the
+body faces through, per view and in all the pixels where at least a quarter of the samples saw each kind (the
+green, resp. blue, difference of the two renders), whatever the garments' own colours, then the body vertices the
+tuck moved and `pose_character`'s seconds with and without it (`tuck_stats`); the rest pose first as the check (none
+through, none tucked expected). Which faces are coloured is decided on anny's posed body; the render shows the
 body as posing leaves it, its skin out through the cloth tucked `--tuck-depth` under it (`cloth_pose.tuck_skin`;
 0: as the cloth leaves it), so green pixels are skin the tuck left out, or skin seen through a gap. Blue pixels
 are skin seen from under the cloth: through a hem, a cuff or a neckline (legitimately), or through gaps where the
@@ -112,6 +113,23 @@ def coloured_split(posed: list, classes: list[tuple[np.ndarray, np.ndarray]]) ->
     return out
 
 
+def tuck_stats(character, bones, root, tuck_depth: float, repeats: int = 2) -> tuple[int, float, float]:
+    """The body vertices (anny's) the tuck moved in this frame, and the seconds `pose_character` takes with the tuck
+    and without it (the least of `repeats` runs each, alternating)."""
+    from rh_dataset.characters import pose_character
+
+    part = character.part("body")
+    times, meshes = {tuck_depth: [], 0.0: []}, {}
+    for _ in range(repeats):
+        for depth in (tuck_depth, 0.0):
+            t = time.perf_counter()
+            meshes[depth] = next(m for m in pose_character(character, bones, root, tuck_depth=depth)
+                                 if m.name == "body")
+            times[depth].append(time.perf_counter() - t)
+    moved = np.any(meshes[tuck_depth].vertices != meshes[0.0].vertices, axis=1)
+    return len(np.unique(part.body_vertex[moved])), min(times[tuck_depth]), min(times[0.0])
+
+
 def seen_pixels(character, bones, root, covered: dict[str, np.ndarray], body_faces: np.ndarray, size: int,
                 views: int, tuck_depth: float) -> tuple[list[tuple[int, int]], int, tuple]:
     """Per view (the character turned about the vertical by 360 / views degrees each) the pixels that saw skin come
@@ -175,7 +193,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.size}x{args.size}, {args.views} views, a pixel counted where >= {SHARE:.0%} of its samples saw the "
           f"skin; skin through the cloth tucked {1e3 * tuck:g} mm under it; load {load()}")
     print("| subject | pose | skin faces through | pixels, skin through the cloth, per view | all | pixels, other "
-          "skin from under the cloth, per view | all |\n|---|---|---:|---|---:|---|---:|")
+          "skin from under the cloth, per view | all | body vertices tucked | posing s, tucked / not |"
+          "\n|---|---|---:|---|---:|---|---:|---:|---|")
     worst, totals = None, [0, 0]
     for s in subjects:
         subject = source.subject(s)
@@ -191,9 +210,11 @@ def main(argv: list[str] | None = None) -> int:
             if bones is not None:
                 totals[0] += n_t
                 totals[1] += n_u
+            seconds = time.perf_counter() - t
+            n_tucked, t_tuck, t_plain = tuck_stats(ch, bones, root, tuck)
             print(f"| {s} | {j - 1 if j else '-'} {label} | {n_faces} | {' / '.join(str(c[0]) for c in counts)} | "
-                  f"{n_t} | {' / '.join(str(c[1]) for c in counts)} | {n_u} |  ({time.perf_counter() - t:.1f} s)",
-                  flush=True)
+                  f"{n_t} | {' / '.join(str(c[1]) for c in counts)} | {n_u} | {n_tucked} | {t_tuck:.3f} / "
+                  f"{t_plain:.3f} |  ({seconds:.1f} s)", flush=True)
             if bones is not None and (worst is None or n_t > worst[0]):
                 worst = (n_t, s, label, first)
     print(f"\nposed frames: {totals[0]} pixels of skin through the cloth, {totals[1]} of other skin from under it "

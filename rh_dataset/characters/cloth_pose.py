@@ -696,12 +696,11 @@ def skin_inside(vertices: np.ndarray, faces: np.ndarray, body_vertices: np.ndarr
 # and farther out than at rest: no camera should see it (the cloth is in front), the frame's pose, fits and exports
 # keep anny's body, and a rest-pose frame keeps its bits. Chosen by bench/skin_seen.py (seed 0's subjects 14, 18, 9,
 # 0, 1; 3 test poses each, 4 views, 512x512; pixels where a quarter of the samples saw skin that came out through
-# the cloth): 938 untucked; tucked 2 mm under, 357; 12 mm, 232 (subject 18's bend 692 -> 16). Tucking also the skin
-# that came nearer the cloth than at rest, though still under it, left 197 at 12 mm and 221 at 6 mm, but it moves
-# skin a camera can see through a hem: 21 and 10 vertices of a sitting dress's inner thighs seen from 8 directions
-# round the subject, moved 11 and 4 mm on average, where tucking only the skin out through the cloth moved none
-# that is seen. What is left is skin seen through gaps where the skinned cloth folds through itself (subject 14's
-# `random` pose) and at a dress's hem sitting: no tuck reaches it.
+# the cloth; `--tuck-depth`): 938 untucked; tucked 2 mm under, 357; 6 mm, 278; 12 mm, 232 (subject 18's bend
+# 692 -> 16); 20 mm, 246. Tucking also the skin that came nearer the cloth though still under it (a scratch
+# prototype, not kept) moved skin a camera sees through a hem: a sitting dress's inner thighs. What is left is skin
+# seen through gaps where the skinned cloth folds through itself (subject 14's `random` pose) and at a dress's hem
+# sitting: no tuck reaches it.
 TUCK_DEPTH = 0.012  # metres under the cloth that tucked skin is put
 TUCK_REACH = 0.04  # metres: skin farther out than this is left (a limb beside the cloth, or swung across it)
 TUCK_TOLERANCE = 0.001  # metres farther out than at rest before skin counts as having come out
