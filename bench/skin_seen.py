@@ -12,9 +12,10 @@ where a corner came out through the posed cloth (`cloth_pose.layer_depth` < 0 wi
 posed character's albedo AOV is rendered (`preview.render_preview`, 4 spp) from `--views` directions around it (the
 character turned about the vertical), twice with the same samples: those colours, then black. Out, per frame: the
 body faces through, per view and in all the pixels where at least a quarter of the samples saw each kind (the
-green, resp. blue, difference of the two renders), whatever the garments' own colours, then the body vertices the
-tuck moved and `pose_character`'s seconds with and without it (`tuck_stats`); the rest pose first as the check (none
-through, none tucked expected). Which faces are coloured is decided on anny's posed body; the render shows the
+green, resp. blue, difference of the two renders), whatever the garments' own colours, the pixels that saw the
+character at all, then the body vertices the tuck moved and `pose_character`'s seconds with and without it
+(`tuck_stats`); the rest pose first as the check (none through, none tucked expected). At the end, the posed frames
+summed by pose label (`print_by_label`). Which faces are coloured is decided on anny's posed body; the render shows the
 body as posing leaves it, its skin out through the cloth tucked `--tuck-depth` under it (`cloth_pose.tuck_skin`;
 0: as the cloth leaves it), so green pixels are skin the tuck left out, or skin seen through a gap. Blue pixels
 are skin seen from under the cloth: through a hem, a cuff or a neckline (legitimately), or through gaps where the
@@ -133,8 +134,9 @@ def tuck_stats(character, bones, root, tuck_depth: float, repeats: int = 2) -> t
 def seen_pixels(character, bones, root, covered: dict[str, np.ndarray], body_faces: np.ndarray, size: int,
                 views: int, tuck_depth: float) -> tuple[list[tuple[int, int]], int, tuple]:
     """Per view (the character turned about the vertical by 360 / views degrees each) the pixels that saw skin come
-    out through the cloth and those that saw other skin from under the cloth; the body faces through; and the view
-    with the most of the first kind: its index, both masks and its albedo image."""
+    out through the cloth, those that saw other skin from under the cloth and those that saw the character at all;
+    the body faces through; and the view with the most of the first kind: its index, both masks and its albedo
+    image."""
     from rh_dataset.characters import pose_character
     from rh_dataset.characters.preview import render_preview
     from rh_dataset.poses.pose import rotation_about_z
@@ -155,10 +157,30 @@ def seen_pixels(character, bones, root, covered: dict[str, np.ndarray], body_fac
         b = render_preview(coloured_split(posed, [(through, (0, 0, 0)), (under, (0, 0, 0))]), width=size,
                            height=size, spp=4, seed=k, albedo=True)
         seen_through, seen_under = (a[..., 1] - b[..., 1]) >= SHARE, (a[..., 2] - b[..., 2]) >= SHARE
-        counts.append((int(seen_through.sum()), int(seen_under.sum())))
+        person = (a.max(axis=-1) > 0.0).sum()  # the albedo AOV is 0 where no surface was hit
+        counts.append((int(seen_through.sum()), int(seen_under.sum()), int(person)))
         if shown is None or counts[-1][0] > counts[shown[0]][0]:
             shown = (k, seen_through, seen_under, a)
     return counts, n_faces, shown
+
+
+def print_by_label(posed: list[tuple[int, str, list[tuple[int, int, int]]]]) -> None:
+    """The posed frames' counts summed by pose label: frames, frames with any pixel of skin through the cloth, those
+    pixels, and the most in one view as a share of the character's pixels in that view; then the frames in order of
+    their pixels through the cloth (the first 5)."""
+    print("\n| pose label | frames | with skin through the cloth | its pixels, all views | most in one view "
+          "(share of the character's pixels) | other skin from under the cloth, pixels |\n|---|---:|---:|---:|---|---:|")
+    labels = sorted({label for _, label, _ in posed})
+    for label in labels + ["all"]:
+        rows = [c for _, lab, c in posed if label in ("all", lab)]
+        views = [v for c in rows for v in c]
+        most = max(views, key=lambda v: (v[0] / max(v[2], 1), v[0]))
+        print(f"| {label} | {len(rows)} | {sum(1 for c in rows if any(v[0] for v in c))} | "
+              f"{sum(v[0] for v in views)} | {most[0]} ({100.0 * most[0] / max(most[2], 1):.2f} %) | "
+              f"{sum(v[1] for v in views)} |")
+    order = sorted(posed, key=lambda r: -sum(v[0] for v in r[2]))[:5]
+    print("most skin through the cloth: " + ", ".join(f"subject {s} {label} {sum(v[0] for v in c)}"
+                                                       for s, label, c in order))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -193,9 +215,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.size}x{args.size}, {args.views} views, a pixel counted where >= {SHARE:.0%} of its samples saw the "
           f"skin; skin through the cloth tucked {1e3 * tuck:g} mm under it; load {load()}")
     print("| subject | pose | skin faces through | pixels, skin through the cloth, per view | all | pixels, other "
-          "skin from under the cloth, per view | all | body vertices tucked | posing s, tucked / not |"
-          "\n|---|---|---:|---|---:|---|---:|---:|---|")
-    worst, totals = None, [0, 0]
+          "skin from under the cloth, per view | all | character's pixels, all views | body vertices tucked | "
+          "posing s, tucked / not |\n|---|---|---:|---|---:|---|---:|---:|---:|---|")
+    worst, totals, posed = None, [0, 0], []
     for s in subjects:
         subject = source.subject(s)
         ch = subject.character
@@ -210,15 +232,19 @@ def main(argv: list[str] | None = None) -> int:
             if bones is not None:
                 totals[0] += n_t
                 totals[1] += n_u
+                posed.append((s, label, counts))
             seconds = time.perf_counter() - t
             n_tucked, t_tuck, t_plain = tuck_stats(ch, bones, root, tuck)
             print(f"| {s} | {j - 1 if j else '-'} {label} | {n_faces} | {' / '.join(str(c[0]) for c in counts)} | "
-                  f"{n_t} | {' / '.join(str(c[1]) for c in counts)} | {n_u} | {n_tucked} | {t_tuck:.3f} / "
+                  f"{n_t} | {' / '.join(str(c[1]) for c in counts)} | {n_u} | {sum(c[2] for c in counts)} | "
+                  f"{n_tucked} | {t_tuck:.3f} / "
                   f"{t_plain:.3f} |  ({seconds:.1f} s)", flush=True)
             if bones is not None and (worst is None or n_t > worst[0]):
                 worst = (n_t, s, label, first)
     print(f"\nposed frames: {totals[0]} pixels of skin through the cloth, {totals[1]} of other skin from under it "
           f"(through openings or folds); load {load()}")
+    if posed:
+        print_by_label(posed)
     if args.figure is not None and worst is not None:
         from rh_common.colourspace import quantize8, srgb_encode
         from rh_common.imageio import write_png
