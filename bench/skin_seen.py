@@ -15,8 +15,8 @@ body faces through, per view and in all the pixels where at least a quarter of t
 green, resp. blue, difference of the two renders), whatever the garments' own colours, the pixels that saw the
 character at all, then the body vertices the tuck moved and `pose_character`'s seconds with and without it
 (`tuck_stats`); the rest pose first as the check (none through, none tucked expected). At the end, the posed frames
-summed by pose label (`print_by_label`). Which faces are coloured is decided on anny's posed body; the render shows the
-body as posing leaves it, its skin out through the cloth tucked `--tuck-depth` under it (`cloth_pose.tuck_skin`;
+summed by pose label (`print_by_label`). Which faces are coloured is decided on anny's posed body; the render shows
+the body as posing leaves it, its skin out through the cloth tucked `--tuck-depth` under it (`cloth_pose.tuck_skin`;
 0: as the cloth leaves it), so green pixels are skin the tuck left out, or skin seen through a gap. Blue pixels
 are skin seen from under the cloth: through a hem, a cuff or a neckline (legitimately), or through gaps where the
 skinned cloth folds through itself. Skin under shell garments is culled
@@ -132,7 +132,7 @@ def tuck_stats(character, bones, root, tuck_depth: float, repeats: int = 2) -> t
 
 
 def seen_pixels(character, bones, root, covered: dict[str, np.ndarray], body_faces: np.ndarray, size: int,
-                views: int, tuck_depth: float) -> tuple[list[tuple[int, int]], int, tuple]:
+                views: int, tuck_depth: float) -> tuple[list[tuple[int, int, int]], int, tuple]:
     """Per view (the character turned about the vertical by 360 / views degrees each) the pixels that saw skin come
     out through the cloth, those that saw other skin from under the cloth and those that saw the character at all;
     the body faces through; and the view with the most of the first kind: its index, both masks and its albedo
@@ -169,7 +169,8 @@ def print_by_label(posed: list[tuple[int, str, list[tuple[int, int, int]]]]) -> 
     pixels, and the most in one view as a share of the character's pixels in that view; then the frames in order of
     their pixels through the cloth (the first 5)."""
     print("\n| pose label | frames | with skin through the cloth | its pixels, all views | most in one view "
-          "(share of the character's pixels) | other skin from under the cloth, pixels |\n|---|---:|---:|---:|---|---:|")
+          "(share of the character's pixels) | other skin from under the cloth, pixels |"
+          "\n|---|---:|---:|---:|---|---:|")
     labels = sorted({label for _, label, _ in posed})
     for label in labels + ["all"]:
         rows = [c for _, lab, c in posed if label in ("all", lab)]
@@ -217,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
     print("| subject | pose | skin faces through | pixels, skin through the cloth, per view | all | pixels, other "
           "skin from under the cloth, per view | all | character's pixels, all views | body vertices tucked | "
           "posing s, tucked / not |\n|---|---|---:|---|---:|---|---:|---:|---:|---|")
-    worst, totals, posed = None, [0, 0], []
+    worst, posed = None, []
     for s in subjects:
         subject = source.subject(s)
         ch = subject.character
@@ -230,8 +231,6 @@ def main(argv: list[str] | None = None) -> int:
             counts, n_faces, first = seen_pixels(ch, bones, root, covered, body_faces, args.size, args.views, tuck)
             n_t, n_u = sum(c[0] for c in counts), sum(c[1] for c in counts)
             if bones is not None:
-                totals[0] += n_t
-                totals[1] += n_u
                 posed.append((s, label, counts))
             seconds = time.perf_counter() - t
             n_tucked, t_tuck, t_plain = tuck_stats(ch, bones, root, tuck)
@@ -241,8 +240,9 @@ def main(argv: list[str] | None = None) -> int:
                   f"{t_plain:.3f} |  ({seconds:.1f} s)", flush=True)
             if bones is not None and (worst is None or n_t > worst[0]):
                 worst = (n_t, s, label, first)
-    print(f"\nposed frames: {totals[0]} pixels of skin through the cloth, {totals[1]} of other skin from under it "
-          f"(through openings or folds); load {load()}")
+    print(f"\nposed frames: {sum(v[0] for _, _, c in posed for v in c)} pixels of skin through the cloth, "
+          f"{sum(v[1] for _, _, c in posed for v in c)} of other skin from under it (through openings or folds); "
+          f"load {load()}")
     if posed:
         print_by_label(posed)
     if args.figure is not None and worst is not None:
