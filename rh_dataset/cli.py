@@ -70,9 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cloth", default=None,
                    help="how draped garments reach each frame's pose (overrides the preset): 'skinned' follows the "
                         "body's skinning and is pushed out of the skin (cheap), 'simulated' runs newton's cloth solver "
-                        "while the body moves from the rest pose into the frame's (tens of seconds a posed frame); "
-                        "the frame JSON records it under render.cloth (docs/TRADEOFFS.md, 'Skinned or simulated "
-                        "cloth')")
+                        "while the body moves from the rest pose into the frame's (tens of seconds a posed frame), "
+                        "'auto' skins and simulates only the frames whose skinned cloth lets skin through; the frame "
+                        "JSON records it under render.cloth, and under render.cloth_posed what an 'auto' frame took "
+                        "(docs/TRADEOFFS.md, 'Skinned or simulated cloth')")
     p.add_argument("--drape", default=None,
                    help="how finely loose garments (draped skirts, dresses, wide trousers, loose shorts, coats, "
                         "open jackets, loose tops, hoods) are simulated onto each subject's body (overrides the preset): 'full' (the "

@@ -218,7 +218,7 @@ def test_cloth_is_a_render_setting_preset_field_and_cli_flag():
     from rh_dataset.render.scene import RenderSettings
     from rh_dataset.spec import SpecError
 
-    assert set(CLOTH_MODES) == {"skinned", "simulated"}
+    assert set(CLOTH_MODES) == {"skinned", "simulated", "auto"}
     assert RenderSettings().cloth == "skinned"
     with pytest.raises(ValueError, match="cloth"):
         RenderSettings(cloth="baked")

@@ -320,6 +320,9 @@ def test_generated_frames_record_what_was_modelled(tmp_path, monkeypatch):
         assert r["max_depth"] == m["max_depth"] == classes[cls].max_depth
         assert r["rr_depth"] == classes[cls].rr_depth
         assert m["path_traced"] and m["emitter_loaded"] and m["cull"]
+        # standard poses draped cloth "auto": the turntable frame and the test split's first pose (a reach) leave no
+        # skin out through the dress, so both stay skinned, and the frame JSON says so.
+        assert r["cloth"] == "auto" and r["cloth_posed"] == "skinned"
         # Subject 0 wears a draped dress: only its shoes hide skin (measured 4026 faces; cull.hidden_faces counts
         # shells, not draped cloth), where its shell clothes hid over 5000.
         assert m["culled_faces"]["hidden_under_clothes"] > 3000 and m["culled_faces"]["outside_frustum"] == 0

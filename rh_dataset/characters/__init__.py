@@ -1,7 +1,8 @@
 """Characters: anny bodies with eyeballs, dressed in procedural garments, headwear and strand hair, with
 procedural skin, eye and fabric textures.
 
-Public API: recipes (`CharacterRecipe`, `sample_recipe`), `build_character`, `pose_character`, `body_bounds`.
+Public API: recipes (`CharacterRecipe`, `sample_recipe`), `build_character`, `pose_character` (and
+`skin_out_count`, what its "auto" cloth mode weighs), `body_bounds`.
 The body model itself is loaded by `rh_common.body_model` (shared with RANA).
 """
 from .character import (
@@ -15,6 +16,7 @@ from .character import (
     build_character,
     mitsuba_texcoords,
     pose_character,
+    skin_out_count,
 )
 from .recipe import (
     FABRICS,
@@ -43,6 +45,7 @@ __all__ = [
     "build_character",
     "mitsuba_texcoords",
     "pose_character",
+    "skin_out_count",
     "FABRICS",
     "GARMENT_KINDS",
     "HAIR_STYLES",

@@ -35,8 +35,9 @@ from .body import anchor_points, blended_normals, body_topology, run_anny, smoot
 from .garments import (BASE_OFFSET, BRIDGED, LAYER_GAP, LIFT_SMOOTH_ROUNDS, PartGeometry, build_garments, garment_parts,
                        lift_directions, lift_turn, shoe_height_map)
 from .body_features import body_features, group_mask
-from .cloth_pose import (CLOTH_MODES, INSIDE_NEAR, TUCK_DEPTH, ClothPoseSettings, layer_depth, lift_over_skin,
-                         push_over_layers, push_under, simulated_parts, tuck_skin)
+from .cloth_pose import (CLOTH_MODES, INSIDE_NEAR, SIMULATE_ABOVE, TUCK_DEPTH, ClothPoseSettings, layer_depth,
+                         lift_over_skin, push_over_layers, push_under, simulated_parts, skin_inside, skin_out,
+                         tuck_skin)
 from .drape import (BOTTOMS_UNDER, DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, SHELL_TOPS, SHELLS_UNDER,
                     DrapeSettings, SkinBinding, penetration, SLEEVE_GROUPS, push_clearance, push_out, shells_under,
                     skin_points)
@@ -58,6 +59,7 @@ __all__ = [
     "PosedStrands",
     "build_character",
     "pose_character",
+    "skin_out_count",
     "body_bounds",
     "mitsuba_texcoords",
     "DEFAULT_TEXTURE_RESOLUTION",
@@ -135,6 +137,9 @@ class CharacterPart:
     # (len(inside_skin),) metres: their depths under the cloth as posed at rest (`_with_rest_depths`); with them,
     # posing tucks the rendered skin back under the cloth where it came out through it (`_tuck_skin`).
     inside_depth: np.ndarray | None = None
+    # Draped parts: the body vertices inside the cloth as posed at rest (`cloth_pose.skin_inside`; `_with_rest_depths`),
+    # lifted or not, whose coming out through the posed cloth the "auto" cloth mode counts (`cloth_pose.skin_out`).
+    covered_skin: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         faces = _ro(self.faces, np.int32)
@@ -186,6 +191,12 @@ class CharacterPart:
             raise ValueError(f"CharacterPart {self.name}: inside_depth must be one depth per inside_skin vertex")
         if self.inside_depth is not None:
             object.__setattr__(self, "inside_depth", _ro(self.inside_depth, np.float64))
+        if self.covered_skin is not None:
+            covered = _ro(self.covered_skin, np.int64)
+            if covered.ndim != 1 or self.skinning is None or (len(covered) and covered.min() < 0):
+                raise ValueError(f"CharacterPart {self.name}: covered_skin must be body vertex indices (N,) of a "
+                                 "skinned (draped) part")
+            object.__setattr__(self, "covered_skin", covered)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -415,15 +426,25 @@ def _with_rest_depths(character: Character) -> Character:
     """`character` with each lifted draped part's `inside_depth`: its inside skin's depths under the cloth as
     `pose_character` poses it at rest (after the layers' pushes: a shell top over draped trousers presses their
     waist nearer the skin than the drape lies), which `_tuck_skin` compares a frame's with, so that a rest-pose
-    frame tucks nothing. 0.1 s a character (one rest posing)."""
-    if not any(p.inside_skin is not None for p in character.parts):
+    frame tucks nothing; and each draped part's `covered_skin`, the skin inside it as posed at rest (a lifted part's
+    `inside_skin`). 0.1 s a character (one rest posing), plus ~0.05 s a draped part that is not lifted."""
+    draped = {p.name for p in character.parts if p.skinning is not None and p.name in DRAPED_KINDS}
+    if not draped:
         return character
     rest = run_anny(character.phenotype, None)["vertices"]
+    normals = vertex_normals(rest, body_topology().faces)
     posed = {m.name: m for m in pose_character(character, None, None)}
-    return dataclasses.replace(character, parts=[
-        p if p.inside_skin is None else dataclasses.replace(p, inside_depth=layer_depth(
-            rest[p.inside_skin], posed[p.name].vertices.astype(np.float64), p.faces, near=INSIDE_NEAR))
-        for p in character.parts])
+
+    def done(p: CharacterPart) -> CharacterPart:
+        if p.name not in draped:
+            return p
+        cloth = posed[p.name].vertices.astype(np.float64)
+        if p.inside_skin is None:
+            return dataclasses.replace(p, covered_skin=skin_inside(cloth, p.faces, rest, normals))
+        return dataclasses.replace(p, covered_skin=p.inside_skin, inside_depth=layer_depth(
+            rest[p.inside_skin], cloth, p.faces, near=INSIDE_NEAR))
+
+    return dataclasses.replace(character, parts=[done(p) for p in character.parts])
 
 
 def _nearest_body_vertex(feats, points: np.ndarray) -> np.ndarray:
@@ -492,13 +513,25 @@ def pose_character(
     `cloth`: how draped garments reach the pose (`cloth_pose.CLOTH_MODES`): "skinned" (linear-blend skinning +
     push_out) or "simulated" (newton's cloth solver while the body moves from the rest pose into this one; its
     penalty contact can leave a vertex pressed a few millimetres into a limb, which push_out then puts back on the
-    skin as it does for skinned cloth; `cloth_settings` are its settings). Either way draped cloth over draped cloth
+    skin as it does for skinned cloth; `cloth_settings` are its settings) or "auto" (skinned, but simulated where the
+    skinned cloth leaves more than `cloth_pose.SIMULATE_ABOVE` skin vertices out through it: `skin_out_count`; the
+    mode taken and the count go into `cloth_stats` as "mode" and "skin_out"). Either way draped cloth over draped cloth
     (`drape.DRAPED_OVER`: a loose top, an open jacket or coat) is then pushed out over that cloth's posed surface
     (`cloth_pose.push_over_layers`, keeping `drape.LAYER_GAP_DRAPE`). `cloth_stats`, if given, receives the
     simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
     (benches; costs a closest-point query). `tuck_depth`: how far under draped cloth the rendered skin that came
     out through it is put (`cloth_pose.tuck_skin`; 0: not tucked, as bench/skin_seen.py compares). The meshes come
     first, in part order, then one `PosedStrands` per `character.strands`."""
+    if cloth == "auto":
+        posed = pose_character(character, bone_deltas, root_transform, "skinned", None, cloth_settings, tuck_depth)
+        n = skin_out_count(character, posed)
+        mode = "simulated" if n > SIMULATE_ABOVE else "skinned"
+        if cloth_stats is not None:
+            cloth_stats.update(mode=mode, skin_out=n)
+        if mode == "skinned":
+            return posed
+        return pose_character(character, bone_deltas, root_transform, "simulated", cloth_stats, cloth_settings,
+                              tuck_depth)
     topo = body_topology()
     out = run_anny(character.phenotype, bone_deltas)
     verts = out["vertices"]
@@ -580,6 +613,24 @@ def pose_character(
         pts = push_out_of_body(pts, verts, normals, topo.faces, below_neck).reshape(*h.radius.shape, 3)
         posed.append(PosedStrands(h.name, _ro(pts, np.float32), h.radius, h.fibre))
     return posed
+
+
+def skin_out_count(character: Character, posed: list) -> int:
+    """How many body vertices inside a draped part at rest (its `covered_skin`) lie out through its posed cloth in
+    `posed` (`pose_character`'s meshes: the body as rendered, after the tuck; `cloth_pose.skin_out`, a lifted part's
+    skin only where farther out than at rest), over all the draped parts; what the "auto" cloth mode weighs."""
+    meshes = {m.name: m for m in posed if isinstance(m, PosedMesh)}
+    body = character.part("body")
+    # The rendered body's vertices are anny's with the seams split: any copy of a vertex has its position.
+    anny = np.zeros((int(body.body_vertex.max()) + 1, 3))
+    anny[body.body_vertex] = meshes["body"].vertices
+    out = np.zeros(len(anny), bool)
+    for part in character.parts:
+        if part.covered_skin is None or not len(part.covered_skin) or part.name not in meshes:
+            continue
+        out[part.covered_skin] |= skin_out(anny[part.covered_skin], meshes[part.name].vertices, part.faces,
+                                           part.inside_depth)
+    return int(out.sum())
 
 
 def _tuck_skin(character: Character, posed: list, cloth_under: dict, verts: np.ndarray, faces: np.ndarray,

@@ -16,6 +16,9 @@ phenotype and the frame's anny bone deltas ('local-ref', as `pose_character` tak
                garment in its own fabric (`pose_fabric`). `pose_character` then applies `push_out` as for skinned
                cloth: newton's penalty contact can leave a vertex a few millimetres inside a limb that pressed the
                cloth.
+  "auto"       skinned, and a frame whose skinned cloth leaves more than `SIMULATE_ABOVE` skin vertices out through it
+               (`skin_out`, after the lift and the tuck) simulated instead: the few poses that carry a limb through
+               the cloth (a raised leg through an open coat) take the simulation's cost, the others skinning's.
 Either way `pose_character` then pushes draped cloth out over the draped cloth under it (`push_over`,
 `drape.DRAPED_OVER`): skinned, each layer follows its own binding and a swinging thigh can carry a skirt through it.
 
@@ -49,9 +52,10 @@ from .geometry import edge_counts, query_mesh, smoothstep, unique_rows
 __all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "POSE_FABRIC", "pose_fabric", "ClothPoseSettings", "BodyMotion",
            "body_motion", "simulate_into_pose", "skin_into_pose", "simulated_parts", "self_crossings", "hem_split",
            "layer_depth", "push_over", "covers", "LIFT_KINDS", "skin_inside", "lift_over_skin", "edges_through",
-           "crossing_points", "tuck_skin", "TUCK_DEPTH", "TUCK_REACH", "TUCK_TOLERANCE"]
+           "crossing_points", "tuck_skin", "TUCK_DEPTH", "TUCK_REACH", "TUCK_TOLERANCE", "skin_out", "SKIN_OUT_REACH",
+           "SIMULATE_ABOVE"]
 
-CLOTH_MODES = ("skinned", "simulated")
+CLOTH_MODES = ("skinned", "simulated", "auto")
 # The draped kinds the "simulated" mode simulates (the others would be skinned in every mode): today all of them.
 # The wide-leg trousers are simulated with `POSE_FABRIC` since 3 December: with the fabric they are draped with, a
 # sitting or bending thigh passed out through its leg tube (65 mm deep in the body before push_out), which then hung
@@ -720,6 +724,33 @@ def tuck_skin(skin: np.ndarray, rest_depth: np.ndarray, vertices: np.ndarray, fa
     if rest.shape != (len(skin),):
         raise ValueError(f"tuck_skin: rest_depth must be ({len(skin)},), got {rest.shape}")
     return push_under(skin, vertices, faces, depth, near=reach, rounds=rounds, below=rest - tolerance)
+
+
+# The "auto" cloth mode (`pose_character`): skin still out through skinned cloth after the lift and the tuck, where
+# a limb was carried through it (a leg raised through an open coat, which no lift or tuck reaches) or the skinned
+# cloth folded through itself. Counted within SKIN_OUT_REACH of the cloth (farther: a limb beside it), as
+# bench/bench_cloth_pose.py counts skin through. A frame with more than SIMULATE_ABOVE such vertices is simulated.
+# Chosen by bench/skin_seen.py --cloth auto over seed 0's 49 subjects, rest and 3 test poses (docs/TRADEOFFS.md,
+# "Simulated where skinning fails"): three posed frames of 147 stand apart (96, 94, 90: a leg raised through subject
+# 25's open coat, a thigh into subject 27's skirt), the next 59 and below (sits, whose skin shows under a hem);
+# simulated, the three leave 10-31 and show 512 / 271 / 55 -> 0 / 0 / 4 pixels of skin through the cloth, for
+# 25-40 s a frame (+0.68 s a posed frame on average, ~+17 % on the benchmark).
+SKIN_OUT_REACH = 0.03  # metres
+SIMULATE_ABOVE = 75  # body vertices
+
+
+def skin_out(skin: np.ndarray, vertices: np.ndarray, faces: np.ndarray, rest_depth: np.ndarray | None = None,
+             reach: float = SKIN_OUT_REACH, tolerance: float = TUCK_TOLERANCE) -> np.ndarray:
+    """(N,) bool: which skin points (`skin` (N, 3): a draped garment's `covered_skin`, posed) lie out through the
+    garment's posed surface (`vertices`, `faces`, outward): `layer_depth` < 0 within `reach`, not beyond an open
+    edge; with `rest_depth` (N,) (a lifted part's `inside_depth`: its skin's depths under the cloth as posed at rest,
+    where a layer over it can leave a few out) only those also more than `tolerance` farther out than at rest, as
+    `tuck_skin` counts them."""
+    d = layer_depth(np.asarray(skin, np.float64), np.asarray(vertices, np.float64), faces, near=reach)
+    out = np.isfinite(d) & (d < 0.0)
+    if rest_depth is not None:
+        out &= d < np.asarray(rest_depth, np.float64) - tolerance
+    return out
 
 
 def _largest_per(keys: np.ndarray, values: np.ndarray) -> np.ndarray:

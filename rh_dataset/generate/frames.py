@@ -208,7 +208,8 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
     Renders whether or not the frame is already on disk: skipping complete frames is `run_subject`'s job."""
     s = subject.index
     seconds: dict[str, float] = {}
-    pose, meshes, light, exposure, hidden = _pose_and_light(plan, source, subject, split, index, seconds)
+    cloth: dict = {}
+    pose, meshes, light, exposure, hidden = _pose_and_light(plan, source, subject, split, index, seconds, cloth)
     t = time.perf_counter()
     olat = None
     if split.light == "olat":
@@ -226,6 +227,8 @@ def render_frame_to_disk(plan: DatasetPlan, source: SubjectSource, subject: Subj
         meta = frame_meta(plan.spec.protocol, scene.settings, subject, split.name, body, light, scene.seed, exposure,
                           olat, camera=scene.camera, view=None if view is None else layout.view_name(view))
         meta["render"]["scene_model"] = info = result.info
+        if "mode" in cloth:  # the "auto" cloth mode: how this frame's draped cloth was posed
+            meta["render"]["cloth_posed"] = cloth["mode"]
         seconds["meta"] += time.perf_counter() - t
         t = time.perf_counter()
         write_frame(folder, index, result.layers, meta)
@@ -242,12 +245,13 @@ def frame_scenes(plan: DatasetPlan, source: SubjectSource, subject: Subject, spl
     return [scene for _, _, scene in _scenes(plan, subject, split, index, views, meshes, light, exposure, hidden)]
 
 
-def _pose_and_light(plan, source, subject, split, index, seconds: dict[str, float]):
+def _pose_and_light(plan, source, subject, split, index, seconds: dict[str, float], cloth: dict | None = None):
     """The frame's pose, posed meshes, light, display exposure and culled faces (None unless the split culls);
-    the posing's and the light's seconds go into `seconds` under "pose" and "light"."""
+    the posing's and the light's seconds go into `seconds` under "pose" and "light", how the draped cloth was
+    posed into `cloth` (`SubjectSource.meshes`' `cloth_stats`)."""
     t = time.perf_counter()
     pose = source.pose(subject, split, index)
-    meshes = source.meshes(subject, pose, plan.settings.cloth)
+    meshes = source.meshes(subject, pose, plan.settings.cloth, cloth)
     seconds["pose"] = time.perf_counter() - t
     t = time.perf_counter()
     light = light_for(plan, split, subject.index, index, light_library(plan.spec))

@@ -58,8 +58,10 @@ class SubjectSource(Protocol):
     def pose(self, subject: Subject, split: SplitSpec, i: int) -> Any:
         """Frame i's pose of the split (a BodyPose or an ImportedPose)."""
 
-    def meshes(self, subject: Subject, pose, cloth: str = "skinned") -> list:
-        """The posed meshes the renderer consumes; `cloth`: how draped garments are posed (RenderSettings.cloth)."""
+    def meshes(self, subject: Subject, pose, cloth: str = "skinned", cloth_stats: dict | None = None) -> list:
+        """The posed meshes the renderer consumes; `cloth`: how draped garments are posed (RenderSettings.cloth);
+        `cloth_stats`, if given, receives how they were posed ("mode": "skinned" or "simulated" where `cloth` is
+        "auto"; nothing where the character has no draped cloth to pose)."""
 
     def hidden_faces(self, subject: Subject) -> dict | None:
         """Triangles the clothes hide (culled when RenderSettings.cull), or None when nothing is known hidden."""
@@ -138,10 +140,14 @@ class AnnySubjects:
                                   in_place=ms.in_place, heading=ms.heading, model=load_anny())[0]
         return sample_pose(rng_for(self.plan.seed, "pose", subject.index, source.name, j), load_anny())
 
-    def meshes(self, subject: Subject, pose, cloth: str = "skinned") -> list:
+    def meshes(self, subject: Subject, pose, cloth: str = "skinned", cloth_stats: dict | None = None) -> list:
         from rh_dataset.characters import pose_character
 
-        return pose_character(subject.character, dict(pose.bones), pose.root_transform, cloth)
+        stats = {} if cloth == "auto" else None
+        meshes = pose_character(subject.character, dict(pose.bones), pose.root_transform, cloth, cloth_stats=stats)
+        if cloth_stats is not None and stats and any(p.covered_skin is not None for p in subject.character.parts):
+            cloth_stats["mode"] = stats["mode"]
+        return meshes
 
     def hidden_faces(self, subject: Subject):
         from rh_dataset.render.cull import hidden_faces
@@ -238,7 +244,7 @@ class ImportedSubjects:
             return ImportedPose(pose, label=f"motion:{Path(ms.file).name}#{frame}")
         return split_pose(source.poses, source.frames, j, motion_frames(character))
 
-    def meshes(self, subject: Subject, pose, cloth: str = "skinned") -> list:
+    def meshes(self, subject: Subject, pose, cloth: str = "skinned", cloth_stats: dict | None = None) -> list:
         """An imported character's clothes are part of its own skinned mesh: `cloth` does not apply."""
         from rh_dataset.characters.imported_model import pose_imported
 
