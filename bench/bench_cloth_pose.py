@@ -68,7 +68,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-THROUGH_REACH = 0.03  # metres: skin farther than this from the cloth is not counted as through it (a limb beside it)
+from rh_dataset.characters.cloth_pose import SKIN_OUT_REACH  # noqa: E402
+
+THROUGH_REACH = SKIN_OUT_REACH  # metres: skin farther from the cloth is not counted as through it (a limb beside it)
 
 
 def seen_around(points: np.ndarray, normals: np.ndarray, meshes, n_views: int = 8) -> np.ndarray:

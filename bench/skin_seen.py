@@ -1,28 +1,30 @@
 """Skin a camera sees through draped cloth, counted in pixels: the image-space check of issue 17's "no cloth passes
-through the body visibly".
+through the body visibly"; and, per frame, how the "auto" cloth mode posed it.
 
     python bench/skin_seen.py --subjects 14,18 --poses 3 [--size 512] [--views 4] [--tuck-depth M]
-                               [--figure out.png]
+                               [--cloth skinned|simulated|auto] [--no-render] [--figure out.png]
 
 In: seed `--seed`'s benchmark subjects (protocol a's test split, built as at the `standard` preset: full drapes) and
-their first `--poses` test poses, skinned as `rh-generate` poses them. The body's faces that lie inside a draped
-garment at rest (`cloth_pose.skin_inside` of every draped part, or the part's own `inside_skin`) are coloured: green
-where a corner came out through the posed cloth (`cloth_pose.layer_depth` < 0 within
-`bench_cloth_pose.THROUGH_REACH`, the `through` of bench_cloth_pose.py), blue where all lie under it still. The
-posed character's albedo AOV is rendered (`preview.render_preview`, 4 spp) from `--views` directions around it (the
-character turned about the vertical), twice with the same samples: those colours, then black. Out, per frame: the
-body faces through, per view and in all the pixels where at least a quarter of the samples saw each kind (the
-green, resp. blue, difference of the two renders), whatever the garments' own colours, the pixels that saw the
-character at all, then the body vertices the tuck moved and `pose_character`'s seconds with and without it
-(`tuck_stats`); the rest pose first as the check (none through, none tucked expected). At the end, the posed frames
-summed by pose label (`print_by_label`). Which faces are coloured is decided on anny's posed body; the render shows
-the body as posing leaves it, its skin out through the cloth tucked `--tuck-depth` under it (`cloth_pose.tuck_skin`;
-0: as the cloth leaves it), so green pixels are skin the tuck left out, or skin seen through a gap. Blue pixels
-are skin seen from under the cloth: through a hem, a cuff or a neckline (legitimately), or through gaps where the
-skinned cloth folds through itself. Skin under shell garments is culled
-by the renderer and not counted. `bench_cloth_pose.py`'s `seen_around` says which vertices could be seen (a ray to
-8 cameras); this says how many pixels are. `--figure`: the posed frame and view with the most green pixels, those
-ringed in magenta and the blue ones in cyan.
+their first `--poses` test poses, posed as `rh-generate` poses them with `--cloth`. Out, per frame: the mode the
+cloth took ("auto" picks per frame), the skin vertices still out through the cloth after posing
+(`character.skin_out_count`, what "auto" weighs) and the posing's seconds. Then, unless `--no-render`: the body's
+faces that lie inside a draped garment at rest (each draped part's `covered_skin`) are coloured: green where a
+corner came out through the posed cloth (`cloth_pose.layer_depth` < 0 within `bench_cloth_pose.THROUGH_REACH`, the
+`through` of bench_cloth_pose.py), blue where all lie under it still. The posed character's albedo AOV is rendered
+(`preview.render_preview`, 4 spp) from `--views` directions around it (the posed character turned about the
+vertical), twice with the same samples: those colours, then black. Out: the body faces through, per view and in
+all the pixels where at least a quarter of the samples saw each kind (the green, resp. blue, difference of the two
+renders), whatever the garments' own colours, the pixels that saw the character at all, then (skinned only) the
+body vertices the tuck moved and `pose_character`'s seconds with and without it (`tuck_stats`); the rest pose
+first as the check (none through, none tucked expected). At the end, the posed frames by the mode their cloth took
+(`print_modes`) and summed by pose label (`print_by_label`). Which faces are coloured is decided on anny's posed
+body; the render shows the body as posing leaves it, its skin out through the cloth tucked `--tuck-depth` under it
+(`cloth_pose.tuck_skin`; 0: as the cloth leaves it), so green pixels are skin the tuck left out, or skin seen
+through a gap. Blue pixels are skin seen from under the cloth: through a hem, a cuff or a neckline (legitimately),
+or through gaps where the skinned cloth folds through itself. Skin under shell garments is culled by the renderer
+and not counted. `bench_cloth_pose.py`'s `seen_around` says which vertices could be seen (a ray to 8 cameras); this
+says how many pixels are. `--figure`: the posed frame and view with the most green pixels, those ringed in magenta
+and the blue ones in cyan.
 """
 from __future__ import annotations
 
@@ -37,26 +39,10 @@ import numpy as np
 SHARE = 0.25  # a pixel counts when at least this share of its samples saw the skin
 
 
-def covered_skin(character, rest_meshes) -> dict[str, np.ndarray]:
-    """{draped part: anny body vertex indices inside it at rest}: the part's own `inside_skin` where posing keeps one
-    (`cloth_pose.LIFT_KINDS`), else `cloth_pose.skin_inside` of the cloth as posing leaves it at rest."""
-    from rh_dataset.characters.body import body_topology, run_anny
-    from rh_dataset.characters.cloth_pose import skin_inside
-    from rh_dataset.characters.drape import DRAPED_KINDS
-    from rh_dataset.mesh import vertex_normals
-
-    rest = run_anny(character.phenotype, None)["vertices"]
-    normals = vertex_normals(rest, body_topology().faces)
-    out = {}
-    for part in character.parts:
-        if part.name not in DRAPED_KINDS:
-            continue
-        if part.inside_skin is not None:
-            out[part.name] = np.asarray(part.inside_skin, np.int64)
-            continue
-        v = next(m for m in rest_meshes if m.name == part.name).vertices.astype(np.float64)
-        out[part.name] = skin_inside(v, part.faces, rest, normals)
-    return out
+def covered_skin(character) -> dict[str, np.ndarray]:
+    """{draped part: anny body vertex indices inside it at rest}: the part's `covered_skin` (`cloth_pose.skin_inside`
+    of the cloth as posing leaves it at rest; a lifted part's `inside_skin`)."""
+    return {p.name: p.covered_skin for p in character.parts if p.covered_skin is not None}
 
 
 def under_faces(covered: dict[str, np.ndarray]) -> np.ndarray:
@@ -72,8 +58,8 @@ def under_faces(covered: dict[str, np.ndarray]) -> np.ndarray:
 
 def through_faces(character, bones, root, posed: list, covered: dict[str, np.ndarray]) -> np.ndarray:
     """(F,) bool over anny's body faces (the render mesh's, in the same order) with a corner that lies inside a
-    draped part at rest and outside its posed surface now (`cloth_pose.layer_depth` < 0 within bench_cloth_pose's
-    THROUGH_REACH): skin come out through it."""
+    draped part at rest and outside its posed surface (in `posed`) now (`cloth_pose.layer_depth` < 0 within
+    bench_cloth_pose's THROUGH_REACH), on anny's posed body, before the tuck: skin come out through it."""
     from bench_cloth_pose import THROUGH_REACH
 
     from rh_dataset.characters.body import body_topology, run_anny
@@ -92,6 +78,22 @@ def through_faces(character, bones, root, posed: list, covered: dict[str, np.nda
         d = layer_depth(body[inside], v, part.faces, near=THROUGH_REACH)
         out[inside[np.isfinite(d) & (d < 0)]] = True
     return out[faces].any(axis=1)
+
+
+def turned(posed: list, R: np.ndarray) -> list:
+    """The posed meshes and strands turned by the rigid transform `R` (4x4): the character seen from another side
+    (posing with `R` applied after the root gives the same surfaces, but a simulated frame would be simulated again)."""
+    from rh_dataset.characters.character import PosedStrands
+
+    A, t = np.asarray(R, np.float64)[:3, :3], np.asarray(R, np.float64)[:3, 3]
+    out = []
+    for m in posed:
+        if isinstance(m, PosedStrands):
+            out.append(dataclasses.replace(m, points=(m.points.astype(np.float64) @ A.T + t).astype(np.float32)))
+        else:
+            out.append(dataclasses.replace(m, vertices=(m.vertices.astype(np.float64) @ A.T + t).astype(np.float32),
+                                           normals=(m.normals.astype(np.float64) @ A.T).astype(np.float32)))
+    return out
 
 
 def coloured_split(posed: list, classes: list[tuple[np.ndarray, np.ndarray]]) -> list:
@@ -131,30 +133,27 @@ def tuck_stats(character, bones, root, tuck_depth: float, repeats: int = 2) -> t
     return len(np.unique(part.body_vertex[moved])), min(times[tuck_depth]), min(times[0.0])
 
 
-def seen_pixels(character, bones, root, covered: dict[str, np.ndarray], body_faces: np.ndarray, size: int,
-                views: int, tuck_depth: float) -> tuple[list[tuple[int, int, int]], int, tuple]:
-    """Per view (the character turned about the vertical by 360 / views degrees each) the pixels that saw skin come
-    out through the cloth, those that saw other skin from under the cloth and those that saw the character at all;
-    the body faces through; and the view with the most of the first kind: its index, both masks and its albedo
-    image."""
-    from rh_dataset.characters import pose_character
+def seen_pixels(character, bones, root, posed: list, covered: dict[str, np.ndarray], body_faces: np.ndarray,
+                size: int, views: int) -> tuple[list[tuple[int, int, int]], int, tuple]:
+    """Per view (the posed character, `posed`, turned about the vertical by 360 / views degrees each) the pixels that
+    saw skin come out through the cloth, those that saw other skin from under the cloth and those that saw the
+    character at all; the body faces through; and the view with the most of the first kind: its index, both masks
+    and its albedo image."""
     from rh_dataset.characters.preview import render_preview
     from rh_dataset.poses.pose import rotation_about_z
 
     counts, shown = [], None
-    # Which skin came through depends on the pose, not on the turn (a rigid motion of body and cloth together):
-    # found once, in the unturned frame.
-    through = through_faces(character, bones, root, pose_character(character, bones, root), covered)
+    # Which skin came through depends on the pose, not on the turn (a rigid motion of body and cloth together).
+    through = through_faces(character, bones, root, posed, covered)
     under = body_faces & ~through
     n_faces = int(through.sum())
     for k in range(views):
-        R = rotation_about_z(360.0 * k / views)
-        posed = pose_character(character, bones, R if root is None else R @ root, tuck_depth=tuck_depth)
+        view = turned(posed, rotation_about_z(360.0 * k / views))
         # The same samples twice, the two kinds of skin coloured (green, blue) and then black: a pixel's green and
         # blue differences are the shares of its samples that saw each, whatever the garments' own colours.
-        a = render_preview(coloured_split(posed, [(through, (0, 1, 0)), (under, (0, 0, 1))]), width=size,
+        a = render_preview(coloured_split(view, [(through, (0, 1, 0)), (under, (0, 0, 1))]), width=size,
                            height=size, spp=4, seed=k, albedo=True)
-        b = render_preview(coloured_split(posed, [(through, (0, 0, 0)), (under, (0, 0, 0))]), width=size,
+        b = render_preview(coloured_split(view, [(through, (0, 0, 0)), (under, (0, 0, 0))]), width=size,
                            height=size, spp=4, seed=k, albedo=True)
         seen_through, seen_under = (a[..., 1] - b[..., 1]) >= SHARE, (a[..., 2] - b[..., 2]) >= SHARE
         person = (a.max(axis=-1) > 0.0).sum()  # the albedo AOV is 0 where no surface was hit
@@ -164,24 +163,37 @@ def seen_pixels(character, bones, root, covered: dict[str, np.ndarray], body_fac
     return counts, n_faces, shown
 
 
-def print_by_label(posed: list[tuple[int, str, list[tuple[int, int, int]]]]) -> None:
+def print_modes(posed: list[tuple]) -> None:
+    """The posed frames by the mode their cloth took: frames, the skin vertices out through the cloth after posing
+    (`skin_out_count`: all, the most in one frame) and the posing's seconds (mean, most)."""
+    print("\n| cloth posed | frames | skin vertices out, all | most in one frame | posing s, mean | most |"
+          "\n|---|---:|---:|---:|---:|---:|")
+    for mode in sorted({r[3] for r in posed}) + ["all"]:
+        rows = [r for r in posed if mode in ("all", r[3])]
+        print(f"| {mode} | {len(rows)} | {sum(r[4] for r in rows)} | {max(r[4] for r in rows)} | "
+              f"{sum(r[5] for r in rows) / len(rows):.2f} | {max(r[5] for r in rows):.2f} |")
+    print("most skin out: " + ", ".join(f"subject {r[0]} {r[1]} {r[4]} ({r[3]})"
+                                       for r in sorted(posed, key=lambda r: -r[4])[:8]))
+
+
+def print_by_label(posed: list[tuple]) -> None:
     """The posed frames' counts summed by pose label: frames, frames with any pixel of skin through the cloth, those
     pixels, and the most in one view as a share of the character's pixels in that view; then the frames in order of
     their pixels through the cloth (the first 5)."""
     print("\n| pose label | frames | with skin through the cloth | its pixels, all views | most in one view "
           "(share of the character's pixels) | other skin from under the cloth, pixels |"
           "\n|---|---:|---:|---:|---|---:|")
-    labels = sorted({label for _, label, _ in posed})
+    labels = sorted({r[1] for r in posed})
     for label in labels + ["all"]:
-        rows = [c for _, lab, c in posed if label in ("all", lab)]
+        rows = [r[2] for r in posed if label in ("all", r[1])]
         views = [v for c in rows for v in c]
         most = max(views, key=lambda v: (v[0] / max(v[2], 1), v[0]))
         print(f"| {label} | {len(rows)} | {sum(1 for c in rows if any(v[0] for v in c))} | "
               f"{sum(v[0] for v in views)} | {most[0]} ({100.0 * most[0] / max(most[2], 1):.2f} %) | "
               f"{sum(v[1] for v in views)} |")
     order = sorted(posed, key=lambda r: -sum(v[0] for v in r[2]))[:5]
-    print("most skin through the cloth: " + ", ".join(f"subject {s} {label} {sum(v[0] for v in c)}"
-                                                       for s, label, c in order))
+    print("most skin through the cloth: " + ", ".join(f"subject {r[0]} {r[1]} {sum(v[0] for v in r[2])}"
+                                                       for r in order))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -194,6 +206,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tuck-depth", type=float, default=None,
                     help="metres under the cloth that posing tucks skin come out through it (default "
                          "cloth_pose.TUCK_DEPTH; 0: not tucked)")
+    ap.add_argument("--cloth", default="skinned", choices=("skinned", "simulated", "auto"),
+                    help="how draped cloth is posed (`pose_character`'s cloth mode; default skinned, as the draft and "
+                         "standard presets did before \"auto\"; simulated: tens of seconds a posed frame)")
+    ap.add_argument("--no-render", action="store_true",
+                    help="pose and count only (the mode taken, the skin out through the cloth, the posing's seconds): "
+                         "no pixels")
     ap.add_argument("--figure", type=Path, default=None,
                     help="PNG of the posed frame and view with the most pixels of skin through the cloth")
     args = ap.parse_args(argv)
@@ -208,42 +226,61 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_cloth_pose import load, test_source
 
-    from rh_dataset.characters import pose_character
+    from rh_dataset.characters import pose_character, skin_out_count
     from rh_dataset.characters.cloth_pose import TUCK_DEPTH
 
     tuck = TUCK_DEPTH if args.tuck_depth is None else args.tuck_depth
     source, split = test_source(args.seed)
     print(f"{args.size}x{args.size}, {args.views} views, a pixel counted where >= {SHARE:.0%} of its samples saw the "
-          f"skin; skin through the cloth tucked {1e3 * tuck:g} mm under it; load {load()}")
-    print("| subject | pose | skin faces through | pixels, skin through the cloth, per view | all | pixels, other "
-          "skin from under the cloth, per view | all | character's pixels, all views | body vertices tucked | "
-          "posing s, tucked / not |\n|---|---|---:|---|---:|---|---:|---:|---:|---|")
+          f"skin; draped cloth {args.cloth}; skin through the cloth tucked {1e3 * tuck:g} mm under it; load {load()}")
+    print("| subject | pose | cloth posed | skin vertices out (`skin_out_count`, its time) | posing s | "
+          "skin faces through | pixels, skin through the cloth, per view | all | pixels, other skin from under the "
+          "cloth, per view | all | character's pixels, all views | body vertices tucked | posing s, tucked / not |"
+          "\n|---|---|---|---:|---:|---:|---|---:|---|---:|---:|---:|---|")
     worst, posed = None, []
     for s in subjects:
         subject = source.subject(s)
         ch = subject.character
-        covered = covered_skin(ch, pose_character(ch, None, None))
+        covered = covered_skin(ch)
         body_faces = under_faces(covered)
         frames = [("rest", None, None)] + [(p.label, dict(p.bones), p.root_transform)
                                            for p in (source.pose(subject, split, j) for j in range(args.poses))]
         for j, (label, bones, root) in enumerate(frames):
             t = time.perf_counter()
-            counts, n_faces, first = seen_pixels(ch, bones, root, covered, body_faces, args.size, args.views, tuck)
-            n_t, n_u = sum(c[0] for c in counts), sum(c[1] for c in counts)
+            stats = {}
+            meshes = pose_character(ch, bones, root, args.cloth, cloth_stats=stats if args.cloth == "auto" else None,
+                                    tuck_depth=tuck)
+            t_pose = time.perf_counter() - t
+            mode = stats.get("mode", args.cloth)
+            t_count = time.perf_counter()
+            n_out = skin_out_count(ch, meshes)  # what "auto" adds to a frame it leaves skinned
+            t_count = time.perf_counter() - t_count
+            row = f"| {s} | {j - 1 if j else '-'} {label} | {mode} | {n_out} ({1e3 * t_count:.0f} ms) | {t_pose:.2f} |"
+            if args.no_render:
+                counts, n_faces, first = [], 0, None
+                row += " - | - | - | - | - | - | - | - |"
+            else:
+                counts, n_faces, first = seen_pixels(ch, bones, root, meshes, covered, body_faces, args.size,
+                                                     args.views)
+                n_t, n_u = sum(c[0] for c in counts), sum(c[1] for c in counts)
+                row += (f" {n_faces} | {' / '.join(str(c[0]) for c in counts)} | {n_t} | "
+                        f"{' / '.join(str(c[1]) for c in counts)} | {n_u} | {sum(c[2] for c in counts)} |")
+                if args.cloth == "skinned":  # the tuck's cost: posed again, with and without it
+                    n_tucked, t_tuck, t_plain = tuck_stats(ch, bones, root, tuck)
+                    row += f" {n_tucked} | {t_tuck:.3f} / {t_plain:.3f} |"
+                else:
+                    row += " - | - |"
+                if bones is not None and (worst is None or n_t > worst[0]):
+                    worst = (n_t, s, label, first)
             if bones is not None:
-                posed.append((s, label, counts))
-            seconds = time.perf_counter() - t
-            n_tucked, t_tuck, t_plain = tuck_stats(ch, bones, root, tuck)
-            print(f"| {s} | {j - 1 if j else '-'} {label} | {n_faces} | {' / '.join(str(c[0]) for c in counts)} | "
-                  f"{n_t} | {' / '.join(str(c[1]) for c in counts)} | {n_u} | {sum(c[2] for c in counts)} | "
-                  f"{n_tucked} | {t_tuck:.3f} / "
-                  f"{t_plain:.3f} |  ({seconds:.1f} s)", flush=True)
-            if bones is not None and (worst is None or n_t > worst[0]):
-                worst = (n_t, s, label, first)
-    print(f"\nposed frames: {sum(v[0] for _, _, c in posed for v in c)} pixels of skin through the cloth, "
-          f"{sum(v[1] for _, _, c in posed for v in c)} of other skin from under it (through openings or folds); "
-          f"load {load()}")
+                posed.append((s, label, counts, mode, n_out, t_pose))
+            print(f"{row}  ({time.perf_counter() - t:.1f} s)", flush=True)
+    print(f"\nload {load()}")
     if posed:
+        print_modes(posed)
+    if posed and not args.no_render:
+        print(f"posed frames: {sum(v[0] for r in posed for v in r[2])} pixels of skin through the cloth, "
+              f"{sum(v[1] for r in posed for v in r[2])} of other skin from under it (through openings or folds)")
         print_by_label(posed)
     if args.figure is not None and worst is not None:
         from rh_common.colourspace import quantize8, srgb_encode
