@@ -66,6 +66,10 @@ def test_every_draped_part_knows_the_skin_inside_it_and_none_is_out_at_rest(subj
             assert p.covered_skin.tobytes() == p.inside_skin.tobytes()
     assert character.part("draped_coat").inside_skin is None  # the coat is not lifted (cloth_pose.LIFT_KINDS)
     assert all(p.covered_skin is None for p in character.parts if p.name not in DRAPED_KINDS)
+    import dataclasses
+
+    with pytest.raises(ValueError, match="covered_skin must be body vertex indices"):  # the body is not draped
+        dataclasses.replace(character.part("body"), covered_skin=np.arange(3))
     assert skin_out_count(character, pose_character(character, None, None)) == 0
 
 

@@ -180,23 +180,20 @@ class CharacterPart:
                 raise ValueError(f"CharacterPart {self.name}: body_faces must be ({len(faces)},) face indices of a "
                                  "blend-anchored shell")
             object.__setattr__(self, "body_faces", bf)
-        if self.inside_skin is not None:
-            inside = _ro(self.inside_skin, np.int64)
-            if inside.ndim != 1 or self.skinning is None or (len(inside) and inside.min() < 0):
-                raise ValueError(f"CharacterPart {self.name}: inside_skin must be body vertex indices (N,) of a "
-                                 "skinned (draped) part")
-            object.__setattr__(self, "inside_skin", inside)
+        for field in ("inside_skin", "covered_skin"):  # body vertex indices of a draped part's skin
+            value = getattr(self, field)
+            if value is None:
+                continue
+            idx = _ro(value, np.int64)
+            if idx.ndim != 1 or self.skinning is None or (len(idx) and idx.min() < 0):
+                raise ValueError(f"CharacterPart {self.name}: {field} must be body vertex indices (N,) of a skinned "
+                                 "(draped) part")
+            object.__setattr__(self, field, idx)
         if self.inside_depth is not None and (self.inside_skin is None or
                                               np.shape(self.inside_depth) != (len(self.inside_skin),)):
             raise ValueError(f"CharacterPart {self.name}: inside_depth must be one depth per inside_skin vertex")
         if self.inside_depth is not None:
             object.__setattr__(self, "inside_depth", _ro(self.inside_depth, np.float64))
-        if self.covered_skin is not None:
-            covered = _ro(self.covered_skin, np.int64)
-            if covered.ndim != 1 or self.skinning is None or (len(covered) and covered.min() < 0):
-                raise ValueError(f"CharacterPart {self.name}: covered_skin must be body vertex indices (N,) of a "
-                                 "skinned (draped) part")
-            object.__setattr__(self, "covered_skin", covered)
 
 
 @dataclasses.dataclass(frozen=True)
