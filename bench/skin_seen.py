@@ -174,6 +174,14 @@ def print_modes(posed: list[tuple]) -> None:
               f"{sum(r[5] for r in rows) / len(rows):.2f} | {max(r[5] for r in rows):.2f} |")
     print("most skin out: " + ", ".join(f"subject {r[0]} {r[1]} {r[4]} ({r[3]})"
                                        for r in sorted(posed, key=lambda r: -r[4])[:8]))
+    from rh_dataset.characters.cloth_pose import SIMULATE_ABOVE
+
+    skinned = [r for r in posed if r[3] == "skinned"]
+    if skinned:  # a simulated frame's count is the simulation's, not what decided it
+        over = [r for r in skinned if r[4] > SIMULATE_ABOVE]
+        print(f"skinned frames with more than cloth_pose.SIMULATE_ABOVE = {SIMULATE_ABOVE} skin vertices out (what "
+              f"\"auto\" simulates): {len(over)} of {len(skinned)}" +
+              "".join(f"; subject {r[0]} {r[1]} {r[4]}" for r in over))
 
 
 def print_by_label(posed: list[tuple]) -> None:

@@ -115,12 +115,47 @@ def test_auto_is_a_cloth_mode_and_the_frame_json_says_what_a_frame_took(subject_
     assert render_settings("standard", cloth="auto").cloth == "auto"
     assert build_parser().parse_args(["--out", "x", "--cloth", "auto"]).cloth == "auto"
     character, pose = subject_25
-    source = AnnySubjects.__new__(AnnySubjects)
-    subject = SimpleNamespace(character=character)
+    source = AnnySubjects(None)  # posing needs no plan
+    subject = SimpleNamespace(index=25, character=character)
     for cloth, want in (("auto", {"mode": "skinned"}), ("skinned", {})):
         stats = {}
         source.meshes(subject, SimpleNamespace(bones={}, root_transform=None), cloth, stats)
         assert stats == want, cloth
+
+
+def test_the_generator_poses_a_simulated_frame_once_per_pose(subject_25, monkeypatch):
+    """Protocol b's test split shows its train split's poses again: `AnnySubjects.meshes` keeps the "auto" mode's
+    simulated frames of the subject it posed last and gives the same meshes for the same pose without simulating
+    again; another pose or another subject is posed anew."""
+    from types import SimpleNamespace
+
+    from rh_dataset.characters import character as C
+    from rh_dataset.generate.subjects import AnnySubjects
+
+    character, pose = subject_25
+    calls = []
+
+    def stand_in(ch, deltas, settings, stats=None):
+        calls.append(1)
+        posed = {m.name: m for m in C.pose_character(ch, deltas, None, "skinned", tuck_depth=0.0)}
+        return {p.name: posed[p.name].vertices.astype(np.float64) + (0.0, 0.0, 0.05) for p in ch.parts
+                if p.name in SIMULATED_KINDS}
+
+    monkeypatch.setattr(C, "simulated_parts", stand_in)
+    monkeypatch.setattr(C, "SIMULATE_ABOVE", -1)  # every frame simulated
+    source = AnnySubjects(None)  # posing needs no plan
+    other = SimpleNamespace(bones={}, root_transform=None)
+    frames = []
+    for index, p in ((25, pose), (25, pose), (25, other), (25, pose), (26, pose)):
+        stats = {}
+        frames.append(source.meshes(SimpleNamespace(index=index, character=character), p, "auto", stats))
+        assert stats == {"mode": "simulated"}
+    assert len(calls) == 3  # the first pose, the other pose, the first pose for another subject
+    for a, b in zip(frames[0], frames[1]):
+        assert a is b  # the same meshes, not posed again
+    for a, b in zip(frames[0], frames[4]):
+        assert (a.points if hasattr(a, "points") else a.vertices).tobytes() == \
+               (b.points if hasattr(b, "points") else b.vertices).tobytes()  # posed anew: the same bits
 
 
 @pytest.mark.slow

@@ -94,6 +94,13 @@ def _base_motion_record(plan: DatasetPlan, split: SplitSpec, i: int) -> dict | N
     return record
 
 
+def _pose_bytes(pose) -> bytes:
+    """A pose's bone deltas (sorted by bone) and root transform as bytes: equal for the same pose."""
+    parts = [name.encode() + np.ascontiguousarray(m, np.float64).tobytes() for name, m in sorted(pose.bones.items())]
+    root = pose.root_transform
+    return b"|".join(parts) + b"#" + (b"" if root is None else np.ascontiguousarray(root, np.float64).tobytes())
+
+
 def _with_motion(body: dict, motion: dict | None) -> dict:
     if motion is not None:
         body["motion"] = motion
@@ -104,8 +111,14 @@ class AnnySubjects:
     """A clothed anny character per subject, sampled from the seed; poses from the turntable, the pose prior or
     captured motion retargeted onto the subject's own body."""
 
+    # The "auto" cloth mode's simulated frames of the subject last posed, by pose (at most this many): protocol b's
+    # test split shows its train split's poses again, and a simulation costs tens of seconds (docs/TRADEOFFS.md,
+    # "Simulated where skinning fails"). The same inputs give the simulation's same bits, so nothing else changes.
+    KEPT_SIMULATED = 64
+
     def __init__(self, plan: DatasetPlan) -> None:
         self.plan = plan
+        self._simulated: dict[tuple, list] = {}  # (subject index, pose bytes) -> posed meshes
 
     def check(self) -> None:
         pass
@@ -143,10 +156,19 @@ class AnnySubjects:
     def meshes(self, subject: Subject, pose, cloth: str = "skinned", cloth_stats: dict | None = None) -> list:
         from rh_dataset.characters import pose_character
 
+        key = (subject.index, _pose_bytes(pose))
+        if cloth == "auto" and key in self._simulated:
+            if cloth_stats is not None:
+                cloth_stats["mode"] = "simulated"
+            return list(self._simulated[key])
         stats = {} if cloth == "auto" else None
         meshes = pose_character(subject.character, dict(pose.bones), pose.root_transform, cloth, cloth_stats=stats)
         if cloth_stats is not None and stats and any(p.covered_skin is not None for p in subject.character.parts):
             cloth_stats["mode"] = stats["mode"]
+        if stats and stats["mode"] == "simulated":
+            if any(k[0] != subject.index for k in self._simulated) or len(self._simulated) >= self.KEPT_SIMULATED:
+                self._simulated.clear()
+            self._simulated[key] = list(meshes)
         return meshes
 
     def hidden_faces(self, subject: Subject):
