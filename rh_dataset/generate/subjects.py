@@ -156,8 +156,8 @@ class AnnySubjects:
     def meshes(self, subject: Subject, pose, cloth: str = "skinned", cloth_stats: dict | None = None) -> list:
         from rh_dataset.characters import pose_character
 
-        key = (subject.index, _pose_bytes(pose))
-        if cloth == "auto" and key in self._simulated:
+        key = (subject.index, _pose_bytes(pose)) if cloth == "auto" else None  # only "auto" keeps frames
+        if key in self._simulated:
             if cloth_stats is not None:
                 cloth_stats["mode"] = "simulated"
             return list(self._simulated[key])
@@ -165,7 +165,7 @@ class AnnySubjects:
         meshes = pose_character(subject.character, dict(pose.bones), pose.root_transform, cloth, cloth_stats=stats)
         if cloth_stats is not None and stats and any(p.covered_skin is not None for p in subject.character.parts):
             cloth_stats["mode"] = stats["mode"]
-        if stats and stats["mode"] == "simulated":
+        if key is not None and stats["mode"] == "simulated":
             if any(k[0] != subject.index for k in self._simulated) or len(self._simulated) >= self.KEPT_SIMULATED:
                 self._simulated.clear()
             self._simulated[key] = list(meshes)
