@@ -9,7 +9,7 @@ their first `--poses` test poses, posed as `rh-generate` poses them with `--clot
 cloth took ("auto" picks per frame), the skin vertices still out through the cloth after posing
 (`character.skin_out_count`, what "auto" weighs) and the posing's seconds. Then, unless `--no-render`: the body's
 faces that lie inside a draped garment at rest (each draped part's `covered_skin`) are coloured: green where a
-corner came out through the posed cloth (`cloth_pose.layer_depth` < 0 within `bench_cloth_pose.THROUGH_REACH`, the
+corner came out through the posed cloth (`cloth_pose.skin_out` within `bench_cloth_pose.THROUGH_REACH`, the
 `through` of bench_cloth_pose.py), blue where all lie under it still. The posed character's albedo AOV is rendered
 (`preview.render_preview`, 4 spp) from `--views` directions around it (the posed character turned about the
 vertical), twice with the same samples: those colours, then black. Out: the body faces through, per view and in
@@ -58,12 +58,12 @@ def under_faces(covered: dict[str, np.ndarray]) -> np.ndarray:
 
 def through_faces(character, bones, root, posed: list, covered: dict[str, np.ndarray]) -> np.ndarray:
     """(F,) bool over anny's body faces (the render mesh's, in the same order) with a corner that lies inside a
-    draped part at rest and outside its posed surface (in `posed`) now (`cloth_pose.layer_depth` < 0 within
+    draped part at rest and outside its posed surface (in `posed`) now (`cloth_pose.skin_out` within
     bench_cloth_pose's THROUGH_REACH), on anny's posed body, before the tuck: skin come out through it."""
     from bench_cloth_pose import THROUGH_REACH
 
     from rh_dataset.characters.body import body_topology, run_anny
-    from rh_dataset.characters.cloth_pose import layer_depth
+    from rh_dataset.characters.cloth_pose import skin_out
 
     faces = body_topology().faces
     body = run_anny(character.phenotype, bones)["vertices"]
@@ -75,8 +75,7 @@ def through_faces(character, bones, root, posed: list, covered: dict[str, np.nda
         if inside is None or not len(inside):
             continue
         v = next(m for m in posed if m.name == part.name).vertices.astype(np.float64)
-        d = layer_depth(body[inside], v, part.faces, near=THROUGH_REACH)
-        out[inside[np.isfinite(d) & (d < 0)]] = True
+        out[inside[skin_out(body[inside], v, part.faces, reach=THROUGH_REACH)]] = True
     return out[faces].any(axis=1)
 
 
