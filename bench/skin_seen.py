@@ -5,25 +5,25 @@ through the body visibly"; and, per frame, how the "auto" cloth mode posed it.
                                [--cloth skinned|simulated|auto] [--no-render] [--figure out.png]
 
 In: seed `--seed`'s benchmark subjects (protocol a's test split, built as at the `standard` preset: full drapes) and
-their first `--poses` test poses, posed as `rh-generate` poses them with `--cloth`. Out, per frame: the mode the
-cloth took ("auto" picks per frame), the skin vertices still out through the cloth after posing
-(`character.skin_out_count`, what "auto" weighs) and the posing's seconds. Then, unless `--no-render`: the body's
-faces that lie inside a draped garment at rest (each draped part's `covered_skin`) are coloured: green where a
-corner came out through the posed cloth (`cloth_pose.skin_out` within `bench_cloth_pose.THROUGH_REACH`, the
-`through` of bench_cloth_pose.py), blue where all lie under it still. The posed character's albedo AOV is rendered
-(`preview.render_preview`, 4 spp) from `--views` directions around it (the posed character turned about the
-vertical), twice with the same samples: those colours, then black. Out: the body faces through, per view and in
-all the pixels where at least a quarter of the samples saw each kind (the green, resp. blue, difference of the two
-renders), whatever the garments' own colours, the pixels that saw the character at all, then (skinned only) the
-body vertices the tuck moved and `pose_character`'s seconds with and without it (`tuck_stats`); the rest pose
-first as the check (none through, none tucked expected). At the end, the posed frames by the mode their cloth took
-(`print_modes`) and summed by pose label (`print_by_label`). Which faces are coloured is decided on anny's posed
-body; the render shows the body as posing leaves it, its skin out through the cloth tucked `--tuck-depth` under it
-(`cloth_pose.tuck_skin`; 0: as the cloth leaves it), so green pixels are skin the tuck left out, or skin seen
-through a gap. Blue pixels are skin seen from under the cloth: through a hem, a cuff or a neckline (legitimately),
-or through gaps where the skinned cloth folds through itself. Skin under shell garments is culled by the renderer
-and not counted. `bench_cloth_pose.py`'s `seen_around` says which vertices could be seen (a ray to 8 cameras); this
-says how many pixels are. `--figure`: the posed frame and view with the most green pixels, those ringed in magenta
+their first `--poses` test poses, posed as `rh-generate` poses them with `--cloth`. Out, per frame: the mode the cloth
+took ("auto" picks per frame), the skin vertices still out through the cloth after posing (`character.skin_out_count`:
+through the kinds the simulation poses, `cloth_pose.SIMULATED_KINDS`, what "auto" weighs; and through all the draped
+parts, the draped sleeves too) and the posing's seconds. Then, unless `--no-render`: the body's faces that lie inside a
+draped garment at rest (each draped part's `covered_skin`) are coloured: green where a corner came out through the posed
+cloth (`cloth_pose.skin_out` within `bench_cloth_pose.THROUGH_REACH`, the `through` of bench_cloth_pose.py), blue where
+all lie under it still. The posed character's albedo AOV is rendered (`preview.render_preview`, 4 spp) from `--views`
+directions around it (the posed character turned about the vertical), twice with the same samples: those colours, then
+black. Out: the body faces through, per view and in all the pixels where at least a quarter of the samples saw each kind
+(the green, resp. blue, difference of the two renders), whatever the garments' own colours, the pixels that saw the
+character at all, then (skinned only) the body vertices the tuck moved and `pose_character`'s seconds with and without
+it (`tuck_stats`); the rest pose first as the check (none through, none tucked expected). At the end, the posed frames
+by the mode their cloth took (`print_modes`) and summed by pose label (`print_by_label`). Which faces are coloured is
+decided on anny's posed body; the render shows the body as posing leaves it, its skin out through the cloth tucked
+`--tuck-depth` under it (`cloth_pose.tuck_skin`; 0: as the cloth leaves it), so green pixels are skin the tuck left out,
+or skin seen through a gap. Blue pixels are skin seen from under the cloth: through a hem, a cuff or a neckline
+(legitimately), or through gaps where the skinned cloth folds through itself. Skin under shell garments is culled by the
+renderer and not counted. `bench_cloth_pose.py`'s `seen_around` says which vertices could be seen (a ray to 8 cameras);
+this says how many pixels are. `--figure`: the posed frame and view with the most green pixels, those ringed in magenta
 and the blue ones in cyan.
 """
 from __future__ import annotations
@@ -164,13 +164,15 @@ def seen_pixels(character, bones, root, posed: list, covered: dict[str, np.ndarr
 
 def print_modes(posed: list[tuple]) -> None:
     """The posed frames by the mode their cloth took: frames, the skin vertices out through the cloth after posing
-    (`skin_out_count`: all, the most in one frame) and the posing's seconds (mean, most)."""
-    print("\n| cloth posed | frames | skin vertices out, all | most in one frame | posing s, mean | most |"
-          "\n|---|---:|---:|---:|---:|---:|")
+    (`skin_out_count` over `SIMULATED_KINDS`, what "auto" weighs: all, the most in one frame; and over every draped
+    part: all) and the posing's seconds (mean, most)."""
+    print("\n| cloth posed | frames | skin vertices out (simulated kinds), all | most in one frame | "
+          "through every draped part, all | posing s, mean | most |\n|---|---:|---:|---:|---:|---:|---:|")
     for mode in sorted({r[3] for r in posed}) + ["all"]:
         rows = [r for r in posed if mode in ("all", r[3])]
         print(f"| {mode} | {len(rows)} | {sum(r[4] for r in rows)} | {max(r[4] for r in rows)} | "
-              f"{sum(r[5] for r in rows) / len(rows):.2f} | {max(r[5] for r in rows):.2f} |")
+              f"{sum(r[6] for r in rows)} | {sum(r[5] for r in rows) / len(rows):.2f} | "
+              f"{max(r[5] for r in rows):.2f} |")
     print("most skin out: " + ", ".join(f"subject {r[0]} {r[1]} {r[4]} ({r[3]})"
                                        for r in sorted(posed, key=lambda r: -r[4])[:8]))
     from rh_dataset.characters.cloth_pose import SIMULATE_ABOVE
@@ -234,13 +236,14 @@ def main(argv: list[str] | None = None) -> int:
     from bench_cloth_pose import load, test_source
 
     from rh_dataset.characters import pose_character, skin_out_count
-    from rh_dataset.characters.cloth_pose import TUCK_DEPTH
+    from rh_dataset.characters.cloth_pose import SIMULATED_KINDS, TUCK_DEPTH
 
     tuck = TUCK_DEPTH if args.tuck_depth is None else args.tuck_depth
     source, split = test_source(args.seed)
     print(f"{args.size}x{args.size}, {args.views} views, a pixel counted where >= {SHARE:.0%} of its samples saw the "
           f"skin; draped cloth {args.cloth}; skin through the cloth tucked {1e3 * tuck:g} mm under it; load {load()}")
-    print("| subject | pose | cloth posed | skin vertices out (`skin_out_count`, its time) | posing s | "
+    print("| subject | pose | cloth posed | skin vertices out: simulated kinds (`skin_out_count`, its time) / every "
+          "draped part | posing s | "
           "skin faces through | pixels, skin through the cloth, per view | all | pixels, other skin from under the "
           "cloth, per view | all | character's pixels, all views | body vertices tucked | posing s, tucked / not |"
           "\n|---|---|---|---:|---:|---:|---|---:|---|---:|---:|---:|---|")
@@ -260,9 +263,11 @@ def main(argv: list[str] | None = None) -> int:
             t_pose = time.perf_counter() - t
             mode = stats.get("mode", args.cloth)
             t_count = time.perf_counter()
-            n_out = skin_out_count(ch, meshes)  # what "auto" adds to a frame it leaves skinned
+            n_out = skin_out_count(ch, meshes, SIMULATED_KINDS)  # what "auto" adds to a frame it leaves skinned
             t_count = time.perf_counter() - t_count
-            row = f"| {s} | {j - 1 if j else '-'} {label} | {mode} | {n_out} ({1e3 * t_count:.0f} ms) | {t_pose:.2f} |"
+            n_all = skin_out_count(ch, meshes)
+            row = (f"| {s} | {j - 1 if j else '-'} {label} | {mode} | {n_out} ({1e3 * t_count:.0f} ms) / {n_all} | "
+                   f"{t_pose:.2f} |")
             if args.no_render:
                 counts, n_faces, first = [], 0, None
                 row += " - | - | - | - | - | - | - | - |"
@@ -280,7 +285,7 @@ def main(argv: list[str] | None = None) -> int:
                 if bones is not None and (worst is None or n_t > worst[0]):
                     worst = (n_t, s, label, first)
             if bones is not None:
-                posed.append((s, label, counts, mode, n_out, t_pose))
+                posed.append((s, label, counts, mode, n_out, t_pose, n_all))
             print(f"{row}  ({time.perf_counter() - t:.1f} s)", flush=True)
     print(f"\nload {load()}")
     if posed:

@@ -35,9 +35,9 @@ from .body import anchor_points, blended_normals, body_topology, run_anny, smoot
 from .garments import (BASE_OFFSET, BRIDGED, LAYER_GAP, LIFT_SMOOTH_ROUNDS, PartGeometry, build_garments, garment_parts,
                        lift_directions, lift_turn, shoe_height_map)
 from .body_features import body_features, group_mask
-from .cloth_pose import (CLOTH_MODES, INSIDE_NEAR, SIMULATE_ABOVE, TUCK_DEPTH, ClothPoseSettings, layer_depth,
-                         lift_over_skin, push_over_layers, push_under, simulated_parts, skin_inside, skin_out,
-                         tuck_skin)
+from .cloth_pose import (CLOTH_MODES, INSIDE_NEAR, SIMULATE_ABOVE, SIMULATED_KINDS, TUCK_DEPTH, ClothPoseSettings,
+                         layer_depth, lift_over_skin, push_over_layers, push_under, simulated_parts, skin_inside,
+                         skin_out, tuck_skin)
 from .drape import (BOTTOMS_UNDER, DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, SHELL_TOPS, SHELLS_UNDER,
                     DrapeSettings, SkinBinding, penetration, SLEEVE_GROUPS, push_clearance, push_out, shells_under,
                     skin_points)
@@ -511,8 +511,9 @@ def pose_character(
     push_out) or "simulated" (newton's cloth solver while the body moves from the rest pose into this one; its
     penalty contact can leave a vertex pressed a few millimetres into a limb, which push_out then puts back on the
     skin as it does for skinned cloth; `cloth_settings` are its settings) or "auto" (skinned, but simulated where the
-    skinned cloth leaves more than `cloth_pose.SIMULATE_ABOVE` skin vertices out through it: `skin_out_count`; the
-    mode taken and the count go into `cloth_stats` as "mode" and "skin_out"). Either way draped cloth over draped cloth
+    skinned cloth leaves more than `cloth_pose.SIMULATE_ABOVE` skin vertices out through it: `skin_out_count` over the
+    parts the simulation poses, `SIMULATED_KINDS`; the mode taken and the count go into `cloth_stats` as "mode" and
+    "skin_out"). Either way draped cloth over draped cloth
     (`drape.DRAPED_OVER`: a loose top, an open jacket or coat) is then pushed out over that cloth's posed surface
     (`cloth_pose.push_over_layers`, keeping `drape.LAYER_GAP_DRAPE`). `cloth_stats`, if given, receives the
     simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
@@ -521,7 +522,7 @@ def pose_character(
     first, in part order, then one `PosedStrands` per `character.strands`."""
     if cloth == "auto":
         posed = pose_character(character, bone_deltas, root_transform, "skinned", None, cloth_settings, tuck_depth)
-        n = skin_out_count(character, posed)
+        n = skin_out_count(character, posed, SIMULATED_KINDS)
         mode = "simulated" if n > SIMULATE_ABOVE else "skinned"
         if cloth_stats is not None:
             cloth_stats.update(mode=mode, skin_out=n)
@@ -612,10 +613,12 @@ def pose_character(
     return posed
 
 
-def skin_out_count(character: Character, posed: list) -> int:
+def skin_out_count(character: Character, posed: list, parts: tuple[str, ...] | None = None) -> int:
     """How many body vertices inside a draped part at rest (its `covered_skin`) lie out through its posed cloth in
     `posed` (`pose_character`'s meshes: the body as rendered, after the tuck; `cloth_pose.skin_out`, a lifted part's
-    skin only where farther out than at rest), over all the draped parts; what the "auto" cloth mode weighs."""
+    skin only where farther out than at rest), over the draped parts named in `parts` (None: all). The "auto" cloth
+    mode weighs the parts its simulation poses (`cloth_pose.SIMULATED_KINDS`): skin out through a draped sleeve,
+    skinned in every mode, would stay out simulated (a forearm pressed into its sleeve by crossed arms)."""
     meshes = {m.name: m for m in posed if isinstance(m, PosedMesh)}
     body = character.part("body")
     # The rendered body's vertices are anny's with the seams split: any copy of a vertex has its position.
@@ -623,7 +626,8 @@ def skin_out_count(character: Character, posed: list) -> int:
     anny[body.body_vertex] = meshes["body"].vertices
     out = np.zeros(len(anny), bool)
     for part in character.parts:
-        if part.covered_skin is None or not len(part.covered_skin) or part.name not in meshes:
+        if (part.covered_skin is None or not len(part.covered_skin) or part.name not in meshes
+                or (parts is not None and part.name not in parts)):
             continue
         out[part.covered_skin] |= skin_out(anny[part.covered_skin], meshes[part.name].vertices, part.faces,
                                            part.inside_depth)
