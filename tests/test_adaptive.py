@@ -113,10 +113,10 @@ def test_a_presets_file_takes_adaptive_tiers_and_refuses_bad_ones(tmp_path):
     from rh_dataset.scene_files import SCENES_DIR, SpecError
 
     data = json.loads((SCENES_DIR / "presets.json").read_text())
-    data["presets"]["standard"]["adaptive_tiers"] = [16, 64, 169]
+    data["presets"]["standard"]["adaptive_tiers"] = [16, 64, 256]
     path = tmp_path / "presets.json"
     path.write_text(json.dumps(data))
-    assert load_presets(path)["standard"].adaptive_tiers == (16, 64, 169)
+    assert load_presets(path)["standard"].adaptive_tiers == (16, 64, 256)
     data["presets"]["standard"]["adaptive_tiers"] = [16, 64]
     path.write_text(json.dumps(data))
     with pytest.raises(SpecError, match=r"preset standard: render setting spp=\d+ is the mean count"):
