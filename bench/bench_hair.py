@@ -23,7 +23,9 @@ counts mean the wrapper adds nothing to what the kernels compute.
 Cost by first hit: an `aov` pass of `shape_index` at 1 spp labels each of the person's pixels by the shape its camera
 ray hits first (none: the environment); each label's pixels are traced at --cost-spp through `render_pixels` (the
 focused pass's own tracer, hair BSDF as today), and the CPU microseconds per sample are printed with each label's
-share of the pixels and of the pass's CPU time.
+share of the pixels, of the pass's CPU time, and of the noise of a standard frame (the squared display-space
+difference of two renders with their own seeds, as bench_sampler.py's floor pairs: where the error the floor
+measures lies). Groups of fewer than 100 pixels are left out.
 
 --curves [M ...]: instead, the strands' primitive (docs/TRADEOFFS.md, "Strands as polylines"): Mitsuba's
 `bsplinecurve` of the control points (what every preset draws) against the `linearcurve` through the spline at M
@@ -118,12 +120,23 @@ def ab(scene, settings, repeats: int) -> list[list]:
 
 
 def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
-    """CPU microseconds per sample of the person's pixels grouped by the shape their camera ray hits first."""
+    """CPU microseconds per sample of the person's pixels grouped by the shape their camera ray hits first, and each
+    group's share of the frame's noise: the squared display-space difference (sRGB of the exposed radiance, as
+    rh-eval scores) of two `settings` renders with their own seeds (bench_sampler.py's pair), summed over its
+    pixels."""
     import mitsuba as mi
 
+    from rh_common.colourspace import srgb_encode
     from rh_dataset.render.focus import person_pixels, render_pixels
-    from rh_dataset.render.passes import FOCUS_MARGIN, _AOV_INTEGRATOR
+    from rh_dataset.render.passes import FOCUS_MARGIN, _AOV_INTEGRATOR, render_frame
     from rh_dataset.render.scene import scene_dict
+
+    # The pair first: a live scene below would make render_frame's own load compile its kernels again.
+    pair = [srgb_encode(np.clip(scene.exposure * render_frame(scene.meshes, scene.emitter, scene.camera, settings,
+                                                              ["image", "mask"], seed,
+                                                              exposure=scene.exposure).layers["image"], 0.0, 1.0))
+            for seed in (4242, 4243)]
+    noise = np.sum((pair[0].astype(np.float64) - pair[1]) ** 2, axis=-1).reshape(-1)
 
     s = mi.load_dict(scene_dict(scene.meshes, scene.emitter, scene.camera,
                                 {"type": "path", "max_depth": int(settings.max_depth), "hide_emitters": False,
@@ -137,7 +150,7 @@ def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
         first = np.array(mi.render(s, integrator=mi.load_dict({"type": "aov", "aovs": "si:shape_index"}), spp=1,
                                    seed=1))[..., -1].reshape(-1)[pix].astype(int)
         names = ["(environment)"] + [sh.id() for sh in s.shapes()]
-        rows, total = [], 0.0
+        rows, total, all_noise = [], 0.0, noise[pix].sum()
         for k in np.unique(first):
             sel = pix[first == k]
             if len(sel) < 100:
@@ -148,9 +161,9 @@ def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
             c = time.process_time() - c
             total += c
             rows.append([names[k] if k < len(names) else f"shape {k}", len(sel), len(sel) / len(pix),
-                         1e6 * c / (len(sel) * spp), c])
+                         1e6 * c / (len(sel) * spp), c, noise[sel].sum() / all_noise])
         for row in rows:
-            row.append(row[4] / total)
+            row.insert(5, row[4] / total)
             del row[4]
         return rows
     finally:
@@ -456,7 +469,8 @@ def main(argv=None) -> None:
                          ["strands", "scene load s", "beauty s", "frame CPU s", "CPU / wrapper",
                           "ops of the 2 largest kernels", "image"], ab(scene, settings, args.repeats))
             bt.table(f"{title}: cost by first hit, {args.cost_spp} spp through render_pixels",
-                     ["first hit", "pixels", "share of pixels", "CPU us / sample", "share of CPU"],
+                     ["first hit", "pixels", "share of pixels", "CPU us / sample", "share of CPU",
+                      f"share of the noise ({settings.spp} spp, squared display difference of two seeds)"],
                      cost_by_first_hit(scene, settings, args.cost_spp))
     if columns and args.figure is not None:
         _save_picture(args.figure, columns)
