@@ -162,10 +162,7 @@ def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
             total += c
             rows.append([names[k] if k < len(names) else f"shape {k}", len(sel), len(sel) / len(pix),
                          1e6 * c / (len(sel) * spp), c, noise[sel].sum() / all_noise])
-        for row in rows:
-            row.insert(5, row[4] / total)
-            del row[4]
-        return rows
+        return [row[:4] + [row[4] / total, row[5]] for row in rows]  # CPU seconds -> share of the pass's
     finally:
         s = None
 
