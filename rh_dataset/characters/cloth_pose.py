@@ -735,7 +735,7 @@ def tuck_skin(skin: np.ndarray, rest_depth: np.ndarray, vertices: np.ndarray, fa
 # 25's open coat, a thigh into subject 27's skirt), the next 59 and below (sits, whose skin shows under a hem);
 # simulated, the three leave 10-31 and show 512 / 271 / 55 -> 0 / 0 / 4 pixels of skin through the cloth, for
 # 25-40 s a frame. Over 20 test poses a subject there is no gap: 24 of 980 posed frames are over 75 (2.4 %, up to
-# 121: sits, `random` poses, bends), ~+11 % on the benchmark. Counted over the kinds the simulation poses
+# 121: sits, `random` poses, bends), ~+10 % on the benchmark. Counted over the kinds the simulation poses
 # (SIMULATED_KINDS, `character.skin_out_count`): skin out through the draped sleeves, skinned in every mode, would
 # stay out simulated (8 crossed-arms frames were simulated for it before).
 SKIN_OUT_REACH = 0.03  # metres
