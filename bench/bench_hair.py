@@ -126,15 +126,14 @@ def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
     pixels."""
     import mitsuba as mi
 
-    from rh_common.colourspace import srgb_encode
+    from rh_common.colourspace import to_display
     from rh_dataset.render.focus import person_pixels, render_pixels
     from rh_dataset.render.passes import FOCUS_MARGIN, _AOV_INTEGRATOR, render_frame
     from rh_dataset.render.scene import scene_dict
 
     # The pair first: a live scene below would make render_frame's own load compile its kernels again.
-    pair = [srgb_encode(np.clip(scene.exposure * render_frame(scene.meshes, scene.emitter, scene.camera, settings,
-                                                              ["image", "mask"], seed,
-                                                              exposure=scene.exposure).layers["image"], 0.0, 1.0))
+    pair = [to_display(render_frame(scene.meshes, scene.emitter, scene.camera, settings, ["image", "mask"], seed,
+                                    exposure=scene.exposure).layers["image"], scene.exposure)
             for seed in (4242, 4243)]
     noise = np.sum((pair[0].astype(np.float64) - pair[1]) ** 2, axis=-1).reshape(-1)
 
