@@ -8,7 +8,9 @@ In: seed `--seed`'s benchmark subjects (protocol a's test split, built as at the
 their first `--poses` test poses, posed as `rh-generate` poses them with `--cloth`. Out, per frame: the mode the cloth
 took ("auto" picks per frame), the skin vertices still out through the cloth after posing (`character.skin_out_count`:
 through the kinds the simulation poses, `cloth_pose.SIMULATED_KINDS`, what "auto" weighs; and through all the draped
-parts, the draped sleeves too) and the posing's seconds. Then, unless `--no-render`: the body's faces that lie inside a
+parts, the draped sleeves too), the share of a skirt's or dress's edges stretched past `cloth_pose.STRETCH_LIMIT`
+(`character.cloth_stretch`, "auto"'s other measure; for an "auto" frame also the skinned share that decided it) and
+the posing's seconds. Then, unless `--no-render`: the body's faces that lie inside a
 draped garment at rest (each draped part's `covered_skin`) are coloured: green where a corner came out through the posed
 cloth (`cloth_pose.skin_out` within `bench_cloth_pose.THROUGH_REACH`, the `through` of bench_cloth_pose.py), blue where
 all lie under it still. The posed character's albedo AOV is rendered (`preview.render_preview`, 4 spp) from `--views`
@@ -175,7 +177,7 @@ def print_modes(posed: list[tuple]) -> None:
               f"{max(r[5] for r in rows):.2f} |")
     print("most skin out: " + ", ".join(f"subject {r[0]} {r[1]} {r[4]} ({r[3]})"
                                        for r in sorted(posed, key=lambda r: -r[4])[:8]))
-    from rh_dataset.characters.cloth_pose import SIMULATE_ABOVE
+    from rh_dataset.characters.cloth_pose import SIMULATE_ABOVE, STRETCHED_ABOVE
 
     skinned = [r for r in posed if r[3] == "skinned"]
     if skinned:  # a simulated frame's count is the simulation's, not what decided it
@@ -183,6 +185,17 @@ def print_modes(posed: list[tuple]) -> None:
         print(f"skinned frames with more than cloth_pose.SIMULATE_ABOVE = {SIMULATE_ABOVE} skin vertices out (what "
               f"\"auto\" simulates): {len(over)} of {len(skinned)}" +
               "".join(f"; subject {r[0]} {r[1]} {r[4]}" for r in over))
+        taut = [r for r in skinned if r[7] > STRETCHED_ABOVE]
+        print(f"skinned frames whose skirt or dress has more than cloth_pose.STRETCHED_ABOVE = {STRETCHED_ABOVE:.0%} "
+              f"of its edges stretched past 20 % (what \"auto\" also simulates): {len(taut)} of {len(skinned)}" +
+              "".join(f"; subject {r[0]} {r[1]} {100 * r[7]:.1f} %" for r in taut))
+    auto = [r for r in posed if r[3] == "simulated" and r[10]]  # the frames "auto" simulated
+    if auto:
+        by_skin = sum(r[8] > SIMULATE_ABOVE for r in auto)
+        by_stretch = sum(r[9] > STRETCHED_ABOVE for r in auto)
+        print(f"\"auto\" simulated {len(auto)} frames: {by_skin} for the skin out, {by_stretch} for the stretch "
+              f"(both: {by_skin + by_stretch - len(auto)}); the skirts' and dresses' stretch, skinned -> simulated: " +
+              ", ".join(f"subject {r[0]} {r[1]} {100 * r[9]:.1f} -> {100 * r[7]:.1f} %" for r in auto))
 
 
 def print_by_label(posed: list[tuple]) -> None:
@@ -223,6 +236,9 @@ def main(argv: list[str] | None = None) -> int:
                          "no pixels")
     ap.add_argument("--figure", type=Path, default=None,
                     help="PNG of the posed frame and view with the most pixels of skin through the cloth")
+    ap.add_argument("--stretch-figure", type=Path, default=None,
+                    help="with --cloth auto: PNG of the (up to 3) frames simulated for their skirt's or dress's "
+                         "stretch, the most stretched first: front and side, skinned | simulated (preview renders)")
     args = ap.parse_args(argv)
     try:
         subjects = [int(s) for s in args.subjects.split(",") if s.strip()]
@@ -230,24 +246,26 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"--subjects: comma-separated integers, got {args.subjects!r}") from None
     if not subjects or args.poses < 0 or args.size < 16 or args.views < 1:
         raise SystemExit("--subjects: at least one; --poses >= 0, --size >= 16 and --views >= 1")
+    if args.stretch_figure is not None and args.cloth != "auto":
+        raise SystemExit("--stretch-figure: needs --cloth auto (the frames it simulates for the stretch)")
     if args.tuck_depth is not None and not (np.isfinite(args.tuck_depth) and args.tuck_depth >= 0):
         raise SystemExit(f"--tuck-depth: metres >= 0, got {args.tuck_depth}")
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_cloth_pose import load, test_source
 
-    from rh_dataset.characters import pose_character, skin_out_count
-    from rh_dataset.characters.cloth_pose import SIMULATED_KINDS, TUCK_DEPTH
+    from rh_dataset.characters import cloth_stretch, pose_character, skin_out_count
+    from rh_dataset.characters.cloth_pose import SIMULATED_KINDS, STRETCH_KINDS, STRETCHED_ABOVE, TUCK_DEPTH
 
     tuck = TUCK_DEPTH if args.tuck_depth is None else args.tuck_depth
     source, split = test_source(args.seed)
     print(f"{args.size}x{args.size}, {args.views} views, a pixel counted where >= {SHARE:.0%} of its samples saw the "
           f"skin; draped cloth {args.cloth}; skin through the cloth tucked {1e3 * tuck:g} mm under it; load {load()}")
     print("| subject | pose | cloth posed | skin vertices out: simulated kinds (`skin_out_count`, its time) / every "
-          "draped part | posing s | "
+          "draped part | skirt's or dress's edges stretched past 20 %, % (skinned) | posing s | "
           "skin faces through | pixels, skin through the cloth, per view | all | pixels, other skin from under the "
           "cloth, per view | all | character's pixels, all views | body vertices tucked | posing s, tucked / not |"
-          "\n|---|---|---|---:|---:|---:|---|---:|---|---:|---:|---:|---|")
-    worst, posed = None, []
+          "\n|---|---|---|---:|---:|---:|---:|---|---:|---|---:|---:|---:|---|")
+    worst, posed, taut = None, [], []
     for s in subjects:
         subject = source.subject(s)
         ch = subject.character
@@ -260,6 +278,8 @@ def main(argv: list[str] | None = None) -> int:
             stats = {}
             meshes = pose_character(ch, bones, root, args.cloth, cloth_stats=stats if args.cloth == "auto" else None,
                                     tuck_depth=tuck)
+            stretched = cloth_stretch(ch, meshes, STRETCH_KINDS)
+            decided = stats.get("stretched", stretched)  # "auto": the skinned share it chose by
             t_pose = time.perf_counter() - t
             mode = stats.get("mode", args.cloth)
             t_count = time.perf_counter()
@@ -267,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
             t_count = time.perf_counter() - t_count
             n_all = skin_out_count(ch, meshes)
             row = (f"| {s} | {j - 1 if j else '-'} {label} | {mode} | {n_out} ({1e3 * t_count:.0f} ms) / {n_all} | "
-                   f"{t_pose:.2f} |")
+                   f"{100 * stretched:.1f} ({100 * decided:.1f}) | {t_pose:.2f} |")
             if args.no_render:
                 counts, n_faces, first = [], 0, None
                 row += " - | - | - | - | - | - | - | - |"
@@ -284,8 +304,11 @@ def main(argv: list[str] | None = None) -> int:
                     row += " - | - |"
                 if bones is not None and (worst is None or n_t > worst[0]):
                     worst = (n_t, s, label, first)
+            if bones is not None and stats.get("mode") == "simulated" and decided > STRETCHED_ABOVE:
+                taut.append((decided, s, label, ch, bones, root, meshes))
             if bones is not None:
-                posed.append((s, label, counts, mode, n_out, t_pose, n_all))
+                posed.append((s, label, counts, mode, n_out, t_pose, n_all, stretched, stats.get("skin_out", n_out),
+                              decided, bool(stats)))
             print(f"{row}  ({time.perf_counter() - t:.1f} s)", flush=True)
     print(f"\nload {load()}")
     if posed:
@@ -309,7 +332,34 @@ def main(argv: list[str] | None = None) -> int:
         write_png(args.figure, img)
         print(f"wrote {args.figure}: subject {s}, {label}, view {view} ({360 * view // args.views} degrees); skin "
               f"through the cloth (green) ringed in magenta, other skin from under it (blue) in cyan")
+    if args.stretch_figure is not None:
+        stretch_figure(args.stretch_figure, sorted(taut, key=lambda t: -t[0])[:3])
     return 0
+
+
+def stretch_figure(path: Path, frames: list[tuple]) -> None:
+    """Rows: the frames "auto" simulated for the stretch ((skinned share, subject, label, character, bones, root,
+    simulated meshes)); columns: front skinned | front simulated | side skinned | side simulated, preview renders
+    (`preview.render_preview`, 64 spp, the same seed) in display sRGB."""
+    from rh_common.colourspace import quantize8, to_display
+    from rh_common.imageio import write_png
+    from rh_dataset.characters import pose_character
+    from rh_dataset.characters.preview import render_preview
+    from rh_dataset.poses.pose import rotation_about_z
+
+    if not frames:
+        print(f"--stretch-figure: no frame was simulated for its stretch; {path} not written")
+        return
+    rows = []
+    for share, s, label, ch, bones, root, simulated in frames:
+        skinned = pose_character(ch, bones, root, "skinned")
+        tiles = [render_preview(turned(m, rotation_about_z(a)), 256, 384, 64) for a in (0.0, 90.0)
+                 for m in (skinned, simulated)]
+        rows.append(np.concatenate([quantize8(to_display(t, 1.0)) for t in tiles], axis=1))
+        print(f"--stretch-figure row {len(rows)}: subject {s} {label}, {100 * share:.1f} % of the edges past 20 % "
+              "skinned")
+    write_png(path, np.concatenate(rows, axis=0))
+    print(f"wrote {path}: rows as listed; front skinned | front simulated | side skinned | side simulated")
 
 
 if __name__ == "__main__":

@@ -71,13 +71,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how draped garments reach each frame's pose (overrides the preset): 'skinned' follows the "
                         "body's skinning and is pushed out of the skin (cheap), 'simulated' runs newton's cloth solver "
                         "while the body moves from the rest pose into the frame's (tens of seconds a posed frame), "
-                        "'auto' skins and simulates only the frames whose skinned cloth lets skin through; the frame "
-                        "JSON records it under render.cloth, and under render.cloth_posed what an 'auto' frame took "
-                        "(docs/TRADEOFFS.md, 'Skinned or simulated cloth')")
+                        "'auto' skins and simulates only the frames whose skinned cloth lets skin through or pulls a "
+                        "skirt or dress taut; the frame JSON records it under render.cloth, and under "
+                        "render.cloth_posed what an 'auto' frame took (docs/TRADEOFFS.md, 'Skinned or simulated "
+                        "cloth')")
     p.add_argument("--drape", default=None,
                    help="how finely loose garments (draped skirts, dresses, wide trousers, loose shorts, coats, "
-                        "open jackets, loose tops, hoods) are simulated onto each subject's body (overrides the preset): 'full' (the "
-                        "benchmark's, 1-3 min a subject on 2 cores, cached) or 'coarse' (the draft preset's, ~1/8 of "
+                        "open jackets, loose tops, hoods) are simulated onto each subject's body (overrides the "
+                        "preset): 'full' (the benchmark's, 1-3 min a subject on 2 cores, cached) or 'coarse' (the draft preset's, ~1/8 of "
                         "that); recorded under render.drape")
     p.add_argument("--seed", type=int, default=0, help="dataset seed: characters, poses, lights and sampler seeds")
     p.add_argument("--variant", default=None, choices=["llvm_ad_rgb", "cuda_ad_rgb"],

@@ -1,15 +1,19 @@
 """The "auto" cloth mode (rh_dataset/characters/character.py, `pose_character`): draped cloth skinned, and a frame whose
 skinned cloth leaves more than `cloth_pose.SIMULATE_ABOVE` skin vertices out through it (`skin_out_count`, over the
-kinds the simulation poses) simulated instead. Checked: `skin_out` against a sphere, every draped part's
-`covered_skin` (none out at rest), the sleeves' skin left out of the count, the mode's choice and bits either way,
+kinds the simulation poses), or whose skirt or dress skinning stretches (`cloth_stretch`: more than
+`STRETCHED_ABOVE` of its edges past `STRETCH_LIMIT`), simulated instead. Checked: `skin_out` against a sphere,
+`overstretched` on a stretched grid, every draped part's `covered_skin` (none out at rest) and its drape's lengths (none
+stretched at rest), the sleeves' skin left out of the count, the mode's choice and bits either way by either measure,
 the frame JSON's record, and (slow) benchmark subject 25's raised leg through its open coat, which skinning lets
-through and the simulation does not."""
+through and the simulation does not, and subject 0's dress sitting, which skinning pulls taut and the simulation
+does not."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from rh_dataset.characters.cloth_pose import CLOTH_MODES, SIMULATE_ABOVE, SIMULATED_KINDS, SKIN_OUT_REACH, skin_out
+from rh_dataset.characters.cloth_pose import (CLOTH_MODES, SIMULATE_ABOVE, SIMULATED_KINDS, SKIN_OUT_REACH,
+                                              STRETCH_KINDS, STRETCH_LIMIT, STRETCHED_ABOVE, overstretched, skin_out)
 
 
 def _sphere(radius: float = 0.1):
@@ -26,6 +30,29 @@ def test_skin_out_is_skin_outside_the_cloth_within_its_reach():
     # under the cloth (x2), out through it (x2), beyond the reach (a limb beside it, not through it)
     assert skin_out(pts, v, f).tolist() == [False, False, True, True, False]
     assert skin_out(np.zeros((0, 3)), v, f).shape == (0,)
+
+
+def test_overstretched_is_the_share_of_edges_longer_than_the_limit_allows():
+    """A grid of unit squares, each cut along one diagonal, stretched 1.3x along x: its x edges are 30 % longer, the
+    diagonals sqrt((1.3^2 + 1) / 2) - 1 = 16 % longer, the y edges as long. Of n(n-1) x edges, as many y edges and
+    (n-1)^2 diagonals: past 20 % the x edges alone, past 10 % the diagonals too; turned and moved, none."""
+    n = 6
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float), indexing="ij")
+    grid = np.stack([x.ravel(), y.ravel(), np.zeros(n * n)], axis=1)
+    i = np.arange(n * n).reshape(n, n)
+    a, b, c, d = i[:-1, :-1].ravel(), i[1:, :-1].ravel(), i[1:, 1:].ravel(), i[:-1, 1:].ravel()
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    edges = 2 * n * (n - 1) + (n - 1) ** 2
+    stretched = grid * (1.3, 1.0, 1.0)
+    assert overstretched(grid, stretched, faces) == pytest.approx(n * (n - 1) / edges, abs=1e-12)
+    assert STRETCH_LIMIT == 0.2
+    assert overstretched(grid, stretched, faces, limit=0.1) == pytest.approx((n * (n - 1) + (n - 1) ** 2) / edges,
+                                                                             abs=1e-12)
+    turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    assert overstretched(grid, grid @ turn.T + (5.0, -2.0, 1.0), faces) == 0.0
+    assert overstretched(grid, grid, np.zeros((0, 3), np.int64)) == 0.0
+    with pytest.raises(ValueError, match="the same"):
+        overstretched(grid, grid[:-1], faces)
 
 
 def _subject_25(tmp_path, monkeypatch):
@@ -71,7 +98,11 @@ def test_every_draped_part_knows_the_skin_inside_it_and_none_is_out_at_rest(subj
 
     with pytest.raises(ValueError, match="covered_skin must be body vertex indices"):  # the body is not draped
         dataclasses.replace(character.part("body"), covered_skin=np.arange(3))
-    assert skin_out_count(character, pose_character(character, None, None)) == 0
+    rest = pose_character(character, None, None)
+    assert skin_out_count(character, rest) == 0
+    from rh_dataset.characters import cloth_stretch
+
+    assert cloth_stretch(character, rest) == 0.0  # no draped part stretched past STRETCH_LIMIT at rest
 
 
 def test_auto_weighs_only_the_cloth_its_simulation_poses(subject_25):
@@ -118,6 +149,40 @@ def test_auto_takes_the_skinned_bits_or_the_simulated_ones_by_the_count(subject_
         got = pose_character(character, bones, pose.root_transform, "auto", cloth_stats=stats)
         assert stats["mode"] == mode and stats["skin_out"] == n
         assert [m.name for m in got] == [m.name for m in want]
+        for a, b in zip(got, want):
+            assert (a.points if hasattr(a, "points") else a.vertices).tobytes() == \
+                   (b.points if hasattr(b, "points") else b.vertices).tobytes(), (mode, a.name)
+
+
+def test_auto_takes_the_simulated_bits_for_a_stretched_skirt(subject_25, monkeypatch):
+    """The same choice by the other measure: the subject's loose shorts weighed as a skirt would be (`STRETCH_KINDS`
+    taken to name them; `cloth_stretch` over them), with `STRETCHED_ABOVE` just above and just under their skinned
+    share in this frame, and the skin-out count never enough: skinned, then the simulated bits (the stand-in solver)."""
+    from rh_dataset.characters import character as C
+    from rh_dataset.characters import pose_character
+
+    character, pose = subject_25
+    bones = dict(pose.bones)
+
+    def stand_in(ch, deltas, settings, stats=None):
+        skinned = {m.name: m for m in pose_character(ch, deltas, None, "skinned", tuck_depth=0.0)}
+        return {p.name: skinned[p.name].vertices.astype(np.float64) + (0.0, 0.0, 0.05) for p in ch.parts
+                if p.name in SIMULATED_KINDS}
+
+    monkeypatch.setattr(C, "simulated_parts", stand_in)
+    monkeypatch.setattr(C, "SIMULATE_ABOVE", 10 ** 9)
+    assert C.STRETCH_KINDS == STRETCH_KINDS == ("draped_skirt", "draped_dress") and 0.0 < STRETCHED_ABOVE < 1.0
+    assert C.cloth_stretch(character, pose_character(character, bones, pose.root_transform), STRETCH_KINDS) == 0.0
+    monkeypatch.setattr(C, "STRETCH_KINDS", ("draped_shorts",))
+    skinned = pose_character(character, bones, pose.root_transform, "skinned")
+    simulated = pose_character(character, bones, pose.root_transform, "simulated")
+    share = C.cloth_stretch(character, skinned, ("draped_shorts",))
+    assert share > 0.0
+    for threshold, want, mode in ((share, skinned, "skinned"), (0.999 * share, simulated, "simulated")):
+        monkeypatch.setattr(C, "STRETCHED_ABOVE", threshold)
+        stats = {}
+        got = pose_character(character, bones, pose.root_transform, "auto", cloth_stats=stats)
+        assert stats["mode"] == mode and stats["stretched"] == share
         for a, b in zip(got, want):
             assert (a.points if hasattr(a, "points") else a.vertices).tobytes() == \
                    (b.points if hasattr(b, "points") else b.vertices).tobytes(), (mode, a.name)
@@ -195,3 +260,29 @@ def test_a_leg_raised_through_the_open_coat_is_simulated(subject_25):
     print(f"skin out: skinned {skinned}, auto ({stats['mode']}) {after}")
     assert skinned > SIMULATE_ABOVE and stats["mode"] == "simulated" and stats["skin_out"] == skinned
     assert after <= skinned // 3
+
+
+@pytest.mark.slow
+def test_a_dress_pulled_taut_sitting_is_simulated(tmp_path, monkeypatch):
+    """Benchmark subject 29 (a draped dress; coarse drape here) in its eighth test pose, sitting: skinned, the dress
+    is pulled taut between the thighs, more than STRETCHED_ABOVE of its edges past 20 % longer than draped (full
+    drape: 21.7 %, bench/skin_seen.py --cloth auto); "auto" simulates the frame, and the simulated dress keeps under
+    half that share."""
+    from rh_common.body_model import load_anny
+    from rh_dataset.characters import build_character, cloth_stretch, pose_character
+    from rh_dataset.characters.recipe_draws import sample_recipe
+    from rh_dataset.generate import rng_for
+    from rh_dataset.poses import sample_pose
+
+    monkeypatch.setenv("RH_DRAPE_CACHE", str(tmp_path))
+    character = build_character(sample_recipe(rng_for(0, "character", 29), pool="benchmark", index=29), 64,
+                                drape="coarse")
+    pose = sample_pose(rng_for(0, "pose", 29, "test", 7), load_anny())
+    bones = dict(pose.bones)
+    assert pose.label == "sit" and "draped_dress" in [p.name for p in character.parts]
+    skinned = cloth_stretch(character, pose_character(character, bones, pose.root_transform, "skinned"))
+    stats = {}
+    auto = cloth_stretch(character, pose_character(character, bones, pose.root_transform, "auto", cloth_stats=stats))
+    print(f"dress edges past 20 %: skinned {skinned:.3f}, auto ({stats['mode']}) {auto:.3f}")
+    assert skinned > STRETCHED_ABOVE and stats["mode"] == "simulated" and stats["stretched"] == skinned
+    assert auto < skinned / 2

@@ -2,7 +2,7 @@
 procedural skin, eye and fabric textures.
 
 Public API: recipes (`CharacterRecipe`, `sample_recipe`), `build_character`, `pose_character` (and
-`skin_out_count`, what its "auto" cloth mode weighs), `body_bounds`.
+`skin_out_count` and `cloth_stretch`, what its "auto" cloth mode weighs), `body_bounds`.
 The body model itself is loaded by `rh_common.body_model` (shared with RANA).
 """
 from .character import (
@@ -14,6 +14,7 @@ from .character import (
     PosedStrands,
     body_bounds,
     build_character,
+    cloth_stretch,
     mitsuba_texcoords,
     pose_character,
     skin_out_count,
@@ -43,6 +44,7 @@ __all__ = [
     "PosedStrands",
     "body_bounds",
     "build_character",
+    "cloth_stretch",
     "mitsuba_texcoords",
     "pose_character",
     "skin_out_count",

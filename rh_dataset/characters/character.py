@@ -35,9 +35,9 @@ from .body import anchor_points, blended_normals, body_topology, run_anny, smoot
 from .garments import (BASE_OFFSET, BRIDGED, LAYER_GAP, LIFT_SMOOTH_ROUNDS, PartGeometry, build_garments, garment_parts,
                        lift_directions, lift_turn, shoe_height_map)
 from .body_features import body_features, group_mask
-from .cloth_pose import (CLOTH_MODES, INSIDE_NEAR, SIMULATE_ABOVE, SIMULATED_KINDS, TUCK_DEPTH, ClothPoseSettings,
-                         layer_depth, lift_over_skin, push_over_layers, push_under, simulated_parts, skin_inside,
-                         skin_out, tuck_skin)
+from .cloth_pose import (CLOTH_MODES, INSIDE_NEAR, SIMULATE_ABOVE, SIMULATED_KINDS, STRETCH_KINDS, STRETCHED_ABOVE,
+                         TUCK_DEPTH, ClothPoseSettings, layer_depth, lift_over_skin, overstretched, push_over_layers,
+                         push_under, simulated_parts, skin_inside, skin_out, tuck_skin)
 from .drape import (BOTTOMS_UNDER, DRAPE_LEVELS, DRAPED_KINDS, DRAPED_OVER, LAYER_GAP_DRAPE, SHELL_TOPS, SHELLS_UNDER,
                     DrapeSettings, SkinBinding, penetration, SLEEVE_GROUPS, push_clearance, push_out, shells_under,
                     skin_points)
@@ -512,10 +512,11 @@ def pose_character(
     penalty contact can leave a vertex pressed a few millimetres into a limb, which push_out then puts back on the
     skin as it does for skinned cloth; `cloth_settings` are its settings) or "auto" (skinned, but simulated where the
     skinned cloth leaves more than `cloth_pose.SIMULATE_ABOVE` skin vertices out through it: `skin_out_count` over the
-    parts the simulation poses, `SIMULATED_KINDS`; the mode taken and the count go into `cloth_stats` as "mode" and
-    "skin_out"). Either way draped cloth over draped cloth
-    (`drape.DRAPED_OVER`: a loose top, an open jacket or coat) is then pushed out over that cloth's posed surface
-    (`cloth_pose.push_over_layers`, keeping `drape.LAYER_GAP_DRAPE`). `cloth_stats`, if given, receives the
+    parts the simulation poses, `SIMULATED_KINDS`; or where a skinned skirt or dress has more than
+    `cloth_pose.STRETCHED_ABOVE` of its edges stretched past `STRETCH_LIMIT`: `cloth_stretch`; the mode taken, the
+    count and the share go into `cloth_stats` as "mode", "skin_out" and "stretched"). Either way draped cloth over
+    draped cloth (`drape.DRAPED_OVER`: a loose top, an open jacket or coat) is then pushed out over that cloth's posed
+    surface (`cloth_pose.push_over_layers`, keeping `drape.LAYER_GAP_DRAPE`). `cloth_stats`, if given, receives the
     simulation's step counts and `depth_before_push_m`: the worst simulated cloth vertex's depth under the skin
     (benches; costs a closest-point query). `tuck_depth`: how far under draped cloth the rendered skin that came
     out through it is put (`cloth_pose.tuck_skin`; 0: not tucked, as bench/skin_seen.py compares). The meshes come
@@ -523,9 +524,10 @@ def pose_character(
     if cloth == "auto":
         posed = pose_character(character, bone_deltas, root_transform, "skinned", None, cloth_settings, tuck_depth)
         n = skin_out_count(character, posed, SIMULATED_KINDS)
-        mode = "simulated" if n > SIMULATE_ABOVE else "skinned"
+        stretched = cloth_stretch(character, posed, STRETCH_KINDS)
+        mode = "simulated" if n > SIMULATE_ABOVE or stretched > STRETCHED_ABOVE else "skinned"
         if cloth_stats is not None:
-            cloth_stats.update(mode=mode, skin_out=n)
+            cloth_stats.update(mode=mode, skin_out=n, stretched=stretched)
         if mode == "skinned":
             return posed
         return pose_character(character, bone_deltas, root_transform, "simulated", cloth_stats, cloth_settings,
@@ -632,6 +634,17 @@ def skin_out_count(character: Character, posed: list, parts: tuple[str, ...] | N
         out[part.covered_skin] |= skin_out(anny[part.covered_skin], meshes[part.name].vertices, part.faces,
                                            part.inside_depth)
     return int(out.sum())
+
+
+def cloth_stretch(character: Character, posed: list, parts: tuple[str, ...] | None = None) -> float:
+    """The largest share of a draped part's edges stretched past `cloth_pose.STRETCH_LIMIT` in `posed`
+    (`pose_character`'s meshes) against its drape (`cloth_pose.overstretched` against the part's skinning bind),
+    over the draped parts named in `parts` (None: all); 0 if none is worn. The "auto" cloth mode weighs the skirts
+    and dresses (`cloth_pose.STRETCH_KINDS`): skinned, a sitting frame pulls them taut between the thighs."""
+    meshes = {m.name: m for m in posed if isinstance(m, PosedMesh)}
+    return max((overstretched(p.skinning.bind, meshes[p.name].vertices, p.faces) for p in character.parts
+                if p.skinning is not None and p.name in DRAPED_KINDS and p.name in meshes
+                and (parts is None or p.name in parts)), default=0.0)
 
 
 def _tuck_skin(character: Character, posed: list, cloth_under: dict, verts: np.ndarray, faces: np.ndarray,

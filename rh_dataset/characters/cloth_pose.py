@@ -17,8 +17,10 @@ phenotype and the frame's anny bone deltas ('local-ref', as `pose_character` tak
                cloth: newton's penalty contact can leave a vertex a few millimetres inside a limb that pressed the
                cloth.
   "auto"       skinned, and a frame whose skinned cloth leaves more than `SIMULATE_ABOVE` skin vertices out through it
-               (`skin_out`, after the lift and the tuck) simulated instead: the few poses that carry a limb through
-               the cloth (a raised leg through an open coat) take the simulation's cost, the others skinning's.
+               (`skin_out`, after the lift and the tuck), or whose skinned skirt or dress has more than
+               `STRETCHED_ABOVE` of its edges stretched past `STRETCH_LIMIT` (`overstretched`), simulated instead:
+               the few poses that carry a limb through the cloth (a raised leg through an open coat) or pull a
+               skirt taut between the thighs (sitting) take the simulation's cost, the others skinning's.
 Either way `pose_character` then pushes draped cloth out over the draped cloth under it (`push_over`,
 `drape.DRAPED_OVER`): skinned, each layer follows its own binding and a swinging thigh can carry a skirt through it.
 
@@ -53,7 +55,7 @@ __all__ = ["CLOTH_MODES", "SIMULATED_KINDS", "POSE_FABRIC", "pose_fabric", "Clot
            "body_motion", "simulate_into_pose", "skin_into_pose", "simulated_parts", "self_crossings", "hem_split",
            "layer_depth", "push_over", "covers", "LIFT_KINDS", "skin_inside", "lift_over_skin", "edges_through",
            "crossing_points", "tuck_skin", "TUCK_DEPTH", "TUCK_REACH", "TUCK_TOLERANCE", "skin_out", "SKIN_OUT_REACH",
-           "SIMULATE_ABOVE"]
+           "SIMULATE_ABOVE", "overstretched", "STRETCH_LIMIT", "STRETCH_KINDS", "STRETCHED_ABOVE"]
 
 CLOTH_MODES = ("skinned", "simulated", "auto")
 # The draped kinds the "simulated" mode simulates (the others would be skinned in every mode): today all of them.
@@ -741,6 +743,20 @@ def tuck_skin(skin: np.ndarray, rest_depth: np.ndarray, vertices: np.ndarray, fa
 SKIN_OUT_REACH = 0.03  # metres
 SIMULATE_ABOVE = 75  # body vertices
 
+# The "auto" mode's second trigger: skirts and dresses that skinning stretches. Skinned, each cloth vertex follows its
+# nearest body point's bones, so the cloth between the legs is carried apart with the thighs: in a sitting or bending
+# frame the skirt is pulled taut from knee to knee (and over the seat), where fabric, which gives a few per cent,
+# would hang between the knees and ride up. Measured as the share of a part's edges longer than 1 + STRETCH_LIMIT
+# times their draped length (its skinning bind; 0 edges past it at rest). bench/skin_seen.py --cloth auto prints it
+# per frame (docs/TRADEOFFS.md, "Stretched skirts simulated"): skinned, seed 0's skirts and dresses have 8-19 % of their
+# edges past 20 % in sits, bends and `random` poses, 0-2 % standing, walking or reaching; simulated, the same frames
+# keep 0-2.5 %. A frame with more than STRETCHED_ABOVE is simulated: mostly sits, the pose whose missing sag between
+# the knees shows most. Other kinds are not weighed: trousers must stretch over a bent knee (simulated, the straight
+# trousers of a sitting subject 9 keep 16 % of their edges past 20 %), and tops and jackets stretch less.
+STRETCH_LIMIT = 0.2  # an edge 20 % longer than draped
+STRETCH_KINDS = ("draped_skirt", "draped_dress")
+STRETCHED_ABOVE = 0.14  # share of a part's edges
+
 
 def skin_out(skin: np.ndarray, vertices: np.ndarray, faces: np.ndarray, rest_depth: np.ndarray | None = None,
              reach: float = SKIN_OUT_REACH, tolerance: float = TUCK_TOLERANCE) -> np.ndarray:
@@ -754,6 +770,21 @@ def skin_out(skin: np.ndarray, vertices: np.ndarray, faces: np.ndarray, rest_dep
     if rest_depth is not None:
         out &= d < np.asarray(rest_depth, np.float64) - tolerance
     return out
+
+
+def overstretched(bind: np.ndarray, posed: np.ndarray, faces: np.ndarray, limit: float = STRETCH_LIMIT) -> float:
+    """The share of a cloth's edges (those of `faces`, each counted once) longer in `posed` than 1 + `limit` times
+    their length in `bind` ((V, 3) each, the same vertices: a draped part's skinning bind and its posed vertices);
+    0 for an empty mesh. Rigid motions keep it: only lengths are compared."""
+    edges = edge_counts(faces)[0]
+    if not len(edges):
+        return 0.0
+    b, p = np.asarray(bind, np.float64), np.asarray(posed, np.float64)
+    if b.shape != p.shape or b.ndim != 2 or b.shape[1] != 3:
+        raise ValueError(f"overstretched: bind and posed must be the same (V, 3), got {b.shape} and {p.shape}")
+    rest = np.linalg.norm(b[edges[:, 0]] - b[edges[:, 1]], axis=1)
+    now = np.linalg.norm(p[edges[:, 0]] - p[edges[:, 1]], axis=1)
+    return float(np.mean(now > (1.0 + limit) * rest))
 
 
 def _largest_per(keys: np.ndarray, values: np.ndarray) -> np.ndarray:
