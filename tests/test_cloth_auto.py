@@ -264,7 +264,7 @@ def test_a_leg_raised_through_the_open_coat_is_simulated(subject_25):
 
 @pytest.mark.slow
 def test_a_dress_pulled_taut_sitting_is_simulated(tmp_path, monkeypatch):
-    """Benchmark subject 29 (a draped dress; coarse drape here) in its eighth test pose, sitting: skinned, the dress
+    """Benchmark subject 29 (a draped dress; coarse drape here) in its test pose 7 (from 0), sitting: skinned, the dress
     is pulled taut between the thighs, more than STRETCHED_ABOVE of its edges past 20 % longer than draped (full
     drape: 21.7 %, bench/skin_seen.py --cloth auto); "auto" simulates the frame, and the simulated dress keeps under
     half that share."""
