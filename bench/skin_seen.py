@@ -35,10 +35,27 @@ import dataclasses
 import sys
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 SHARE = 0.25  # a pixel counts when at least this share of its samples saw the skin
+
+
+class PosedFrame(NamedTuple):
+    """One posed frame's row: what `print_modes` and `print_by_label` sum."""
+
+    subject: int
+    label: str
+    counts: list  # per view: (pixels of skin through the cloth, other skin from under it, the character's pixels)
+    mode: str  # how its cloth was posed
+    skin_out: int  # skin vertices out through the simulated kinds, as posed
+    posing_s: float
+    skin_out_all: int  # ... through every draped part
+    stretched: float  # the skirts' and dresses' share of edges past STRETCH_LIMIT, as posed
+    skin_out_skinned: int  # "auto": the skinned count it chose by (else skin_out)
+    stretched_skinned: float  # "auto": the skinned share it chose by (else stretched)
+    auto: bool  # "auto" chose the mode
 
 
 def covered_skin(character) -> dict[str, np.ndarray]:
@@ -164,57 +181,59 @@ def seen_pixels(character, bones, root, posed: list, covered: dict[str, np.ndarr
     return counts, n_faces, shown
 
 
-def print_modes(posed: list[tuple]) -> None:
+def print_modes(posed: list[PosedFrame]) -> None:
     """The posed frames by the mode their cloth took: frames, the skin vertices out through the cloth after posing
     (`skin_out_count` over `SIMULATED_KINDS`, what "auto" weighs: all, the most in one frame; and over every draped
     part: all) and the posing's seconds (mean, most)."""
     print("\n| cloth posed | frames | skin vertices out (simulated kinds), all | most in one frame | "
           "through every draped part, all | posing s, mean | most |\n|---|---:|---:|---:|---:|---:|---:|")
-    for mode in sorted({r[3] for r in posed}) + ["all"]:
-        rows = [r for r in posed if mode in ("all", r[3])]
-        print(f"| {mode} | {len(rows)} | {sum(r[4] for r in rows)} | {max(r[4] for r in rows)} | "
-              f"{sum(r[6] for r in rows)} | {sum(r[5] for r in rows) / len(rows):.2f} | "
-              f"{max(r[5] for r in rows):.2f} |")
-    print("most skin out: " + ", ".join(f"subject {r[0]} {r[1]} {r[4]} ({r[3]})"
-                                       for r in sorted(posed, key=lambda r: -r[4])[:8]))
+    for mode in sorted({r.mode for r in posed}) + ["all"]:
+        rows = [r for r in posed if mode in ("all", r.mode)]
+        print(f"| {mode} | {len(rows)} | {sum(r.skin_out for r in rows)} | {max(r.skin_out for r in rows)} | "
+              f"{sum(r.skin_out_all for r in rows)} | {sum(r.posing_s for r in rows) / len(rows):.2f} | "
+              f"{max(r.posing_s for r in rows):.2f} |")
+    print("most skin out: " + ", ".join(f"subject {r.subject} {r.label} {r.skin_out} ({r.mode})"
+                                       for r in sorted(posed, key=lambda r: -r.skin_out)[:8]))
     from rh_dataset.characters.cloth_pose import SIMULATE_ABOVE, STRETCHED_ABOVE
 
-    skinned = [r for r in posed if r[3] == "skinned"]
+    skinned = [r for r in posed if r.mode == "skinned"]
     if skinned:  # a simulated frame's count is the simulation's, not what decided it
-        over = [r for r in skinned if r[4] > SIMULATE_ABOVE]
+        over = [r for r in skinned if r.skin_out > SIMULATE_ABOVE]
         print(f"skinned frames with more than cloth_pose.SIMULATE_ABOVE = {SIMULATE_ABOVE} skin vertices out (what "
               f"\"auto\" simulates): {len(over)} of {len(skinned)}" +
-              "".join(f"; subject {r[0]} {r[1]} {r[4]}" for r in over))
-        taut = [r for r in skinned if r[7] > STRETCHED_ABOVE]
+              "".join(f"; subject {r.subject} {r.label} {r.skin_out}" for r in over))
+        taut = [r for r in skinned if r.stretched > STRETCHED_ABOVE]
         print(f"skinned frames whose skirt or dress has more than cloth_pose.STRETCHED_ABOVE = {STRETCHED_ABOVE:.0%} "
               f"of its edges stretched past 20 % (what \"auto\" also simulates): {len(taut)} of {len(skinned)}" +
-              "".join(f"; subject {r[0]} {r[1]} {100 * r[7]:.1f} %" for r in taut))
-    auto = [r for r in posed if r[3] == "simulated" and r[10]]  # the frames "auto" simulated
+              "".join(f"; subject {r.subject} {r.label} {100 * r.stretched:.1f} %" for r in taut))
+    auto = [r for r in posed if r.mode == "simulated" and r.auto]  # the frames "auto" chose to simulate
     if auto:
-        by_skin = sum(r[8] > SIMULATE_ABOVE for r in auto)
-        by_stretch = sum(r[9] > STRETCHED_ABOVE for r in auto)
+        by_skin = sum(r.skin_out_skinned > SIMULATE_ABOVE for r in auto)
+        by_stretch = sum(r.stretched_skinned > STRETCHED_ABOVE for r in auto)
         print(f"\"auto\" simulated {len(auto)} frames: {by_skin} for the skin out, {by_stretch} for the stretch "
               f"(both: {by_skin + by_stretch - len(auto)}); the skirts' and dresses' stretch, skinned -> simulated: " +
-              ", ".join(f"subject {r[0]} {r[1]} {100 * r[9]:.1f} -> {100 * r[7]:.1f} %" for r in auto))
+              ", ".join(f"subject {r.subject} {r.label} {100 * r.stretched_skinned:.1f} -> {100 * r.stretched:.1f} %"
+                        for r in auto))
 
 
-def print_by_label(posed: list[tuple]) -> None:
+def print_by_label(posed: list[PosedFrame]) -> None:
     """The posed frames' counts summed by pose label: frames, frames with any pixel of skin through the cloth, those
     pixels, and the most in one view as a share of the character's pixels in that view; then the frames in order of
     their pixels through the cloth (the first 5)."""
     print("\n| pose label | frames | with skin through the cloth | its pixels, all views | most in one view "
           "(share of the character's pixels) | other skin from under the cloth, pixels |"
           "\n|---|---:|---:|---:|---|---:|")
-    labels = sorted({r[1] for r in posed})
+    labels = sorted({r.label for r in posed})
     for label in labels + ["all"]:
-        rows = [r[2] for r in posed if label in ("all", r[1])]
+        rows = [r.counts for r in posed if label in ("all", r.label)]
         views = [v for c in rows for v in c]
         most = max(views, key=lambda v: (v[0] / max(v[2], 1), v[0]))
         print(f"| {label} | {len(rows)} | {sum(1 for c in rows if any(v[0] for v in c))} | "
               f"{sum(v[0] for v in views)} | {most[0]} ({100.0 * most[0] / max(most[2], 1):.2f} %) | "
               f"{sum(v[1] for v in views)} |")
-    order = sorted(posed, key=lambda r: -sum(v[0] for v in r[2]))[:5]
-    print("most skin through the cloth: " + ", ".join(f"subject {r[0]} {r[1]} {sum(v[0] for v in r[2])}"
+    order = sorted(posed, key=lambda r: -sum(v[0] for v in r.counts))[:5]
+    print("most skin through the cloth: " + ", ".join(f"subject {r.subject} {r.label} "
+                                                       f"{sum(v[0] for v in r.counts)}"
                                                        for r in order))
 
 
@@ -307,15 +326,15 @@ def main(argv: list[str] | None = None) -> int:
             if bones is not None and stats.get("mode") == "simulated" and decided > STRETCHED_ABOVE:
                 taut.append((decided, s, label, ch, bones, root, meshes))
             if bones is not None:
-                posed.append((s, label, counts, mode, n_out, t_pose, n_all, stretched, stats.get("skin_out", n_out),
-                              decided, bool(stats)))
+                posed.append(PosedFrame(s, label, counts, mode, n_out, t_pose, n_all, stretched,
+                                        stats.get("skin_out", n_out), decided, bool(stats)))
             print(f"{row}  ({time.perf_counter() - t:.1f} s)", flush=True)
     print(f"\nload {load()}")
     if posed:
         print_modes(posed)
     if posed and not args.no_render:
-        print(f"posed frames: {sum(v[0] for r in posed for v in r[2])} pixels of skin through the cloth, "
-              f"{sum(v[1] for r in posed for v in r[2])} of other skin from under it (through openings or folds)")
+        print(f"posed frames: {sum(v[0] for r in posed for v in r.counts)} pixels of skin through the cloth, "
+              f"{sum(v[1] for r in posed for v in r.counts)} of other skin from under it (through openings or folds)")
         print_by_label(posed)
     if args.figure is not None and worst is not None:
         from rh_common.colourspace import quantize8, srgb_encode
