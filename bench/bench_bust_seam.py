@@ -1,5 +1,5 @@
-"""The seam across a loose top's chest: where its shell ("tee", "longtop", "hoodie") meets its draped body's pinned
-ring, for the generator's own subjects, with the bust bridged (`drape.BRIDGE_BAND`, `garments.BRIDGED`) and, with
+"""The seam across a loose top's or a dress's chest: where its shell ("tee", "longtop", "hoodie", the dress's
+"bodice") meets its draped body's pinned ring, for the generator's own subjects, with the bust bridged (`drape.BRIDGE_BAND`, `garments.BRIDGED`) and, with
 --before, without.
 
     python bench/bench_bust_seam.py                          # seed 0's loose-top wearers: the ring against the bust
@@ -44,8 +44,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 FIGURE_PX = 1024  # the figure's renders (the whole body framed), cropped round the ring
-LOOSE_TOPS = {"draped_tshirt": ("tee", "draped_tshirt"), "draped_longsleeve": ("longtop", "draped_longsleeve"),
-              "draped_hoodie": ("hoodie", "draped_hoodie_body")}
+# The garments whose cloth hangs from a pinned ring under a shell over the chest: garment kind -> (shell, cloth part).
+TOPS = {"draped_tshirt": ("tee", "draped_tshirt"), "draped_longsleeve": ("longtop", "draped_longsleeve"),
+        "draped_hoodie": ("hoodie", "draped_hoodie_body"), "draped_dress": ("bodice", "draped_dress")}
 
 
 @contextlib.contextmanager
@@ -63,13 +64,17 @@ def bridge(on: bool):
         drape_module.BRIDGE_BAND, garments_module.BRIDGED = {}, {}
         for kind in saved[0]:
             drape_module.PROFILES[kind] = dataclasses.replace(drape_module.PROFILES[kind], top="chest")
+    # The rings' heights are cached per (kind, phenotype, gap, over_bust), not per profile: cleared with the characters
+    # on either side, or a build after another one would take its ring.
     character_module._build_cached.cache_clear()
+    drape_module._ring_levels.cache_clear()
     try:
         yield
     finally:
         drape_module.BRIDGE_BAND, garments_module.BRIDGED = saved[:2]
         drape_module.PROFILES.update(saved[2])
         character_module._build_cached.cache_clear()
+        drape_module._ring_levels.cache_clear()
 
 
 def profile(phenotype: dict, kind: str, worn: list[str]) -> str:
@@ -130,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--subjects", default=None,
                     help="comma-separated benchmark subjects (rh-generate's, at --seed) wearing a loose t-shirt, "
-                         "long sleeve or hoodie (default: all of them at --seed)")
+                         "long sleeve, hoodie or dress (default: all of them at --seed)")
     ap.add_argument("--seed", type=int, default=0, help="dataset seed the recipes and poses come from")
     ap.add_argument("--drape", default="full", choices=("full", "coarse"), help="drape level (RenderSettings.drape)")
     ap.add_argument("--poses", type=int, default=-1,
@@ -152,16 +157,16 @@ def main(argv: list[str] | None = None) -> int:
     recipes = {}
     for s in ([int(x) for x in args.subjects.split(",")] if args.subjects else range(49)):
         recipe = sample_recipe(rng_for(args.seed, "character", s), pool="benchmark", index=s)
-        top = next((g.kind for g in recipe.garments if g.kind in LOOSE_TOPS), None)
+        top = next((g.kind for g in recipe.garments if g.kind in TOPS), None)
         if top is None:
             if args.subjects:
-                ap.error(f"benchmark subject {s} wears no loose top: {[g.kind for g in recipe.garments]}")
+                ap.error(f"benchmark subject {s} wears no loose top or dress: {[g.kind for g in recipe.garments]}")
             continue
         recipes[s] = (recipe, top)
     variants = (True, False) if args.before else (True,)
     figures = []
     for s, (recipe, top) in recipes.items():
-        shell, cloth = LOOSE_TOPS[top]
+        shell, cloth = TOPS[top]
         ph = recipe.phenotype
         print(f"subject {s:2d} {top:18s} {profile(ph, cloth, [g.kind for g in recipe.garments])}", flush=True)
         if args.poses < 0 and args.figure is None:
