@@ -109,7 +109,8 @@ LIFT_SMOOTH_ROUNDS = 8
 BRIDGE_MAX = 0.04
 # Halvings of `_bridged`'s search for each shell vertex's offset (from BRIDGE_MAX: 40 mm / 2^16 = 0.6 um).
 BRIDGE_ROUNDS = 16
-# Shells laid over the bust as their loose top's fabric hangs (`drape.hanging_surface`): {shell part: its draped kind}.
+# Shells laid over the bust as their loose top's or dress's fabric hangs (`drape.hanging_surface`):
+# {shell part: its draped kind}.
 BRIDGED = {shell: kind for kind, shell in SHELL_KINDS_OVER.items() if kind in BRIDGE_BAND}
 TAPER_WIDTH = 0.025  # metres over which the offset falls towards an open edge
 TAPER_MIN = 0.3  # fraction of the offset left at the very edge
