@@ -1,8 +1,8 @@
 """The seam across a loose top's or a dress's chest: where its shell ("tee", "longtop", "hoodie", the dress's
-"bodice") meets its draped body's pinned ring, for the generator's own subjects, with the bust bridged (`drape.BRIDGE_BAND`, `garments.BRIDGED`) and, with
---before, without.
+"bodice") meets its draped body's pinned ring, for the generator's own subjects, with the bust bridged
+(`drape.BRIDGE_BAND`, `garments.BRIDGED`) and, with --before, without.
 
-    python bench/bench_bust_seam.py                          # seed 0's loose-top wearers: the ring against the bust
+    python bench/bench_bust_seam.py                          # seed 0's loose-top and dress wearers: the ring
     python bench/bench_bust_seam.py --subjects 28,12,42 --poses 2 --before
     python bench/bench_bust_seam.py --subjects 28,12,3 --figure docs/bust_seam.png --before
 

@@ -59,9 +59,10 @@ def test_hanging_surface_spans_the_trunk_from_outside(pheno):
 
 @pytest.mark.parametrize("pheno", BUILDS, ids=IDS)
 def test_pinned_ring_lies_on_the_hanging_fabric_at_the_front_and_on_the_hull_behind(pheno):
-    """The loose tops' pinned ring: `ring_gap` out from the hull all round, and from the hanging surface within
-    BRIDGE_FRONT[0] of the front; past BRIDGE_FRONT[1] bit for bit where it was before the bridge (the hull plus
-    its gap. The jacket's ring (no bridge: its panels hang from under the arms) is the hull plus its gap everywhere."""
+    """The loose tops' and the dress's pinned ring: `ring_gap` out from the hull all round, and from the hanging
+    surface within BRIDGE_FRONT[0] of the front; past BRIDGE_FRONT[1] bit for bit where it was before the bridge (the
+    hull plus its gap). The jacket's ring (no bridge: its panels hang from under the arms) is the hull plus its gap
+    everywhere."""
     D, feats, body, centre = _frame(pheno)
     ang = np.arange(72) * (2.0 * np.pi / 72)
     off_front = np.abs(np.mod(ang + np.pi, 2.0 * np.pi) - np.pi)
