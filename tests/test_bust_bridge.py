@@ -181,6 +181,12 @@ def test_loose_top_under_an_open_jacket_or_a_coat_hangs_from_under_the_arms():
     for outer in D.BUST_UNDER_NOT:
         assert not D.piece_settings(kind, "coarse", worn + [outer]).over_bust
     assert D.piece_settings("draped_skirt", "coarse", ["draped_skirt", "draped_jacket"]).over_bust
+    # The dress: over the bust alone (the generator's draws), from under the arms under a shell jacket (a recipe may
+    # name one), whose shell follows the skin where the bridged bodice would stand off it.
+    assert D.piece_settings("draped_dress", "coarse", ["shoes", "draped_dress"]).over_bust
+    dressed = D.piece_settings("draped_dress", "coarse", ["shoes", "draped_dress", "jacket"])
+    assert not dressed.over_bust
+    assert D.ring_height("draped_dress", PHENO, dressed) < D.ring_height("draped_dress", PHENO)
     under = D.piece_settings(kind, "coarse", worn + ["draped_jacket"])
     _, feats, body, centre = _frame(PHENO)
     heads = _heads(PHENO)

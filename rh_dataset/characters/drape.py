@@ -498,9 +498,11 @@ DRAPED_OVER = {"draped_tshirt": _BOTTOMS_UNDER, "draped_longsleeve": _BOTTOMS_UN
 # The draped kinds a recipe garment is draped as, in order (each over those before it that DRAPED_OVER names); any
 # other draped recipe kind is draped as itself. Its draped sleeves are draped over the arm alone (garments.py).
 DRAPED_PIECES = {"draped_hoodie": ("draped_hoodie_body", "draped_hoodie")}
-# Draped kinds a loose top is not hung over the bust under (`piece_settings`): the open jacket and the coat, whose
-# panels are pinned under the arms and draped over the top's cloth.
-BUST_UNDER_NOT = ("draped_jacket", "draped_coat")
+# Kinds a loose top or a dress is not hung over the bust under (`piece_settings`): the open jacket and the coat, whose
+# panels are pinned under the arms and draped over the top's cloth; and the shell jacket, which follows the skin: a
+# bridged bodice, up to 3 cm off the skin over the cleavage and the belly, would stand through it. The generator
+# never draws a jacket over a dress (its draws replace top, bottom and jacket), but a recipe may name one.
+BUST_UNDER_NOT = ("jacket", "draped_jacket", "draped_coat")
 
 
 # Shells held under draped cloth: {draped kind: the shell parts}. Only where a draped bottom is worn
@@ -1349,8 +1351,8 @@ def draped_pieces(kind: str) -> tuple[str, ...]:
 
 
 def piece_settings(kind: str, level: str, worn: Sequence[str]) -> DrapeSettings:
-    """A draped piece's simulation worn with `worn` (a recipe's garment kinds): `drape_settings`, but a loose top
-    (`BRIDGE_BAND`) under an open jacket or a coat (`BUST_UNDER_NOT`) hung from under the arms (`over_bust` False):
+    """A draped piece's simulation worn with `worn` (a recipe's garment kinds): `drape_settings`, but a loose top or
+    a dress (`BRIDGE_BAND`) under a jacket or a coat (`BUST_UNDER_NOT`) hung from under the arms (`over_bust` False):
     raised over the bust, its cloth stood up to 29 mm out over the panels' ring, pinned under the arms
     (tests/test_drape_jacket.py)."""
     st = drape_settings(kind, level)
