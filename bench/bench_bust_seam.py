@@ -64,17 +64,13 @@ def bridge(on: bool):
         drape_module.BRIDGE_BAND, garments_module.BRIDGED = {}, {}
         for kind in saved[0]:
             drape_module.PROFILES[kind] = dataclasses.replace(drape_module.PROFILES[kind], top="chest")
-    # The rings' heights are cached per (kind, phenotype, gap, over_bust), not per profile: cleared with the characters
-    # on either side, or a build after another one would take its ring.
     character_module._build_cached.cache_clear()
-    drape_module._ring_levels.cache_clear()
     try:
         yield
     finally:
         drape_module.BRIDGE_BAND, garments_module.BRIDGED = saved[:2]
         drape_module.PROFILES.update(saved[2])
         character_module._build_cached.cache_clear()
-        drape_module._ring_levels.cache_clear()
 
 
 def profile(phenotype: dict, kind: str, worn: list[str]) -> str:

@@ -43,7 +43,10 @@ def parse_variant(text: str) -> dict:
     if not sep or name not in fields:
         raise ValueError(f"--variants: {text!r} is not field=value of ClothPoseSettings ({', '.join(fields)})")
     kind = type(getattr(ClothPoseSettings(), name))
-    return {name: kind(float(value)) if kind is int else kind(value)}
+    try:
+        return {name: kind(value)}
+    except ValueError:
+        raise ValueError(f"--variants: {text!r}: {name} takes a{'n integer' if kind is int else ' number'}") from None
 
 
 def main(argv: list[str] | None = None) -> int:

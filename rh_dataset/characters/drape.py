@@ -574,22 +574,23 @@ def ring_height(kind: str, phenotype: dict[str, float], settings: DrapeSettings 
 
 
 def _rings(kind: str, phenotype: dict[str, float], st: DrapeSettings) -> tuple[float, float]:
-    """`_ring_levels` for a phenotype dict and settings: keyed on the phenotype made hashable and on the only two
-    settings the rings depend on (the ring's gap and `over_bust`), so both drape levels share one finding."""
-    return _ring_levels(kind, tuple(sorted((k, float(v)) for k, v in phenotype.items())),
-                        _ring_gap(PROFILES[kind], st), st.over_bust)
+    """`_ring_levels` for a phenotype dict and settings: keyed on the kind's profile (a `PROFILES` entry changed at
+    run time, as bench/bench_bust_seam.py's "before" does, finds its own rings), the phenotype made hashable and the
+    only two settings the rings depend on (the ring's gap and `over_bust`), so both drape levels share one finding."""
+    prof = PROFILES[kind]
+    return _ring_levels(prof, tuple(sorted((k, float(v)) for k, v in phenotype.items())), _ring_gap(prof, st),
+                        st.over_bust)
 
 
 @functools.lru_cache(maxsize=32)
-def _ring_levels(kind: str, phenotype: tuple[tuple[str, float], ...], gap: float,
+def _ring_levels(prof: DrapeProfile, phenotype: tuple[tuple[str, float], ...], gap: float,
                  over_bust: bool) -> tuple[float, float]:
     """(pinned top ring's height, the chest ring's) of a `PROFILES` kind in the A-pose frame: its top ring at the
     waist (`DrapeProfile.top`, both the same), the chest under the arms (`_under_the_arms`, `gap` off the trunk's
-    hull), or ("bust", where `over_bust`) that raised to over the bust (`_bust_height`). Found once per (kind,
+    hull), or ("bust", where `over_bust`) that raised to over the bust (`_bust_height`). Found once per (profile,
     phenotype, gap, over_bust): the pattern, the shell's hem (`shell_hems`) and the bridged shell's surface
     (`hanging_surface`) all need it for one build, and each finding runs closest-point queries against the body,
     twice where the ring is raised."""
-    prof = PROFILES[kind]
     run = run_anny(dict(phenotype))
     heads = {label: run["bone_poses"][i, :3, 3] for i, label in enumerate(body_topology().bone_labels)}
     if prof.top == "waist":
