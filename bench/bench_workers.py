@@ -15,8 +15,9 @@ count and protocol into a fresh folder under --out (kept with --keep), the count
   load                the 1-minute load average before and after: the machine may be shared;
 and, at the end, each count's wall time against the first's, and whether every file of the datasets (their
 manifests' sha256, the run logs aside) is the same. One worker renders with all cores' threads; N workers render N
-subjects at once, each with cores / N threads (`rh_dataset.backends.local`). A subject's character is built once
-per process and protocol, so small runs weigh the builds more than the full benchmark does (550 frames a subject).
+subjects at once, each with cores / N threads, at least 2 (`rh_dataset.backends.local`). A subject's character is
+built once per process and protocol, so small runs weigh the builds more than the full benchmark does (550 frames a
+subject).
 """
 from __future__ import annotations
 

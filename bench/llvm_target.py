@@ -59,7 +59,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--features", help="LLVM feature string (default: the table above for --target; 'native': "
                                       "this CPU's, to change only the width or the CPU name)")
     p.add_argument("--width", type=int, help="vector width in lanes (default: 8; 4 for nehalem, 16 for skylake-avx512)")
-    p.add_argument("--threads", type=int, help="Dr.Jit worker threads (default: one per core): another thread split")
+    p.add_argument("--threads", type=int, help="Dr.Jit worker threads (default: one per core): another thread split; "
+                   "the generator raises 1 to rh_dataset.variant.MIN_RENDER_THREADS (2)")
     args = p.parse_args(ours)
     import mitsuba as mi
 

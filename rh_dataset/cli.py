@@ -85,7 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="Mitsuba variant (default: cuda_ad_rgb if a GPU works, else llvm_ad_rgb); a split "
                         "begun on one variant is not resumed on the other (their frames are not the same benchmark)")
     p.add_argument("--workers", type=int, default=1,
-                   help="processes rendering subjects in parallel (each uses cores/workers threads)")
+                   help="processes rendering subjects in parallel (each renders with cores/workers threads, at "
+                        "least 2)")
     p.add_argument("--backend", default="local", choices=["local", "ray"],
                    help="where frames render: 'local' (this machine, --workers processes) or 'ray' (tasks on a Ray "
                         "cluster; same files, bit-identical on the same machine kind and variant)")

@@ -16,7 +16,7 @@ import os
 import numpy as np
 
 __all__ = ["select_variant", "require_variant", "ensure_variant", "load_mitsuba", "jit_array", "VariantError",
-           "DEFAULT_VARIANT"]
+           "DEFAULT_VARIANT", "MIN_RENDER_THREADS", "set_render_threads"]
 
 DEFAULT_VARIANT = "llvm_ad_rgb"  # the project's default where no command chose: CPU, bit-identical everywhere
 _LLVM19 = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"
@@ -84,6 +84,26 @@ def ensure_variant(default: str = DEFAULT_VARIANT):
     if mi.variant() is None:
         select_variant(default)
     return mi
+
+
+MIN_RENDER_THREADS = 2
+"""The fewest threads drjit's LLVM backend renders with. One thread gives strand hair other last bits than any pool
+of two or more (2, 3, 4 and 8 gave the same bits; a pixel's curve hit moves by ~1e-7, and a path through the hair
+can then take another course): `rh-generate --workers 2` on 2 cores, one thread a process, wrote another content
+identity than `--workers 1` (docs/TRADEOFFS.md, "Two processes on two cores"). Never fewer than two, a dataset's bits
+do not depend on the machine's core count or on --workers."""
+
+
+def set_render_threads(n: int | None = None) -> int:
+    """Give drjit's LLVM backend `n` render threads (None: as many as it has, by default one per core), never fewer
+    than MIN_RENDER_THREADS (a second thread on one core costs little: the two take turns). Returns the count set.
+    Called by the backends that render (process-wide, like the variant)."""
+    import drjit as dr
+
+    count = max(MIN_RENDER_THREADS, int(n if n is not None else dr.thread_count()))
+    if dr.thread_count() != count:
+        dr.set_thread_count(count)
+    return count
 
 
 JIT_ALIGN = 64

@@ -18,7 +18,7 @@ __all__ = ["LocalBackend"]
 @dataclass(frozen=True)
 class LocalBackend:
     workers: int = 1
-    """Processes rendering subjects in parallel (each with cores / workers render threads)."""
+    """Processes rendering subjects in parallel (each with cores / workers render threads, at least 2)."""
 
     def check(self, plan: DatasetPlan) -> None:
         if self.workers < 1:
@@ -26,6 +26,9 @@ class LocalBackend:
 
     def run(self, plan: DatasetPlan, on_frame: OnFrame) -> None:
         if self.workers == 1:
+            from rh_dataset.variant import set_render_threads
+
+            set_render_threads()  # this process's threads, at least 2 (on a 1-core machine too)
             source = subject_source(plan)
             for s in range(plan.spec.subjects):
                 run_subject(plan, source, s, on_frame)
@@ -91,9 +94,9 @@ def _worker(plan: DatasetPlan, workers: int, s: int, queue) -> None:
 
     worker_signals()
     try:
-        import drjit as dr
+        from rh_dataset.variant import set_render_threads
 
-        dr.set_thread_count(max(1, (os.cpu_count() or 1) // workers))
+        set_render_threads((os.cpu_count() or 1) // workers)  # at least 2: one thread gives hair other bits
         run_subject(plan, subject_source(plan), s, lambda task, skipped: queue.put(("frame", task, skipped)))
     except Stopped as stop:
         # Stopped by the parent or by the terminal's Ctrl-C: its files are clean and the parent says so.

@@ -82,9 +82,9 @@ def _crash_after_first_render(on_frame: OnFrame, path: str) -> OnFrame:
 def _render_task(plan: DatasetPlan, cpus: float, s: int, split: str, start: int, stop: int, progress,
                  torch_threads: int) -> list[tuple]:
     """Body of one Ray task: render the missing frames [start, stop) of (subject s, split)."""
-    import drjit as dr
+    from rh_dataset.variant import set_render_threads
 
-    dr.set_thread_count(max(1, int(round(cpus))))
+    set_render_threads(int(round(cpus)))  # at least 2: one thread gives strand hair other bits
     # The pose prior's rig comes out of anny (torch) and its last bits depend on torch's intra-op thread count;
     # Ray sets OMP_NUM_THREADS to the task's CPUs, so use the driver's count or the poses (JSON) differ by 1 ulp.
     events: list[tuple] = []
