@@ -91,13 +91,14 @@ MIN_RENDER_THREADS = 2
 of two or more (2, 3, 4 and 8 gave the same bits; a pixel's curve hit moves by ~1e-7, and a path through the hair
 can then take another course): `rh-generate --workers 2` on 2 cores, one thread a process, wrote another content
 identity than `--workers 1` (docs/TRADEOFFS.md, "Two processes on two cores"). Never fewer than two, a dataset's bits
-do not depend on the machine's core count or on --workers."""
+do not depend on --workers or, as far as measured (2, 3, 4 and 8 threads), on the core count."""
 
 
 def set_render_threads(n: int | None = None) -> int:
     """Give drjit's LLVM backend `n` render threads (None: as many as it has, by default one per core), never fewer
-    than MIN_RENDER_THREADS (a second thread on one core costs little: the two take turns). Returns the count set.
-    Called by the backends that render (process-wide, like the variant)."""
+    than MIN_RENDER_THREADS (more threads than cores take turns: on 2 cores `--workers 2` with two threads a process
+    was faster than with one, docs/TRADEOFFS.md). Returns the count set. Called by the backends that render
+    (process-wide, like the variant)."""
     import drjit as dr
 
     count = max(MIN_RENDER_THREADS, int(n if n is not None else dr.thread_count()))
