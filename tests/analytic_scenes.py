@@ -65,6 +65,16 @@ def gradient_env() -> dict:
     return {"type": "envmap", "bitmap": mi.Bitmap(img)}
 
 
+@dataclass(frozen=True)
+class Strands:
+    """Hair strands as the renderer takes them (`rh_dataset.render.scene.StrandsLike`): (S, K, 3) cubic B-spline
+    control points and (S, K) radii in metres, and a fibre (`rh_dataset.characters.hair_fibre.HairFibre`)."""
+    name: str
+    points: np.ndarray
+    radius: np.ndarray
+    fibre: object
+
+
 def sphere_camera(n: int = 24):
     """An n x n camera 4 units in front of the unit sphere at the origin."""
     from rh_common.camera import Camera

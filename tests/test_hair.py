@@ -17,13 +17,7 @@ from rh_dataset.characters.recipe_draws import recipe_from_seed
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
 
-
-@dataclasses.dataclass(frozen=True)
-class Strands:
-    name: str
-    points: np.ndarray
-    radius: np.ndarray
-    fibre: HairFibre
+from analytic_scenes import Strands
 
 
 def _straight(radius: float, length: float = 1.0, n: int = 1, gap: float = 0.0) -> Strands:

@@ -2,25 +2,15 @@
 count of two or more, so a dataset's bits do not depend on the core count or on `rh-generate --workers`."""
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pytest
 
-from analytic_scenes import gradient_env, sphere_camera
+from analytic_scenes import Strands, gradient_env, sphere_camera
 from rh_dataset.characters.hair_fibre import HairFibre
 from rh_dataset.cli import main as generate_main
 from rh_dataset.render.passes import render_frame
 from rh_dataset.render.scene import RenderSettings
 from rh_dataset.variant import MIN_RENDER_THREADS, select_variant, set_render_threads
-
-
-@dataclass
-class Strands:
-    name: str
-    points: np.ndarray
-    radius: np.ndarray
-    fibre: HairFibre
 
 
 @pytest.fixture(autouse=True)
