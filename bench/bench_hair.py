@@ -6,6 +6,7 @@ drawn as polylines instead of splines.
     python bench/bench_hair.py --scenes sunrise-random --subjects 0 8 --repeats 5
     python bench/bench_hair.py --figure docs/hair_depth.png --subjects 44 --scenes interior-apose   # old cut vs now
     python bench/bench_hair.py --curves 4 8 --subjects 0 8            # spline vs polyline strands: time and error
+    python bench/bench_hair.py --depths --subjects 0 8                # what a hair sample costs, bounce by bounce
 
 Variants (bench_tradeoff's scenes; `--subjects`: benchmark subjects in the scene's pose, light and camera fill):
   wrapper   the strands' BSDF as today: strand_shape.HAIR_WITH_ALBEDO, a Python BSDF whose scattering queries go to
@@ -26,6 +27,13 @@ focused pass's own tracer, hair BSDF as today), and the CPU microseconds per sam
 share of the pixels, of the pass's CPU time, and of the noise of a standard frame (the squared display-space
 difference of two renders with their own seeds, as bench_sampler.py's floor pairs: where the error the floor
 measures lies). Groups of fewer than 100 pixels are left out.
+
+--depths [D ...]: instead, what in a sample costs (docs/TRADEOFFS.md, "What a hair sample costs"): the cost by
+first hit at each max depth D (default 1 2 3 4 6 8 16 64, Russian roulette from the class's depth as the preset
+renders), with the strands' BSDF as built and with a diffuse stand-in of the fibre's albedo on the same curves. Depth
+1 is the camera ray alone; each depth more adds a bounce (an emitter sample and its shadow ray, a BSDF sample and its
+ray). Each figure is the CPU time of tracing the group's pixels twice over less that of once (the call's fixed cost
+taken out); last, by arithmetic, the CPU seconds of a whole focused pass at the preset's count at those rates.
 
 --curves [M ...]: instead, the strands' primitive (docs/TRADEOFFS.md, "Strands as polylines"): Mitsuba's
 `bsplinecurve` of the control points (what every preset draws) against the `linearcurve` through the spline at M
@@ -164,6 +172,81 @@ def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
         return [row[:4] + [row[4] / total, row[5]] for row in rows]  # CPU seconds -> share of the pass's
     finally:
         s = None
+
+
+def cost_by_depth(scene, settings, spp: int, depths: list[int]) -> tuple[list[str], list[list]]:
+    """What a sample of each first-hit group costs as its paths are allowed to go deeper: CPU microseconds per
+    sample through `render_pixels` at each max depth in `depths` (Russian roulette from the class's depth, as the
+    preset renders), with the strands' BSDF as the generator builds it (Mitsuba's `hair`) and with the diffuse
+    stand-in of the fibre's albedo on the same curves (`strand_shape.mitsuba_curves(stand_in=True)`). Depth 1 is the
+    camera ray alone (its first intersection and the environment it may see); each step deeper adds a bounce: an
+    emitter sample with its shadow ray, a BSDF sample and the ray it traces. The hair/stand-in difference at a depth
+    is what the `hair` BSDF's own evaluation and sampling cost, and the paths it keeps going, beyond a diffuse
+    surface's on the same geometry. Each figure is the difference between tracing the group's pixels twice over
+    and once, so the call's fixed cost is not in it. Last, two rows of arithmetic: the CPU seconds a whole focused
+    pass at the preset's count would take at those rates. Returns the column names and one row per (group, BSDF)."""
+    import functools
+
+    import mitsuba as mi
+
+    from rh_dataset.characters import strand_shape
+    from rh_dataset.render.focus import person_pixels, render_pixels
+    from rh_dataset.render.passes import FOCUS_MARGIN, _AOV_INTEGRATOR
+    from rh_dataset.render.scene import scene_dict
+
+    def load(depth: int, stand_in: bool):
+        orig = strand_shape.mitsuba_curves
+        if stand_in:
+            strand_shape.mitsuba_curves = functools.partial(orig, stand_in=True)
+        try:
+            integ = {"type": "path", "max_depth": int(depth), "hide_emitters": False,
+                     **({"rr_depth": settings.rr_depth} if settings.rr_depth else {})}
+            return mi.load_dict(scene_dict(scene.meshes, scene.emitter, scene.camera, integ, settings.spp,
+                                           pixel_format="rgba", sampler=settings.sampler))
+        finally:
+            strand_shape.mitsuba_curves = orig
+
+    s = load(settings.max_depth, False)
+    cov = np.array(mi.render(s, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp, seed=1))[..., 3]
+    pix = person_pixels(np.clip(cov, 0.0, 1.0), FOCUS_MARGIN)
+    first = np.array(mi.render(s, integrator=mi.load_dict({"type": "aov", "aovs": "si:shape_index"}), spp=1,
+                               seed=1))[..., -1].reshape(-1)[pix].astype(int)
+    names = ["(environment)"] + [sh.id() for sh in s.shapes()]
+    s = None
+    groups = [(names[k] if k < len(names) else f"shape {k}", pix[first == k]) for k in np.unique(first)]
+    groups = [(n, sel) for n, sel in groups if len(sel) >= 100]
+    us: dict[tuple[str, bool, int], float] = {}
+    for stand_in in (False, True):
+        for depth in depths:
+            s = load(depth, stand_in)
+            try:
+                for name, sel in groups:
+                    render_pixels(mi, s, sel, spp, 1)  # warm-up (and the kernel, once)
+                    # A call's fixed cost (tracing the kernel, the Python BSDF included, and looking it up) is
+                    # taken out: the group's pixels once and twice, the difference is the cost of its samples.
+                    t = []
+                    for pixels in (sel, np.concatenate([sel, sel])):
+                        c = time.process_time()
+                        render_pixels(mi, s, pixels, spp, 2)
+                        t.append(time.process_time() - c)
+                    us[name, stand_in, depth] = 1e6 * (t[1] - t[0]) / (len(sel) * spp)
+            finally:
+                s = None
+    rows = []
+    for name, sel in groups:
+        # every group twice: the stand-in changes only what the strands scatter, so the other groups' rows show
+        # what their paths' bounces into the hair cost
+        for stand_in in (False, True):
+            rows.append([name, len(sel), "diffuse stand-in" if stand_in else "hair"]
+                        + [us[name, stand_in, d] for d in depths])
+    # What a whole focused pass of the preset's count would cost at these rates: the sum over the groups (every
+    # person pixel is in one) of pixels x us x spp, in CPU seconds (the beauty pass keeps 2 cores busy: wall ~ half).
+    for stand_in in (False, True):
+        rows.append([f"all: CPU s of a {settings.spp}-spp pass", sum(len(sel) for _, sel in groups),
+                     "diffuse stand-in" if stand_in else "hair"]
+                    + [1e-6 * settings.spp * sum(len(sel) * us[name, stand_in, d] for name, sel in groups)
+                       for d in depths])
+    return [f"depth {d}" for d in depths], rows
 
 
 def _basis(t: np.ndarray) -> np.ndarray:
@@ -407,6 +490,10 @@ def main(argv=None) -> None:
                    help="timed frames per variant, interleaved, after an untimed warm-up of each; medians are "
                         "printed (default 3)")
     p.add_argument("--cost-spp", type=int, default=64, help="samples per pixel of the cost-by-first-hit table")
+    p.add_argument("--depths", type=int, nargs="*", default=None, metavar="D",
+                   help="instead of the tables above, the cost by first hit at each max depth D (default 1 2 3 4 6 8 "
+                        "16 64; roulette from the class's depth), with the hair BSDF and with a diffuse stand-in on "
+                        "the same curves: what in a hair sample costs")
     p.add_argument("--skip-ab", action="store_true",
                    help="leave out the wrapper / plain / none comparison: the cost-by-first-hit table only")
     p.add_argument("--figure", type=Path, default=None,
@@ -459,6 +546,12 @@ def main(argv=None) -> None:
                 bt.table(f"{title}: the strands' primitive, medians of {args.repeats} interleaved frames",
                          ["primitive", "beauty s", "frame CPU s", "CPU / bsplinecurve",
                           "person PSNR: noise, bias against the spline"], rows)
+                continue
+            if args.depths is not None:
+                depths = sorted(set(args.depths or [1, 2, 3, 4, 6, 8, 16, 64]))
+                cols, rows = cost_by_depth(scene, settings, args.cost_spp, depths)
+                bt.table(f"{title}: CPU us per sample by first hit and max depth, {args.cost_spp} spp through "
+                         "render_pixels", ["first hit", "pixels", "strands' BSDF"] + cols, rows)
                 continue
             if not args.skip_ab:
                 bt.table(f"{title}: the strands' BSDF, medians of {args.repeats} interleaved frames",
