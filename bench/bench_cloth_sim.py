@@ -3,12 +3,14 @@ it changes in the cloth, on frames the "auto" cloth mode simulates.
 
     python bench/bench_cloth_sim.py                                    # subject 29's and subject 0's sits
     python bench/bench_cloth_sim.py --cases 35:0 --variants iterations=7 settle_steps=15
+    python bench/bench_cloth_sim.py --cases 9:3 --variants                 # the settings as they are only
 
 In: benchmark subjects of --seed as rh-generate draws them (`sample_recipe(rng_for(seed, "character", s))`), built at
 the `full` drape (the user's drape cache; a cold one drapes first), and their test poses (`sample_pose(rng_for(seed,
 "pose", s, "test", j))`); --cases lists subject:pose. Out: one line per (case, setting), the settings as they are
 first (the reference the others are measured against), then each --variants setting (field=value of
-ClothPoseSettings, one field each):
+ClothPoseSettings, one field each); before them, for scale, the frame's stretch and self-crossings as posed skinned
+(`pose_character` with "skinned": what the "auto" mode weighs):
   wall s / cpu s  `cloth_pose.simulated_parts` (the whole per-frame simulation, the body's motion included; the
                   process's CPU time: Warp runs its CPU kernels on one core);
   steps           the simulation's move + settle steps;
@@ -54,9 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cases", default="29:7,0:2",
                     help="comma-separated subject:test-pose pairs (default 29:7,0:2: two sits 'auto' simulates)")
     ap.add_argument("--seed", type=int, default=0, help="dataset seed the subjects and poses come from")
-    ap.add_argument("--variants", nargs="+", default=list(DEFAULT_VARIANTS),
+    ap.add_argument("--variants", nargs="*", default=list(DEFAULT_VARIANTS),
                     help="ClothPoseSettings fields to change, one per run, as field=value "
-                         f"(default: {' '.join(DEFAULT_VARIANTS)})")
+                         f"(default: {' '.join(DEFAULT_VARIANTS)}; given empty: the settings as they are only)")
     args = ap.parse_args(argv)
     try:
         cases = [tuple(int(x) for x in c.split(":")) for c in args.cases.split(",")]
@@ -70,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(str(e))
 
     from rh_common.body_model import load_anny
-    from rh_dataset.characters import build_character, sample_recipe
+    from rh_dataset.characters import build_character, pose_character, sample_recipe
     from rh_dataset.characters.cloth_pose import (SIMULATED_KINDS, ClothPoseSettings, overstretched, self_crossings,
                                                   simulated_parts)
     from rh_dataset.generate import rng_for
@@ -88,6 +90,12 @@ def main(argv: list[str] | None = None) -> int:
         if not parts:
             print(f"subject {s}: wears no simulated draped part; skipped")
             continue
+        # the same frame skinned (as posed by pose_character: what "auto" weighs), for scale
+        skinned = {m.name: m.vertices for m in pose_character(ch, dict(pose.bones), pose.root_transform, "skinned")
+                   if m.name in {p.name for p in parts}}
+        print(f"subject {s} test {j} ({pose.label}) {'skinned':22s} " + "; ".join(
+            f"{p.name}: stretch {100 * overstretched(p.skinning.bind, skinned[p.name], p.faces):4.1f} %, "
+            f"self {self_crossings(skinned[p.name], p.faces):3d}" for p in parts), flush=True)
         reference = None
         for change in [{}] + variants:
             stats: dict = {}

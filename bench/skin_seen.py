@@ -3,6 +3,7 @@ through the body visibly"; and, per frame, how the "auto" cloth mode posed it.
 
     python bench/skin_seen.py --subjects 14,18 --poses 3 [--size 512] [--views 4] [--tuck-depth M]
                                [--cloth skinned|simulated|auto] [--no-render] [--figure out.png]
+                               [--stretch-by-kind]
 
 In: seed `--seed`'s benchmark subjects (protocol a's test split, built as at the `standard` preset: full drapes) and
 their first `--poses` test poses, posed as `rh-generate` poses them with `--cloth`. Out, per frame: the mode the cloth
@@ -26,7 +27,8 @@ or skin seen through a gap. Blue pixels are skin seen from under the cloth: thro
 (legitimately), or through gaps where the skinned cloth folds through itself. Skin under shell garments is culled by the
 renderer and not counted. `bench_cloth_pose.py`'s `seen_around` says which vertices could be seen (a ray to 8 cameras);
 this says how many pixels are. `--figure`: the posed frame and view with the most green pixels, those ringed in magenta
-and the blue ones in cyan.
+and the blue ones in cyan. `--stretch-by-kind`: every draped kind's stretched share too, summed by kind and pose label,
+and how many frames "auto" would add if it weighed each simulated kind as it weighs skirts and dresses.
 """
 from __future__ import annotations
 
@@ -56,6 +58,7 @@ class PosedFrame(NamedTuple):
     skin_out_skinned: int  # "auto": the skinned count it chose by (else skin_out)
     stretched_skinned: float  # "auto": the skinned share it chose by (else stretched)
     auto: bool  # "auto" chose the mode
+    by_kind: dict = {}  # --stretch-by-kind: each draped part's share of edges past STRETCH_LIMIT, as posed
 
 
 def covered_skin(character) -> dict[str, np.ndarray]:
@@ -237,6 +240,38 @@ def print_by_label(posed: list[PosedFrame]) -> None:
                                                        for r in order))
 
 
+def print_stretch_by_kind(posed: list[PosedFrame]) -> None:
+    """--stretch-by-kind: each draped kind's share of edges stretched past `cloth_pose.STRETCH_LIMIT` as posed, by
+    pose label: frames that wear it, median, most, and frames over `cloth_pose.STRETCHED_ABOVE` (what "auto" would
+    simulate if it weighed that kind); then each kind's five most stretched frames."""
+    from rh_dataset.characters.cloth_pose import STRETCH_KINDS, STRETCHED_ABOVE
+
+    kinds = sorted({k for r in posed for k in r.by_kind})
+    print(f"\n| draped kind (weighed by \"auto\": {', '.join(STRETCH_KINDS)}) | pose label | frames | median % | "
+          f"most % | over {STRETCHED_ABOVE:.0%} |\n|---|---|---:|---:|---:|---:|")
+    for kind in kinds:
+        rows = [r for r in posed if kind in r.by_kind]
+        for label in sorted({r.label for r in rows}) + ["all"]:
+            v = np.array([r.by_kind[kind] for r in rows if label in ("all", r.label)])
+            print(f"| {kind} | {label} | {len(v)} | {100 * np.median(v):.1f} | {100 * v.max():.1f} | "
+                  f"{int(np.sum(v > STRETCHED_ABOVE))} |")
+    # What weighing another kind would add: frames over the threshold in it that "auto" leaves skinned today (the
+    # skinned counts decide, so this needs --cloth skinned or auto), each kind alone and all of them together
+    # stretch too; only kinds the simulation poses (the draped sleeves are always skinned)
+    from rh_dataset.characters.cloth_pose import SIMULATE_ABOVE, SIMULATED_KINDS
+
+    left = [r for r in posed if r.skin_out_skinned <= SIMULATE_ABOVE and r.stretched_skinned <= STRETCHED_ABOVE]
+    others = [k for k in kinds if k not in STRETCH_KINDS and k in SIMULATED_KINDS]
+    print(f"\n\"auto\" simulates {len(posed) - len(left)} of these {len(posed)} posed frames; weighing another "
+          f"simulated kind's stretch too would add: " + ", ".join(
+              f"{k} {sum(r.by_kind.get(k, 0.0) > STRETCHED_ABOVE for r in left)}" for k in others)
+          + f"; all of them {sum(any(r.by_kind.get(k, 0.0) > STRETCHED_ABOVE for k in others) for r in left)}")
+    for kind in kinds:
+        top = sorted((r for r in posed if kind in r.by_kind), key=lambda r: -r.by_kind[kind])[:5]
+        print(f"most stretched {kind}: " + ", ".join(f"subject {r.subject} {r.label} {100 * r.by_kind[kind]:.1f} % "
+                                                    f"({r.mode})" for r in top))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--subjects", required=True, help="comma-separated benchmark subject indices of seed --seed")
@@ -258,6 +293,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--stretch-figure", type=Path, default=None,
                     help="with --cloth auto: PNG of the (up to 3) frames simulated for their skirt's or dress's "
                          "stretch, the most stretched first: front and side, skinned | simulated (preview renders)")
+    ap.add_argument("--stretch-by-kind", action="store_true",
+                    help="also each draped kind's share of edges stretched past 20 %% per frame, summed by kind and "
+                         "pose label at the end (\"auto\" weighs only skirts and dresses)")
     args = ap.parse_args(argv)
     try:
         subjects = [int(s) for s in args.subjects.split(",") if s.strip()]
@@ -274,6 +312,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from rh_dataset.characters import cloth_stretch, pose_character, skin_out_count
     from rh_dataset.characters.cloth_pose import SIMULATED_KINDS, STRETCH_KINDS, STRETCHED_ABOVE, TUCK_DEPTH
+    from rh_dataset.characters.drape import DRAPED_KINDS
 
     tuck = TUCK_DEPTH if args.tuck_depth is None else args.tuck_depth
     source, split = test_source(args.seed)
@@ -325,9 +364,11 @@ def main(argv: list[str] | None = None) -> int:
                     worst = (n_t, s, label, first)
             if bones is not None and stats.get("mode") == "simulated" and decided > STRETCHED_ABOVE:
                 taut.append((decided, s, label, ch, bones, root, meshes))
+            by_kind = ({p.name: cloth_stretch(ch, meshes, (p.name,)) for p in ch.parts
+                        if p.name in DRAPED_KINDS and p.skinning is not None} if args.stretch_by_kind else {})
             if bones is not None:
                 posed.append(PosedFrame(s, label, counts, mode, n_out, t_pose, n_all, stretched,
-                                        stats.get("skin_out", n_out), decided, bool(stats)))
+                                        stats.get("skin_out", n_out), decided, bool(stats), by_kind))
             print(f"{row}  ({time.perf_counter() - t:.1f} s)", flush=True)
     print(f"\nload {load()}")
     if posed:
@@ -336,6 +377,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"posed frames: {sum(v[0] for r in posed for v in r.counts)} pixels of skin through the cloth, "
               f"{sum(v[1] for r in posed for v in r.counts)} of other skin from under it (through openings or folds)")
         print_by_label(posed)
+    if posed and args.stretch_by_kind:
+        print_stretch_by_kind(posed)
     if args.figure is not None and worst is not None:
         from rh_common.colourspace import quantize8, srgb_encode
         from rh_common.imageio import write_png
