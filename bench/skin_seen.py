@@ -240,7 +240,7 @@ def print_by_label(posed: list[PosedFrame]) -> None:
                                                        for r in order))
 
 
-def print_stretch_by_kind(posed: list[PosedFrame]) -> None:
+def print_stretch_by_kind(posed: list[PosedFrame], what_auto_adds: bool = True) -> None:
     """--stretch-by-kind: each draped kind's share of edges stretched past `cloth_pose.STRETCH_LIMIT` as posed, by
     pose label: frames that wear it, median, most, and frames over `cloth_pose.STRETCHED_ABOVE` (what "auto" would
     simulate if it weighed that kind); then each kind's five most stretched frames."""
@@ -255,17 +255,18 @@ def print_stretch_by_kind(posed: list[PosedFrame]) -> None:
             v = np.array([r.by_kind[kind] for r in rows if label in ("all", r.label)])
             print(f"| {kind} | {label} | {len(v)} | {100 * np.median(v):.1f} | {100 * v.max():.1f} | "
                   f"{int(np.sum(v > STRETCHED_ABOVE))} |")
-    # What weighing another kind would add: frames over the threshold in it that "auto" leaves skinned today (the
-    # skinned counts decide, so this needs --cloth skinned or auto), each kind alone and all of them together
-    # stretch too; only kinds the simulation poses (the draped sleeves are always skinned)
+    # What weighing another kind's stretch would add: frames over the threshold in it that "auto" leaves skinned
+    # today, each kind alone and all of them together; only kinds the simulation poses (the draped sleeves are always
+    # skinned). The skinned shares decide, so not with --cloth simulated.
     from rh_dataset.characters.cloth_pose import SIMULATE_ABOVE, SIMULATED_KINDS
 
-    left = [r for r in posed if r.skin_out_skinned <= SIMULATE_ABOVE and r.stretched_skinned <= STRETCHED_ABOVE]
-    others = [k for k in kinds if k not in STRETCH_KINDS and k in SIMULATED_KINDS]
-    print(f"\n\"auto\" simulates {len(posed) - len(left)} of these {len(posed)} posed frames; weighing another "
-          f"simulated kind's stretch too would add: " + ", ".join(
-              f"{k} {sum(r.by_kind.get(k, 0.0) > STRETCHED_ABOVE for r in left)}" for k in others)
-          + f"; all of them {sum(any(r.by_kind.get(k, 0.0) > STRETCHED_ABOVE for k in others) for r in left)}")
+    if what_auto_adds:
+        left = [r for r in posed if r.skin_out_skinned <= SIMULATE_ABOVE and r.stretched_skinned <= STRETCHED_ABOVE]
+        others = [k for k in kinds if k not in STRETCH_KINDS and k in SIMULATED_KINDS]
+        added = [f"{k} {sum(r.by_kind.get(k, 0.0) > STRETCHED_ABOVE for r in left)}" for k in others]
+        n_all = sum(any(r.by_kind.get(k, 0.0) > STRETCHED_ABOVE for k in others) for r in left)
+        print(f"\n\"auto\" simulates {len(posed) - len(left)} of these {len(posed)} posed frames; weighing another "
+              f"simulated kind's stretch too would add: {', '.join(added)}; all of them {n_all}")
     for kind in kinds:
         top = sorted((r for r in posed if kind in r.by_kind), key=lambda r: -r.by_kind[kind])[:5]
         print(f"most stretched {kind}: " + ", ".join(f"subject {r.subject} {r.label} {100 * r.by_kind[kind]:.1f} % "
@@ -292,7 +293,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="PNG of the posed frame and view with the most pixels of skin through the cloth")
     ap.add_argument("--stretch-figure", type=Path, default=None,
                     help="with --cloth auto: PNG of the (up to 3) frames simulated for their skirt's or dress's "
-                         "stretch, the most stretched first: front and side, skinned | simulated (preview renders)")
+                         "stretch, the most stretched first: front and side, skinned | simulated (preview renders); "
+                         "with --cloth simulated: the frames whose simulated kinds, any of them, are stretched over "
+                         "the threshold skinned")
     ap.add_argument("--stretch-by-kind", action="store_true",
                     help="also each draped kind's share of edges stretched past 20 %% per frame, summed by kind and "
                          "pose label at the end (\"auto\" weighs only skirts and dresses)")
@@ -303,8 +306,8 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"--subjects: comma-separated integers, got {args.subjects!r}") from None
     if not subjects or args.poses < 0 or args.size < 16 or args.views < 1:
         raise SystemExit("--subjects: at least one; --poses >= 0, --size >= 16 and --views >= 1")
-    if args.stretch_figure is not None and args.cloth != "auto":
-        raise SystemExit("--stretch-figure: needs --cloth auto (the frames it simulates for the stretch)")
+    if args.stretch_figure is not None and args.cloth == "skinned":
+        raise SystemExit("--stretch-figure: needs --cloth auto or simulated (frames simulated for the stretch)")
     if args.tuck_depth is not None and not (np.isfinite(args.tuck_depth) and args.tuck_depth >= 0):
         raise SystemExit(f"--tuck-depth: metres >= 0, got {args.tuck_depth}")
     sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -364,6 +367,11 @@ def main(argv: list[str] | None = None) -> int:
                     worst = (n_t, s, label, first)
             if bones is not None and stats.get("mode") == "simulated" and decided > STRETCHED_ABOVE:
                 taut.append((decided, s, label, ch, bones, root, meshes))
+            elif bones is not None and args.stretch_figure is not None and args.cloth == "simulated":
+                # every kind the simulation poses, weighed as posed skinned (what "auto" would weigh)
+                share = cloth_stretch(ch, pose_character(ch, bones, root, "skinned"), SIMULATED_KINDS)
+                if share > STRETCHED_ABOVE:
+                    taut.append((share, s, label, ch, bones, root, meshes))
             by_kind = ({p.name: cloth_stretch(ch, meshes, (p.name,)) for p in ch.parts
                         if p.name in DRAPED_KINDS and p.skinning is not None} if args.stretch_by_kind else {})
             if bones is not None:
@@ -378,7 +386,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{sum(v[1] for r in posed for v in r.counts)} of other skin from under it (through openings or folds)")
         print_by_label(posed)
     if posed and args.stretch_by_kind:
-        print_stretch_by_kind(posed)
+        print_stretch_by_kind(posed, what_auto_adds=args.cloth != "simulated")
     if args.figure is not None and worst is not None:
         from rh_common.colourspace import quantize8, srgb_encode
         from rh_common.imageio import write_png
@@ -400,8 +408,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def stretch_figure(path: Path, frames: list[tuple]) -> None:
-    """Rows: the frames "auto" simulated for the stretch ((skinned share, subject, label, character, bones, root,
-    simulated meshes)); columns: front skinned | front simulated | side skinned | side simulated, preview renders
+    """Rows: the frames "auto" simulated for the stretch, or (--cloth simulated) those any simulated kind of which is
+    stretched over the threshold skinned ((skinned share, subject, label, character, bones, root, simulated meshes));
+    columns: front skinned | front simulated | side skinned | side simulated, preview renders
     (`preview.render_preview`, 64 spp, the same seed) in display sRGB."""
     from rh_common.colourspace import quantize8, to_display
     from rh_common.imageio import write_png
