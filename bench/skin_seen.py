@@ -3,7 +3,7 @@ through the body visibly"; and, per frame, how the "auto" cloth mode posed it.
 
     python bench/skin_seen.py --subjects 14,18 --poses 3 [--size 512] [--views 4] [--tuck-depth M]
                                [--cloth skinned|simulated|auto] [--no-render] [--figure out.png]
-                               [--stretch-by-kind]
+                               [--stretch-by-kind] [--stretch-figure out.png [--figure-above S]]
 
 In: seed `--seed`'s benchmark subjects (protocol a's test split, built as at the `standard` preset: full drapes) and
 their first `--poses` test poses, posed as `rh-generate` poses them with `--cloth`. Out, per frame: the mode the cloth
@@ -296,6 +296,9 @@ def main(argv: list[str] | None = None) -> int:
                          "stretch, the most stretched first: front and side, skinned | simulated (preview renders); "
                          "with --cloth simulated: the frames whose simulated kinds, any of them, are stretched over "
                          "the threshold skinned")
+    ap.add_argument("--figure-above", type=float, default=None,
+                    help="--stretch-figure with --cloth simulated: the skinned share over which a frame is drawn "
+                         "(default cloth_pose.STRETCHED_ABOVE, 0.14)")
     ap.add_argument("--stretch-by-kind", action="store_true",
                     help="also each draped kind's share of edges stretched past 20 %% per frame, summed by kind and "
                          "pose label at the end (\"auto\" weighs only skirts and dresses)")
@@ -318,6 +321,10 @@ def main(argv: list[str] | None = None) -> int:
     from rh_dataset.characters.drape import DRAPED_KINDS
 
     tuck = TUCK_DEPTH if args.tuck_depth is None else args.tuck_depth
+    if args.figure_above is None:
+        args.figure_above = STRETCHED_ABOVE
+    elif not 0.0 <= args.figure_above < 1.0:
+        raise SystemExit(f"--figure-above: a share in [0, 1), got {args.figure_above}")
     source, split = test_source(args.seed)
     print(f"{args.size}x{args.size}, {args.views} views, a pixel counted where >= {SHARE:.0%} of its samples saw the "
           f"skin; draped cloth {args.cloth}; skin through the cloth tucked {1e3 * tuck:g} mm under it; load {load()}")
@@ -370,7 +377,7 @@ def main(argv: list[str] | None = None) -> int:
             elif bones is not None and args.stretch_figure is not None and args.cloth == "simulated":
                 # every kind the simulation poses, weighed as posed skinned (what "auto" would weigh)
                 share = cloth_stretch(ch, pose_character(ch, bones, root, "skinned"), SIMULATED_KINDS)
-                if share > STRETCHED_ABOVE:
+                if share > args.figure_above:
                     taut.append((share, s, label, ch, bones, root, meshes))
             by_kind = ({p.name: cloth_stretch(ch, meshes, (p.name,)) for p in ch.parts
                         if p.name in DRAPED_KINDS and p.skinning is not None} if args.stretch_by_kind else {})
