@@ -127,6 +127,26 @@ def ab(scene, settings, repeats: int) -> list[list]:
     return rows
 
 
+def first_hit_groups(s, settings, min_pixels: int = 100) -> tuple[list[tuple[str, np.ndarray]], np.ndarray]:
+    """The person's pixels of the loaded scene `s` (the `standard` frame's focus: the AOV pass's coverage, dilated
+    by FOCUS_MARGIN) grouped by the shape their camera ray hits first, from an `aov` pass of `shape_index` at 1 spp
+    (0 for a miss, shown as "(environment)"; else 1 + the shape's position in scene.shapes(): checked on the scenes
+    here, the hair's pixels sit on the head). Returns [(shape id, flat pixel indices)], groups of fewer than
+    `min_pixels` left out, and all the person's pixels (for shares)."""
+    import mitsuba as mi
+
+    from rh_dataset.render.focus import person_pixels
+    from rh_dataset.render.passes import FOCUS_MARGIN, _AOV_INTEGRATOR
+
+    cov = np.array(mi.render(s, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp, seed=1))[..., 3]
+    pix = person_pixels(np.clip(cov, 0.0, 1.0), FOCUS_MARGIN)
+    first = np.array(mi.render(s, integrator=mi.load_dict({"type": "aov", "aovs": "si:shape_index"}), spp=1,
+                               seed=1))[..., -1].reshape(-1)[pix].astype(int)
+    names = ["(environment)"] + [sh.id() for sh in s.shapes()]
+    groups = [(names[k] if k < len(names) else f"shape {k}", pix[first == k]) for k in np.unique(first)]
+    return [(n, sel) for n, sel in groups if len(sel) >= min_pixels], pix
+
+
 def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
     """CPU microseconds per sample of the person's pixels grouped by the shape their camera ray hits first, and each
     group's share of the frame's noise: the squared display-space difference (sRGB of the exposed radiance, as
@@ -135,8 +155,8 @@ def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
     import mitsuba as mi
 
     from rh_common.colourspace import to_display
-    from rh_dataset.render.focus import person_pixels, render_pixels
-    from rh_dataset.render.passes import FOCUS_MARGIN, _AOV_INTEGRATOR, render_frame
+    from rh_dataset.render.focus import render_pixels
+    from rh_dataset.render.passes import render_frame
     from rh_dataset.render.scene import scene_dict
 
     # The pair first: a live scene below would make render_frame's own load compile its kernels again.
@@ -150,25 +170,16 @@ def cost_by_first_hit(scene, settings, spp: int) -> list[list]:
                                  **({"rr_depth": settings.rr_depth} if settings.rr_depth else {})},
                                 settings.spp, pixel_format="rgba", sampler=settings.sampler))
     try:
-        cov = np.array(mi.render(s, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp, seed=1))[..., 3]
-        pix = person_pixels(np.clip(cov, 0.0, 1.0), FOCUS_MARGIN)
-        # shape_index is 0 for a miss and 1 + the shape's position in scene.shapes() for a hit (checked on the
-        # scenes here: the hair's pixels sit on the head)
-        first = np.array(mi.render(s, integrator=mi.load_dict({"type": "aov", "aovs": "si:shape_index"}), spp=1,
-                                   seed=1))[..., -1].reshape(-1)[pix].astype(int)
-        names = ["(environment)"] + [sh.id() for sh in s.shapes()]
+        groups, pix = first_hit_groups(s, settings)
         rows, total, all_noise = [], 0.0, noise[pix].sum()
-        for k in np.unique(first):
-            sel = pix[first == k]
-            if len(sel) < 100:
-                continue
+        for name, sel in groups:
             render_pixels(mi, s, sel, spp, 1)  # warm-up (and the kernel, once)
             c = time.process_time()
             render_pixels(mi, s, sel, spp, 2)
             c = time.process_time() - c
             total += c
-            rows.append([names[k] if k < len(names) else f"shape {k}", len(sel), len(sel) / len(pix),
-                         1e6 * c / (len(sel) * spp), c, noise[sel].sum() / all_noise])
+            rows.append([name, len(sel), len(sel) / len(pix), 1e6 * c / (len(sel) * spp), c,
+                         noise[sel].sum() / all_noise])
         return [row[:4] + [row[4] / total, row[5]] for row in rows]  # CPU seconds -> share of the pass's
     finally:
         s = None
@@ -190,8 +201,7 @@ def cost_by_depth(scene, settings, spp: int, depths: list[int]) -> tuple[list[st
     import mitsuba as mi
 
     from rh_dataset.characters import strand_shape
-    from rh_dataset.render.focus import person_pixels, render_pixels
-    from rh_dataset.render.passes import FOCUS_MARGIN, _AOV_INTEGRATOR
+    from rh_dataset.render.focus import render_pixels
     from rh_dataset.render.scene import scene_dict
 
     def load(depth: int, stand_in: bool):
@@ -207,14 +217,8 @@ def cost_by_depth(scene, settings, spp: int, depths: list[int]) -> tuple[list[st
             strand_shape.mitsuba_curves = orig
 
     s = load(settings.max_depth, False)
-    cov = np.array(mi.render(s, integrator=mi.load_dict(_AOV_INTEGRATOR), spp=settings.aov_spp, seed=1))[..., 3]
-    pix = person_pixels(np.clip(cov, 0.0, 1.0), FOCUS_MARGIN)
-    first = np.array(mi.render(s, integrator=mi.load_dict({"type": "aov", "aovs": "si:shape_index"}), spp=1,
-                               seed=1))[..., -1].reshape(-1)[pix].astype(int)
-    names = ["(environment)"] + [sh.id() for sh in s.shapes()]
+    groups = first_hit_groups(s, settings)[0]
     s = None
-    groups = [(names[k] if k < len(names) else f"shape {k}", pix[first == k]) for k in np.unique(first)]
-    groups = [(n, sel) for n, sel in groups if len(sel) >= 100]
     us: dict[tuple[str, bool, int], float] = {}
     for stand_in in (False, True):
         for depth in depths:
