@@ -244,7 +244,7 @@ def print_stretch_by_kind(posed: list[PosedFrame], what_auto_adds: bool = True) 
     """--stretch-by-kind: each draped kind's share of edges stretched past `cloth_pose.STRETCH_LIMIT` as posed, by
     pose label: frames that wear it, median, most, and frames over `cloth_pose.STRETCHED_ABOVE` (what "auto" would
     simulate if it weighed that kind); then each kind's five most stretched frames."""
-    from rh_dataset.characters.cloth_pose import STRETCH_KINDS, STRETCHED_ABOVE
+    from rh_dataset.characters.cloth_pose import SIMULATE_ABOVE, SIMULATED_KINDS, STRETCH_KINDS, STRETCHED_ABOVE
 
     kinds = sorted({k for r in posed for k in r.by_kind})
     print(f"\n| draped kind (weighed by \"auto\": {', '.join(STRETCH_KINDS)}) | pose label | frames | median % | "
@@ -258,8 +258,6 @@ def print_stretch_by_kind(posed: list[PosedFrame], what_auto_adds: bool = True) 
     # What weighing another kind's stretch would add: frames over the threshold in it that "auto" leaves skinned
     # today, each kind alone and all of them together; only kinds the simulation poses (the draped sleeves are always
     # skinned). The skinned shares decide, so not with --cloth simulated.
-    from rh_dataset.characters.cloth_pose import SIMULATE_ABOVE, SIMULATED_KINDS
-
     if what_auto_adds:
         left = [r for r in posed if r.skin_out_skinned <= SIMULATE_ABOVE and r.stretched_skinned <= STRETCHED_ABOVE]
         others = [k for k in kinds if k not in STRETCH_KINDS and k in SIMULATED_KINDS]
